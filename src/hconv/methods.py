@@ -1,0 +1,197 @@
+"""The conversion methods, each a small vectorised function registered with its metadata.
+
+Every method maps tensors ``I`` (:class:`~hconv.inertia.Sym3` of ``(N,)`` columns, kg·m²),
+momenta ``H`` of shape ``(N, 3)`` [kg·m²/s] and, where it needs one, the offset ``r`` of shape
+``(N, 3)`` [m] to ``(w, flags)``: ``w`` of shape ``(N, 3)`` in the method's unit, and a dict of
+boolean ``(N,)`` masks for the statuses that only the method itself can see.
+All arrays share one dtype, which sets the working precision.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Optional
+
+import numpy as np
+
+from hconv import linsolve
+from hconv.inertia import Sym3, principal_axes
+from hconv.status import REPEATED_RTOL, R_AXIS_RTOL, singular_rtol
+
+Kernel = Callable[[Sym3, np.ndarray, Optional[np.ndarray]], "tuple[np.ndarray, dict[str, np.ndarray]]"]
+
+RAD_S = "rad/s"
+M2_S = "m^2/s"  # what the seed document's algebra yields: (m² / kg·m²) · kg·m²/s
+
+
+@dataclass(frozen=True)
+class Method:
+    """A registered method and what a user needs to know before trusting it."""
+
+    name: str
+    kernel: Kernel
+    unit: str
+    exact: bool  #: True when the method computes I⁻¹H (up to rounding)
+    needs_r: bool
+    summary: str
+    cost: str
+    fails: str
+    #: statuses for which no answer of this method exists: its ω is NaN on those rows
+    nan_on: frozenset = frozenset({"invalid_input", "not_symmetric", "singular"})
+
+
+METHODS: dict[str, Method] = {}
+
+
+def register(name: str, *, unit: str, exact: bool, summary: str, cost: str, fails: str,
+             needs_r: bool = False, nan_on: Optional[set] = None):
+    def deco(kernel: Kernel) -> Kernel:
+        kw = {} if nan_on is None else {"nan_on": frozenset(nan_on)}
+        METHODS[name] = Method(name, kernel, unit, exact, needs_r, summary, cost, fails, **kw)
+        return kernel
+
+    return deco
+
+
+def get(name: str) -> Method:
+    """The method called ``name``; ValueError naming the choices otherwise."""
+    try:
+        return METHODS[name]
+    except KeyError:
+        raise ValueError(f"unknown method {name!r}; choose one of: {', '.join(METHODS)}") from None
+
+
+@register(
+    "exact", unit=RAD_S, exact=True,
+    summary="ω = I⁻¹H by LDLᵀ unrolled over column arrays",
+    cost="~30 flops/row; the fastest LAPACK-accurate solver",
+    fails="singular I (ω = NaN); error grows as cond(I)·eps, like LAPACK's",
+)
+def _exact(I, H, r):
+    fac = linsolve.ldlt_factor(I)
+    w = linsolve.ldlt_solve(fac, H)
+    # LDLᵀ without pivoting is only stable for positive definite I; the rest go to LU.
+    other = ~fac.positive()
+    if other.any():
+        w[other] = linsolve.lapack_solve(I.take(other), H[other])
+    return w, {}
+
+
+@register(
+    "lapack", unit=RAD_S, exact=True,
+    summary="ω = I⁻¹H by numpy.linalg.solve on the (N,3,3) stack",
+    cost="LU with pivoting per row; the reference most users write",
+    fails="singular I (ω = NaN)",
+)
+def _lapack(I, H, r):
+    return linsolve.lapack_solve(I, H), {}
+
+
+@register(
+    "cholesky", unit=RAD_S, exact=True,
+    summary="ω = I⁻¹H by Cholesky LLᵀ unrolled over column arrays",
+    cost="~35 flops + 3 square roots per row",
+    fails="I not positive definite or singular (ω = NaN)",
+    nan_on={"invalid_input", "not_symmetric", "singular", "not_positive_definite"},
+)
+def _cholesky(I, H, r):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        l11 = np.sqrt(I.xx)
+        l21, l31 = I.xy / l11, I.xz / l11
+        l22 = np.sqrt(I.yy - l21 * l21)
+        l32 = (I.yz - l31 * l21) / l22
+        l33 = np.sqrt(I.zz - l31 * l31 - l32 * l32)
+        y1 = H[:, 0] / l11
+        y2 = (H[:, 1] - l21 * y1) / l22
+        y3 = (H[:, 2] - l31 * y1 - l32 * y2) / l33
+        x3 = y3 / l33
+        x2 = (y2 - l32 * x3) / l22
+        x1 = (y1 - l21 * x2 - l31 * x3) / l11
+    w = np.stack([x1, x2, x3], axis=1)
+    return w, {"not_positive_definite": ~np.isfinite(l33) | (l33 == 0)}
+
+
+def _pinv_moments(S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """1/S with moments at or below the singular threshold set to 0 (pseudo-inverse); mask of those rows."""
+    tol = singular_rtol(S.dtype) * np.max(np.abs(S), axis=1, keepdims=True)
+    zero = np.abs(S) <= tol
+    with np.errstate(divide="ignore"):
+        inv = np.where(zero, 0.0, 1.0 / np.where(zero, 1.0, S))
+    return inv.astype(S.dtype), zero.any(axis=1)
+
+
+def _to_principal(R: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rᵀ·v per row: a ``(N, 3)`` vector expressed in the principal frame."""
+    return np.einsum("nji,nj->ni", R, v)
+
+
+def _from_principal(R: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """R·v per row: back from the principal frame, shape ``(N, 3)``."""
+    return np.einsum("nij,nj->ni", R, v)
+
+
+@register(
+    "eigen", unit=RAD_S, exact=True,
+    summary="ω = R·diag(1/S)·Rᵀ·H through the principal axes (numpy.linalg.eigh)",
+    cost="a 3×3 eigendecomposition per row; slowest of the exact family",
+    fails="zero principal moments (rod, point mass): pseudo-inverse answer, status singular",
+    nan_on={"invalid_input", "not_symmetric"},
+)
+def _eigen(I, H, r):
+    S, R = principal_axes(I)
+    inv, zeroed = _pinv_moments(S)
+    return _from_principal(R, inv * _to_principal(R, H)), {"singular": zeroed}
+
+
+@register(
+    "diagonal", unit=RAD_S, exact=False,
+    summary="ω_i = H_i / I_ii: the shortcut that ignores the products of inertia",
+    cost="3 divisions per row",
+    fails="exact only when I is diagonal in the given axes; I_ii = 0 gives NaN",
+    nan_on={"invalid_input", "not_symmetric"},
+)
+def _diagonal(I, H, r):
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w = H / np.stack([I.xx, I.yy, I.zz], axis=1)
+    return w, {}
+
+
+def _seed_formula(moments: np.ndarray, H: np.ndarray, r: np.ndarray):
+    """The seed's per-axis formula ω_i = (r_j² + r_k²) / I_i · H_i, all ``(N, 3)``; result in m²/s.
+
+    The seed writes the factor as |r - (r·x̂)x̂|² = |r|² - r_i²; the sum of the other two squares is
+    the same number without the cancellation.
+    """
+    sq = r * r
+    perp = np.stack([sq[:, 1] + sq[:, 2], sq[:, 0] + sq[:, 2], sq[:, 0] + sq[:, 1]], axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w = perp / moments * H
+    on_axis = np.any(perp <= R_AXIS_RTOL * np.sum(sq, axis=1, keepdims=True), axis=1)
+    return w, on_axis
+
+
+@register(
+    "document", unit=M2_S, exact=False, needs_r=True,
+    summary="the seed's Version 1: ω_i = (|r|² - r_i²) / I_ii · H_i in the given axes",
+    cost="~12 flops per row",
+    fails="not I⁻¹H and not in rad/s; r on an axis forces a component to 0 (status r_on_axis)",
+    nan_on={"invalid_input", "not_symmetric"},
+)
+def _document(I, H, r):
+    w, on_axis = _seed_formula(np.stack([I.xx, I.yy, I.zz], axis=1), H, r)
+    return w, {"r_on_axis": on_axis}
+
+
+@register(
+    "document-principal", unit=M2_S, exact=False, needs_r=True,
+    summary="the seed's Version 2: Version 1 in I's principal frame, then rotated back",
+    cost="a 3×3 eigendecomposition per row",
+    fails="not I⁻¹H and not in rad/s; repeated moments make the answer depend on an arbitrary "
+          "choice of axes (status frame_ambiguous); r on a principal axis (status r_on_axis)",
+    nan_on={"invalid_input", "not_symmetric"},
+)
+def _document_principal(I, H, r):
+    S, R = principal_axes(I)
+    w_p, on_axis = _seed_formula(S, _to_principal(R, H), _to_principal(R, r))
+    gap = np.minimum(S[:, 1] - S[:, 0], S[:, 2] - S[:, 1])
+    repeated = gap <= REPEATED_RTOL * np.max(np.abs(S), axis=1)
+    return _from_principal(R, w_p), {"frame_ambiguous": repeated, "r_on_axis": on_axis}
