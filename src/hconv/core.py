@@ -86,7 +86,7 @@ def convert(H, I, r=None, *, method: str = "exact", precision: int = 64,
         if r.shape != (n, 3):
             raise ValueError(f"Expected r to have shape {(3,) if single else (n, 3)}, got {r.shape[1:] if single else r.shape}")
     elif m.needs_r:
-        raise ValueError(f"method {method!r} needs the offset r [m] of shape (N, 3); pass r=...")
+        raise ValueError(f"method {method!r} needs the offset r [m]; pass r=...")
     Isym, asym = sym_from_array(I)
 
     dtype = DTYPES[precision]

@@ -1,0 +1,3 @@
+from hconv.cli import main
+
+main()

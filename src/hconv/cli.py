@@ -1,0 +1,162 @@
+"""The ``hconv`` command: thin commands over the library.
+
+``one`` imports neither pyarrow nor rich, so that a quick check starts about as fast as numpy.
+Errors print one line, ``hconv: error: ...``, and exit with the codes in :mod:`hconv.errors`.
+"""
+from __future__ import annotations
+
+import functools
+import json
+import math
+import os
+import signal
+import sys
+from enum import Enum
+from typing import Optional
+
+import typer
+
+from hconv.errors import HconvError, UsageError
+from hconv.methods import METHODS
+
+app = typer.Typer(
+    add_completion=False,
+    pretty_exceptions_enable=False,
+    no_args_is_help=True,
+    help="Angular momentum H [kg·m²/s] to angular velocity ω, with the residual against I⁻¹H for every row.",
+)
+
+MethodName = Enum("MethodName", {name: name for name in METHODS}, type=str)
+Fmt = Enum("Fmt", {"csv": "csv", "parquet": "parquet"}, type=str)
+
+
+def _fail(msg: str, code: int) -> None:
+    print(f"hconv: error: {msg}", file=sys.stderr)
+    raise typer.Exit(code)
+
+
+def friendly(fn):
+    """Turn hconv's errors, interrupts and surprises into one line and an exit code, never a traceback."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        try:
+            return fn(*args, **kwargs)
+        except HconvError as exc:
+            _fail(str(exc), exc.exit_code)
+        except KeyboardInterrupt:
+            _fail("interrupted; no output was written", 130)
+        except OSError as exc:
+            _fail(f"{exc.filename or 'output'}: {exc.strerror or exc}; nothing was written", 4)
+        except (typer.Exit, typer.Abort):
+            raise
+        except Exception as exc:  # noqa: BLE001 - the promise is: no traceback
+            if os.environ.get("HCONV_DEBUG"):
+                raise
+            _fail(f"internal error: {type(exc).__name__}: {exc} (set HCONV_DEBUG=1 for the traceback, and please report it)", 1)
+
+    return wrapper
+
+
+def _numbers(option: str, text: str, allowed: tuple[int, ...]) -> list[float]:
+    try:
+        values = [float(v) for v in text.replace(" ", "").split(",") if v != ""]
+    except ValueError:
+        raise UsageError(f"{option} takes comma-separated numbers, got {text!r}") from None
+    if len(values) not in allowed:
+        counts = ", ".join(str(k) for k in allowed[:-1]) + (" or " if len(allowed) > 1 else "") + str(allowed[-1])
+        raise UsageError(f"{option} takes {counts} comma-separated numbers, got {len(values)} in {text!r}")
+    return values
+
+
+def _precision(value: int) -> int:
+    if value not in (64, 32):
+        raise typer.BadParameter("must be 64 or 32")
+    return value
+
+
+@app.command()
+@friendly
+def one(
+    H: str = typer.Option(..., "--H", help="Hx,Hy,Hz [kg·m²/s]"),
+    I: str = typer.Option(..., "--I", help="3 (diagonal), 6 (Ixx,Iyy,Izz,Ixy,Ixz,Iyz) or 9 (row-major) values [kg·m²]"),
+    r: Optional[str] = typer.Option(None, "--r", help="rx,ry,rz [m]; needed by the document methods"),
+    method: MethodName = typer.Option("exact", "--method", "-m", help="see `hconv methods`"),
+    precision: int = typer.Option(64, "--precision", callback=_precision, help="64 or 32"),
+    as_json: bool = typer.Option(False, "--json", help="print one JSON object"),
+) -> None:
+    """Convert one body state and print ω with its unit, the residual, cond and the status."""
+    import numpy as np
+
+    from hconv.core import convert
+
+    h = _numbers("--H", H, (3,))
+    i = _numbers("--I", I, (3, 6, 9))
+    rr = None if r is None else _numbers("--r", r, (3,))
+    inertia = np.reshape(i, (3, 3)) if len(i) == 9 else np.asarray(i)
+    try:
+        res = convert(h, inertia, rr, method=method.value, precision=precision)
+    except ValueError as exc:
+        raise UsageError(str(exc).replace("pass r=...", "pass --r rx,ry,rz")) from None
+    w = [float(x) for x in res.w]
+    if as_json:
+        clean = lambda x: None if math.isnan(x) else x  # noqa: E731 - JSON has no NaN
+        print(json.dumps({"w": [clean(x) for x in w], "unit": res.unit, "residual": clean(float(res.residual)),
+                          "cond": clean(float(res.cond)) if math.isfinite(res.cond) or math.isnan(res.cond) else str(res.cond),
+                          "status": res.status, "method": res.method}))
+        return
+    print(f"w        = [{', '.join(repr(x) for x in w)}] {res.unit}")
+    print(f"residual = {float(res.residual):.3g}  (|w - I⁻¹H| / |I⁻¹H|)")
+    print(f"cond     = {float(res.cond):.3g}")
+    print(f"status   = {res.status}")
+    print(f"method   = {res.method}")
+    if res.unit != "rad/s":
+        print(f"note: {res.unit} is not a unit of angular velocity; see 'The seed's three questions' in the README")
+
+
+@app.command("convert")
+@friendly
+def convert_cmd(
+    src: str = typer.Argument(..., metavar="IN", help="input .csv or .parquet, or - for stdin"),
+    dst: str = typer.Argument(..., metavar="OUT", help="output .csv or .parquet, or - for stdout"),
+    method: MethodName = typer.Option("exact", "--method", "-m", help="see `hconv methods`"),
+    precision: int = typer.Option(64, "--precision", callback=_precision, help="64 or 32: the dtype the method computes in"),
+    from_: Optional[Fmt] = typer.Option(None, "--from", help="input format; needed when IN is -"),
+    to: Optional[Fmt] = typer.Option(None, "--to", help="output format; needed when OUT is -"),
+    force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="no summary on stderr"),
+) -> None:
+    """Convert every row of a CSV or Parquet table; OUT gets the input columns, ω and diagnostics."""
+    from hconv import pipeline, report
+
+    kwargs = dict(method=method.value, precision=precision, src_format=from_ and from_.value,
+                  dst_format=to and to.value, force=force)
+    if sys.stderr.isatty() and dst != "-" and not quiet:
+        with report.ProgressBar(f"converting {src}") as bar:
+            tally = pipeline.convert_file(src, dst, progress=bar, **kwargs)
+    else:
+        tally = pipeline.convert_file(src, dst, **kwargs)
+    if not quiet:
+        report.summary(tally)
+
+
+@app.command("methods")
+@friendly
+def methods_cmd(as_json: bool = typer.Option(False, "--json", help="print a JSON list")) -> None:
+    """List the methods: the unit of each result, whether it is exact, its cost and when it fails."""
+    if as_json:
+        print(json.dumps([{"name": m.name, "unit": m.unit, "exact": m.exact, "needs_r": m.needs_r,
+                           "summary": m.summary, "cost": m.cost, "fails": m.fails} for m in METHODS.values()], indent=1))
+        return
+    from hconv import report
+
+    report.methods_table()
+
+
+def _sigterm(signum, frame):  # let the atomic writer clean up as for Ctrl-C
+    raise KeyboardInterrupt
+
+
+def main() -> None:
+    signal.signal(signal.SIGTERM, _sigterm)
+    app()

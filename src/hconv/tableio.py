@@ -1,0 +1,318 @@
+"""Tables in and out, batch by batch: CSV and Parquet, files or stdin/stdout ("-").
+
+Reading never holds more than a batch in memory (stdin is first spooled to a temporary file,
+since Parquet needs to seek). Writing goes to a temporary file next to the output and is renamed
+into place only when the whole run succeeded, so a failed or interrupted run leaves no partial
+output. With "-" as output the finished file is then copied to stdout.
+
+In CSV, the extra columns are read as text so that they come out exactly as they went in, and
+ω's unit goes into a column ``w_unit``; in Parquet it is the ``unit`` metadata of wx, wy, wz.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import os
+import re
+import shutil
+import sys
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Iterator, Optional
+
+import pyarrow as pa
+import pyarrow.csv as pacsv
+import pyarrow.parquet as pq
+
+from hconv.arrow import check_schema, numeric_columns, required_columns
+from hconv.errors import InputError, OutputError, UsageError
+
+EXTENSIONS = {".csv": "csv", ".parquet": "parquet", ".pq": "parquet"}
+CSV_BLOCK_BYTES = 4 << 20
+PARQUET_BATCH_ROWS = 65536
+UNIT_COLUMN = "w_unit"
+
+
+def format_of(path: str, given: Optional[str], flag: str) -> str:
+    """``given`` if set, else the format named by ``path``'s extension; UsageError otherwise."""
+    if given:
+        if given not in ("csv", "parquet"):
+            raise UsageError(f"{flag} must be csv or parquet, got {given!r}")
+        return given
+    if path == "-":
+        raise UsageError(f"'-' has no extension to tell the format; pass {flag} csv or {flag} parquet")
+    fmt = EXTENSIONS.get(Path(path).suffix.lower())
+    if fmt is None:
+        raise UsageError(f"cannot tell the format of {path!r} from its extension; "
+                         f"name it .csv or .parquet, or pass {flag} csv|parquet")
+    return fmt
+
+
+@dataclass
+class Input:
+    """An open input: its schema, its batches, and how far reading has got (for progress)."""
+
+    name: str
+    schema: pa.Schema
+    batches: Iterator[pa.RecordBatch]
+    total: Optional[int]  #: rows (Parquet) or bytes (CSV); None if unknown
+    position: Callable[[], int]  #: rows or bytes read so far
+    _closers: list = field(default_factory=list)
+
+    def close(self) -> None:
+        for c in reversed(self._closers):
+            c()
+        self._closers.clear()
+
+    def __enter__(self) -> "Input":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def open_input(path: str, fmt: str, method: str) -> Input:
+    """Open ``path`` ("-" for stdin) as ``fmt`` for ``method``; InputError with a fix if it can't be."""
+    closers = []
+    name = path
+    if path == "-":
+        name = "stdin"
+        if sys.stdin is None or sys.stdin.isatty():
+            raise UsageError("input is '-' but stdin is a terminal; pipe a file in, e.g. `cat in.csv | hconv convert - out.csv --from csv`")
+        spool = tempfile.NamedTemporaryFile(prefix="hconv-stdin-", delete=False)
+        closers.append(lambda: os.unlink(spool.name))
+        with spool:
+            shutil.copyfileobj(sys.stdin.buffer, spool, 1 << 20)
+        path = spool.name
+    try:
+        if fmt == "csv":
+            inp = _open_csv(path, name, method)
+        else:
+            inp = _open_parquet(path, name, method)
+    except BaseException:
+        for c in closers:
+            c()
+        raise
+    inp._closers[:0] = closers
+    return inp
+
+
+def _oserror(name: str, exc: OSError) -> InputError:
+    return InputError(f"{name}: cannot read it ({exc.strerror or exc}); check the path and its permissions")
+
+
+def _first_line(exc: Exception) -> str:
+    return str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+
+
+def _open_csv(path: str, name: str, method: str) -> Input:
+    if os.path.isdir(path):
+        raise InputError(f"{name}: is a directory, not a CSV file")
+    ropts = pacsv.ReadOptions(block_size=CSV_BLOCK_BYTES)
+    try:
+        with pacsv.open_csv(path, read_options=ropts) as probe:
+            names = probe.schema.names
+    except OSError as exc:
+        if isinstance(exc, pa.ArrowInvalid):
+            if "Empty CSV file" in str(exc):
+                raise InputError(f"{name}: the file is empty; a CSV needs a header line naming the columns "
+                                 f"{', '.join(required_columns(method))}") from None
+            raise InputError(f"{name}: not a readable CSV file ({_first_line(exc)})") from None
+        raise _oserror(name, exc) from None
+    check_schema(pa.schema([(n, pa.float64()) for n in names]), method, name)
+    nums = set(numeric_columns(pa.schema([(n, pa.null()) for n in names]), method))
+    types = {n: (pa.float64() if n in nums else pa.string()) for n in names}
+    copts = pacsv.ConvertOptions(column_types=types, strings_can_be_null=False)
+    f = open(path, "rb")
+    try:
+        reader = pacsv.open_csv(f, read_options=ropts, convert_options=copts)
+    except BaseException:
+        f.close()
+        raise
+    total = os.fstat(f.fileno()).st_size
+
+    def batches():
+        while True:
+            try:
+                batch = reader.read_next_batch()
+            except StopIteration:
+                return
+            except pa.ArrowInvalid as exc:
+                raise _csv_value_error(path, name, names, ropts, exc) from None
+            yield batch
+
+    return Input(name, reader.schema, batches(), total, f.tell, [f.close])
+
+
+_CSV_COLUMN = re.compile(r"In CSV column #(\d+): CSV conversion error to \w+: invalid value '(.*)'")
+
+
+def _csv_value_error(path: str, name: str, names: list, ropts, exc: Exception) -> InputError:
+    """Turn pyarrow's conversion error into one naming the column, the value and its row."""
+    m = _CSV_COLUMN.search(str(exc))
+    if not m:
+        return InputError(f"{name}: not a readable CSV file ({_first_line(exc)})")
+    col, value = names[int(m.group(1))], m.group(2)
+    where = ""
+    try:  # a second pass, on the error path only, to find the row
+        copts = pacsv.ConvertOptions(column_types={col: pa.string()}, include_columns=[col], strings_can_be_null=False)
+        nulls = set(copts.null_values)
+        seen = 0
+        for batch in pacsv.open_csv(path, read_options=ropts, convert_options=copts):
+            for k, v in enumerate(batch.column(0).to_pylist()):
+                if v not in nulls:
+                    try:
+                        float(v)
+                    except ValueError:
+                        where = f" in data row {seen + k + 1}"
+                        raise StopIteration
+            seen += batch.num_rows
+    except (StopIteration, pa.ArrowException):
+        pass
+    return InputError(f"{name}: column {col!r} must be numeric but holds {value!r}{where}; "
+                      "fix or blank that value (a blank becomes a row with status invalid_input)")
+
+
+def _open_parquet(path: str, name: str, method: str) -> Input:
+    if os.path.isdir(path):
+        raise InputError(f"{name}: is a directory, not a Parquet file")
+    try:
+        if os.path.getsize(path) == 0:
+            raise InputError(f"{name}: the file is empty (0 bytes); it is not a Parquet file")
+        pf = pq.ParquetFile(path)
+    except pa.ArrowException as exc:
+        raise InputError(f"{name}: not a readable Parquet file ({_first_line(exc)}); "
+                         "check that it is Parquet and was completely written") from None
+    except OSError as exc:
+        raise _oserror(name, exc) from None
+    schema = pf.schema_arrow
+    check_schema(schema, method, name)
+    done = [0]
+
+    def batches():
+        try:
+            for batch in pf.iter_batches(batch_size=PARQUET_BATCH_ROWS):
+                done[0] += batch.num_rows
+                yield batch
+        except pa.ArrowException as exc:
+            raise InputError(f"{name}: not a readable Parquet file ({_first_line(exc)}); "
+                             "check that it was completely written") from None
+
+    return Input(name, schema, batches(), pf.metadata.num_rows, lambda: done[0], [pf.close])
+
+
+class Output:
+    """Atomic output: batches go to a temporary file, renamed over ``path`` on success only.
+
+    Use as a context manager; on any exception (KeyboardInterrupt included) the temporary file
+    is removed and ``path`` is left as it was.
+    """
+
+    def __init__(self, path: str, fmt: str, *, force: bool = False, input_path: Optional[str] = None):
+        self.path, self.fmt = path, fmt
+        self._writer = None
+        self._tmp: Optional[str] = None
+        if path == "-":
+            return
+        target = Path(path)
+        if target.is_dir():
+            raise OutputError(f"{path}: is a directory; give a file name for the output")
+        if not target.parent.exists():
+            raise OutputError(f"{path}: the directory {str(target.parent)!r} does not exist; create it first")
+        if input_path not in (None, "-") and target.exists() and os.path.samefile(input_path, target):
+            raise OutputError(f"{path}: is the input file; write the output to another path")
+        if target.exists() and not force:
+            raise OutputError(f"{path}: already exists; pass --force to overwrite it")
+
+    def __enter__(self) -> "Output":
+        if self.path == "-":
+            fd, self._tmp = tempfile.mkstemp(prefix="hconv-stdout-")
+        else:
+            target = Path(self.path)
+            try:
+                fd, self._tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".hconv-tmp", dir=target.parent)
+            except OSError as exc:
+                raise OutputError(f"{self.path}: cannot write in {str(target.parent)!r} ({exc.strerror}); "
+                                  "check its permissions") from None
+        os.close(fd)
+        if self.path != "-":  # mkstemp makes the file 0600; the output should get the usual permissions
+            umask = os.umask(0)
+            os.umask(umask)
+            os.chmod(self._tmp, 0o666 & ~umask)
+        return self
+
+    def write(self, table: pa.Table) -> None:
+        """Append a converted table; the first call fixes the output schema."""
+        if self._writer is None:
+            self._writer = (_CsvWriter if self.fmt == "csv" else _ParquetWriter)(self._tmp, table.schema)
+        self._writer.write(table)
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        try:
+            if self._writer is not None:
+                self._writer.close()
+            if exc_type is None:
+                self._commit()
+        except OSError as err:
+            if exc_type is None:
+                raise OutputError(f"{self.path}: could not be written ({err.strerror or err}); nothing was written") from None
+        finally:
+            if self._tmp and os.path.exists(self._tmp):
+                os.unlink(self._tmp)
+
+    def _commit(self) -> None:
+        if self.path == "-":
+            with open(self._tmp, "rb") as f:
+                try:
+                    shutil.copyfileobj(f, sys.stdout.buffer, 1 << 20)
+                    sys.stdout.buffer.flush()
+                except BrokenPipeError:  # the reader stopped early (e.g. `| head`): not our failure
+                    devnull = os.open(os.devnull, os.O_WRONLY)
+                    os.dup2(devnull, sys.stdout.fileno())
+        else:
+            os.replace(self._tmp, self.path)
+            self._tmp = None
+
+
+class _ParquetWriter:
+    def __init__(self, path: str, schema: pa.Schema):
+        # Dictionary encoding pays for labels and statuses, and costs time on floats that rarely repeat.
+        dict_cols = [f.name for f in schema if not pa.types.is_floating(f.type)]
+        self._w = pq.ParquetWriter(path, schema, use_dictionary=dict_cols or False)
+
+    def write(self, table: pa.Table) -> None:
+        self._w.write_table(table)
+
+    def close(self) -> None:
+        self._w.close()
+
+
+class _CsvWriter:
+    """CSV with a minimal-quoting header, ``status`` as text and ω's unit in a ``w_unit`` column."""
+
+    def __init__(self, path: str, schema: pa.Schema):
+        self._f = open(path, "wb")
+        unit = (schema.field("wx").metadata or {}).get(b"unit", b"").decode()
+        self._unit = unit
+        names = schema.names + [UNIT_COLUMN]
+        buf = io.StringIO()
+        csv.writer(buf, lineterminator="\n").writerow(names)
+        self._f.write(buf.getvalue().encode())
+        self._plain = pacsv.WriteOptions(include_header=False, quoting_style="none")
+        self._quoted = pacsv.WriteOptions(include_header=False)
+
+    def write(self, table: pa.Table) -> None:
+        cols = [c.cast(pa.string()) if pa.types.is_dictionary(c.type) else c for c in table.columns]
+        cols.append(pa.repeat(self._unit, table.num_rows))
+        t = pa.Table.from_arrays(cols, names=table.schema.names + [UNIT_COLUMN])
+        buf = pa.BufferOutputStream()
+        try:
+            pacsv.write_csv(t, buf, self._plain)
+        except pa.ArrowInvalid:  # a value holds a comma, quote or newline: quote this batch's strings
+            buf = pa.BufferOutputStream()
+            pacsv.write_csv(t, buf, self._quoted)
+        self._f.write(buf.getvalue())
+
+    def close(self) -> None:
+        self._f.close()
