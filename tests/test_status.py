@@ -1,0 +1,160 @@
+"""Every status, its precedence, and what each method answers on a flagged row."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import hconv
+from hconv.methods import _seed_formula
+from conftest import mp_solve
+
+GOOD_I = [2.0, 3.0, 4.0, 0.1, 0.0, 0.0]
+ROD_I = [0.0, 2.0, 2.0, 0.0, 0.0, 0.0]  # a thin rod along x: one zero principal moment
+
+
+@pytest.mark.parametrize("method", list(hconv.METHODS))
+@pytest.mark.parametrize("where", ["H", "I", "r"])
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_status_invalid_input_on_nan_or_inf(method, where, bad):
+    H, I, r = [1.0, 2.0, 3.0], list(GOOD_I), [0.1, 0.2, 0.3]
+    {"H": H, "I": I, "r": r}[where][1] = bad
+    res = hconv.convert(H, I, r, method=method)
+    uses_r = hconv.METHODS[method].needs_r
+    if where == "r" and not uses_r:
+        assert res.status == "ok"  # r is not used by this method
+    else:
+        assert res.status == "invalid_input"
+        assert np.isnan(res.w).all() and np.isnan(res.residual) and np.isnan(res.cond)
+
+
+def test_status_invalid_input_beyond_float32_range():
+    res = hconv.convert([1e39, 0, 0], [1, 1, 1], precision=32)
+    assert res.status == "invalid_input"
+    assert hconv.convert([1e39, 0, 0], [1, 1, 1], precision=64).status == "ok"
+
+
+def test_status_not_symmetric_for_asymmetric_matrix():
+    I = np.array([[2.0, 0.5, 0.0], [0.4, 3.0, 0.0], [0.0, 0.0, 4.0]])
+    res = hconv.convert([1, 2, 3], I)
+    assert res.status == "not_symmetric"
+    assert np.isnan(res.w).all()
+
+
+@pytest.mark.parametrize("method,answer", [
+    ("exact", None), ("lapack", None), ("cholesky", None), ("eigen", [0.0, 1.0, 1.5]),
+])
+def test_status_singular_rod(method, answer):
+    res = hconv.convert([1.0, 2.0, 3.0], ROD_I, method=method)
+    assert res.status == "singular"
+    assert np.isinf(res.cond) or res.cond > 1e15
+    assert np.isnan(res.residual)  # no I⁻¹H exists to compare with
+    if answer is None:
+        assert np.isnan(res.w).all()
+    else:
+        np.testing.assert_allclose(res.w, answer, atol=1e-15)
+
+
+def test_status_singular_threshold_depends_on_precision():
+    I = [1.0, 1.0, 1e-7, 0, 0, 0]  # cond 1e7: fine in float64, beyond float32's digits
+    assert hconv.convert([1, 1, 1], I).status == "ok"
+    assert hconv.convert([1, 1, 1], I, precision=32).status == "singular"
+
+
+def test_status_zero_tensor_is_singular():
+    res = hconv.convert([1, 2, 3], [0, 0, 0, 0, 0, 0])
+    assert res.status == "singular"
+    assert np.isnan(res.w).all()
+
+
+def test_status_not_positive_definite_exact_still_solves():
+    I = np.array([[-1.0, 0.2, 0.0], [0.2, 3.0, 0.0], [0.0, 0.0, 4.0]])
+    H = np.array([1.0, 2.0, 3.0])
+    ref = mp_solve(I[None], H[None])[0]
+    for method in ("exact", "lapack", "eigen"):
+        res = hconv.convert(H, I, method=method)
+        assert res.status == "not_positive_definite"
+        np.testing.assert_allclose(res.w, ref, rtol=1e-14)
+    chol = hconv.convert(H, I, method="cholesky")
+    assert chol.status == "not_positive_definite"
+    assert np.isnan(chol.w).all()
+
+
+def test_status_not_physical_triangle_inequality():
+    res = hconv.convert([1, 2, 3], [1, 1, 3, 0, 0, 0])  # 3 > 1 + 1
+    assert res.status == "not_physical"
+    np.testing.assert_allclose(res.w, [1, 2, 1])  # the answer exists; it is the body that cannot
+
+
+def test_status_boundary_bodies_are_physical():
+    """A thin plate (I3 = I1 + I2 exactly) is on the boundary and must not be flagged."""
+    res = hconv.convert([1, 2, 3], [1.0, 2.0, 3.0, 0, 0, 0])
+    assert res.status == "ok"
+
+
+def test_status_frame_ambiguous_symmetric_top():
+    I = [1.0, 1.0, 1.5, 0, 0, 0]  # a cylinder: two equal moments
+    res = hconv.convert([1, 2, 3], I, [0.3, 0.5, 0.7], method="document-principal")
+    assert res.status == "frame_ambiguous"
+    assert hconv.convert([1, 2, 3], I, [0.3, 0.5, 0.7], method="document").status == "ok"
+    assert hconv.convert([1, 2, 3], I, method="eigen").status == "ok"  # the exact answer is unique
+
+
+def test_status_frame_ambiguous_is_real_two_valid_frames_disagree():
+    """Why the status exists: for I = diag(1, 1, 1.5) every frame turned about z is principal,
+    and the seed's Version 2 answers differently in two of them."""
+    S = np.array([[1.0, 1.0, 1.5]])
+    H, r = np.array([[1.0, 2.0, 3.0]]), np.array([[0.3, 0.5, 0.7]])
+    answers = []
+    for theta in (0.0, 0.6):
+        c, s = np.cos(theta), np.sin(theta)
+        R = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+        w_p, _ = _seed_formula(S, H @ R, r @ R)  # H' = Rᵀ·H
+        answers.append(w_p @ R.T)
+    assert np.linalg.norm(answers[0] - answers[1]) > 0.01
+
+
+@pytest.mark.parametrize("r", [[0, 0, 1.0], [2.0, 0, 0], [0, 0, 0], [1e-6, 0, 1.0]])
+def test_status_r_on_axis(r):
+    res = hconv.convert([1, 2, 3], GOOD_I, r, method="document")
+    assert res.status == "r_on_axis"
+    assert np.isfinite(res.w).all()
+    assert (res.w == 0).any() or np.min(np.abs(res.w)) < 1e-9
+
+
+def test_status_precedence_first_in_list_wins():
+    # NaN in H on a rod: invalid_input beats singular
+    assert hconv.convert([np.nan, 1, 1], ROD_I).status == "invalid_input"
+    # negative moment that also breaks the triangle inequality: not_positive_definite wins
+    assert hconv.convert([1, 1, 1], [-1, 1, 5, 0, 0, 0]).status == "not_positive_definite"
+    # a rod with r on an axis under document: singular beats r_on_axis
+    assert hconv.convert([1, 1, 1], ROD_I, [0, 0, 1], method="document").status == "singular"
+
+
+def test_status_flagged_rows_keep_their_place(rng):
+    H = rng.normal(size=(6, 3))
+    I = np.tile(GOOD_I, (6, 1))
+    I[1] = ROD_I
+    H[3, 0] = np.nan
+    res = hconv.convert(H, I)
+    assert list(res.status) == ["ok", "singular", "ok", "invalid_input", "ok", "ok"]
+    assert res.counts() == {"ok": 4, "invalid_input": 1, "singular": 1}
+
+
+def test_residual_equals_true_error(rng):
+    """The residual column is the true forward error, as a 50-digit solve measures it."""
+    from conftest import rel_err, spd_bodies
+
+    I = spd_bodies(rng, 100, 1e8)
+    H = rng.normal(size=(100, 3))
+    res = hconv.convert(H, I, method="lapack")
+    true = rel_err(res.w, mp_solve(I, H))
+    np.testing.assert_allclose(res.residual, true, rtol=1e-3, atol=1e-17)
+    assert true.max() > 1e-12  # the comparison is not between zeros
+
+
+def test_cond_matches_eigenvalue_ratio(rng):
+    from conftest import spd_bodies
+
+    I = spd_bodies(rng, 50, 1e6)
+    res = hconv.convert(rng.normal(size=(50, 3)), I)
+    np.testing.assert_allclose(res.cond, 1e6, rtol=1e-6)
