@@ -113,20 +113,23 @@ def _open_csv(path: str, name: str, method: str) -> Input:
     try:
         with pacsv.open_csv(path, read_options=ropts) as probe:
             names = probe.schema.names
+    except pa.ArrowInvalid as exc:
+        if "Empty CSV file" in str(exc):
+            raise InputError(f"{name}: the file is empty; a CSV needs a header line naming the columns "
+                             f"{', '.join(required_columns(method))}") from None
+        raise InputError(f"{name}: not a readable CSV file ({_first_line(exc)})") from None
     except OSError as exc:
-        if isinstance(exc, pa.ArrowInvalid):
-            if "Empty CSV file" in str(exc):
-                raise InputError(f"{name}: the file is empty; a CSV needs a header line naming the columns "
-                                 f"{', '.join(required_columns(method))}") from None
-            raise InputError(f"{name}: not a readable CSV file ({_first_line(exc)})") from None
         raise _oserror(name, exc) from None
     check_schema(pa.schema([(n, pa.float64()) for n in names]), method, name)
     nums = set(numeric_columns(pa.schema([(n, pa.null()) for n in names]), method))
     types = {n: (pa.float64() if n in nums else pa.string()) for n in names}
     copts = pacsv.ConvertOptions(column_types=types, strings_can_be_null=False)
     f = open(path, "rb")
-    try:
+    try:  # the reader parses its first block here already, so bad values can show up now
         reader = pacsv.open_csv(f, read_options=ropts, convert_options=copts)
+    except pa.ArrowInvalid as exc:
+        f.close()
+        raise _csv_value_error(path, name, names, ropts, exc) from None
     except BaseException:
         f.close()
         raise

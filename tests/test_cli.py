@@ -1,0 +1,361 @@
+"""The real `hconv` command on real files, through real pipes, including bad input on purpose."""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.csv as pacsv
+import pyarrow.parquet as pq
+import pytest
+
+import hconv
+from conftest import run_hconv
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples" / "data"
+CONTRACT = ["Hx", "Hy", "Hz", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz", "rx", "ry", "rz"]
+OUT_COLS = ["wx", "wy", "wz", "residual", "cond", "status"]
+
+
+def assert_one_line_error(proc, code: int, *needles: str) -> str:
+    err = proc.stderr.decode()
+    assert proc.returncode == code, (proc.returncode, err)
+    assert "Traceback" not in err
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1, err
+    assert lines[0].startswith("hconv: error: ")
+    for n in needles:
+        assert n in lines[0], (n, lines[0])
+    return lines[0]
+
+
+def no_leftovers(folder: Path, allowed: set[str]) -> None:
+    assert {p.name for p in folder.iterdir()} == allowed
+
+
+def write_csv(path: Path, header: list[str], rows: list[list[str]]) -> Path:
+    path.write_text("\n".join([",".join(header)] + [",".join(r) for r in rows]) + "\n")
+    return path
+
+
+# --- conversions that work -------------------------------------------------------------------
+
+def test_convert_example_parquet_keeps_rows_columns_and_units(tmp_path):
+    out = tmp_path / "out.parquet"
+    proc = run_hconv("convert", str(EXAMPLES / "scene.parquet"), str(out))
+    assert proc.returncode == 0, proc.stderr.decode()
+    src, got = pq.read_table(EXAMPLES / "scene.parquet"), pq.read_table(out)
+    assert got.column_names == src.column_names + OUT_COLS
+    assert got.slice(0).select(src.column_names).equals(src)  # pass-through, in order
+    for c in ("wx", "wy", "wz"):
+        assert got.schema.field(c).metadata[b"unit"] == b"rad/s"
+    w = np.column_stack([got.column(c).to_numpy() for c in ("wx", "wy", "wz")])
+    w_true = np.column_stack([got.column(f"w_true_{a}").to_numpy() for a in "xyz"])
+    assert (np.linalg.norm(w - w_true, axis=1) / np.linalg.norm(w_true, axis=1)).max() < 1e-10
+    assert set(got.column("status").to_pylist()) == {"ok"}
+    assert np.nanmax(got.column("residual").to_numpy()) < 1e-12
+
+
+def test_convert_csv_document_carries_unit_column(tmp_path):
+    out = tmp_path / "out.csv"
+    proc = run_hconv("convert", str(EXAMPLES / "scene.csv"), str(out), "--method", "document")
+    assert proc.returncode == 0
+    rows = list(csv.DictReader(out.open()))
+    assert len(rows) == 400
+    assert {r["w_unit"] for r in rows} == {"m^2/s"}
+    assert min(float(r["residual"]) for r in rows) > 1e-3  # far from I⁻¹H, as it should be
+    header = out.read_text().splitlines()[0]
+    assert header.endswith("wx,wy,wz,residual,cond,status,w_unit")
+
+
+def test_convert_csv_passthrough_text_is_exact(tmp_path):
+    src = tmp_path / "in.csv"
+    src.write_text(
+        'id,label,Hx,Hy,Hz,Ixx,Iyy,Izz,Ixy,Ixz,Iyz,note\n'
+        '007,"a,b",1,2,3,2,3,4,0,0,0,"say ""hi"""\n'
+        '1e3,,1,0,0,1,1,1,0,0,0,é ü\n'
+        'x,plain,0,0,1,1,2,2.5,0,0,0,\n'
+    )
+    out = tmp_path / "out.csv"
+    assert run_hconv("convert", str(src), str(out)).returncode == 0
+    got = list(csv.reader(out.open(encoding="utf-8")))
+    want = list(csv.reader(src.open(encoding="utf-8")))
+    assert [r[:12] for r in got] == want  # every input value, as text, unchanged
+    assert got[1][12:15] == ["0.5", "0.6666666666666666", "0.75"]
+
+
+def test_convert_csv_float_values_round_trip_exactly(tmp_path, rng):
+    vals = rng.normal(size=(50, 9)) * 10.0 ** rng.integers(-200, 200, (50, 9))
+    vals[:, 3:6] = np.abs(vals[:, 3:6]) + 1  # keep the tensors sane; the values are what matters
+    t = pa.table({c: vals[:, k] for k, c in enumerate(CONTRACT[:9])})
+    src, out = tmp_path / "in.parquet", tmp_path / "out.csv"
+    pq.write_table(t, src)
+    assert run_hconv("convert", str(src), str(out)).returncode == 0
+    back = pacsv.read_csv(out)
+    for c in CONTRACT[:9]:
+        np.testing.assert_array_equal(back.column(c).to_numpy(), t.column(c).to_numpy())
+
+
+def test_convert_parquet_passthrough_types(tmp_path):
+    n = 5
+    t = pa.table({
+        "t": pa.array(np.arange(n).astype("datetime64[ms]")),
+        "flag": [True, False, True, False, None],
+        "tags": pa.array([[1], [], None, [2, 3], [4]], type=pa.list_(pa.int32())),
+        **{c: np.full(n, v) for c, v in zip(CONTRACT[:9], [1, 2, 3, 2, 3, 4, 0, 0, 0], strict=True)},
+        "name": ["a", "b", None, "d", "e"],
+    })
+    src, out = tmp_path / "in.parquet", tmp_path / "out.parquet"
+    pq.write_table(t, src)
+    assert run_hconv("convert", str(src), str(out)).returncode == 0
+    got = pq.read_table(out)
+    assert got.select(t.column_names).equals(t)
+
+
+def test_convert_pipeline_csv_stdin_to_stdout(tmp_path):
+    cmd = (f'cat "{EXAMPLES / "scene.csv"}" | "{sys.executable}" -m hconv convert - - --from csv --to csv -q'
+           ' | cut -d, -f1,24,25 | tail -n 2')
+    proc = subprocess.run(cmd, shell=True, capture_output=True, timeout=120)
+    assert proc.returncode == 0
+    assert proc.stdout.decode().splitlines() == ["399,ok,rad/s", "400,ok,rad/s"]
+
+
+def test_convert_pipeline_parquet_stdin_to_stdout(tmp_path):
+    data = (EXAMPLES / "scene.parquet").read_bytes()
+    proc = run_hconv("convert", "-", "-", "--from", "parquet", "--to", "parquet", input=data)
+    assert proc.returncode == 0, proc.stderr.decode()
+    got = pq.read_table(io.BytesIO(proc.stdout))
+    assert got.num_rows == 400
+    assert "status" in proc.stderr.decode()  # the summary goes to stderr, never into the data
+
+
+def test_convert_empty_tables_give_empty_outputs(tmp_path):
+    src = write_csv(tmp_path / "in.csv", CONTRACT[:9], [])
+    out = tmp_path / "out.csv"
+    assert run_hconv("convert", str(src), str(out)).returncode == 0
+    assert out.read_text().splitlines() == [",".join(CONTRACT[:9] + OUT_COLS + ["w_unit"])]
+    pq.write_table(pa.table({c: pa.array([], pa.float64()) for c in CONTRACT[:9]}), tmp_path / "e.parquet")
+    assert run_hconv("convert", str(tmp_path / "e.parquet"), str(tmp_path / "e_out.parquet")).returncode == 0
+    got = pq.read_table(tmp_path / "e_out.parquet")
+    assert got.num_rows == 0 and got.column_names == CONTRACT[:9] + OUT_COLS
+
+
+def test_convert_flagged_rows_keep_place_and_summary_counts(tmp_path):
+    rows = [["1", "2", "3", "2", "3", "4", "0", "0", "0"],
+            ["1", "2", "3", "0", "2", "2", "0", "0", "0"],  # rod: singular
+            ["", "2", "3", "2", "3", "4", "0", "0", "0"],  # blank H: invalid_input
+            ["1", "2", "3", "1", "1", "3", "0", "0", "0"]]  # breaks the triangle inequality
+    src = write_csv(tmp_path / "in.csv", CONTRACT[:9], rows)
+    out = tmp_path / "out.csv"
+    proc = run_hconv("convert", str(src), str(out))
+    assert proc.returncode == 0
+    got = list(csv.DictReader(out.open()))
+    assert [r["status"] for r in got] == ["ok", "singular", "invalid_input", "not_physical"]
+    assert got[1]["wx"] == "nan"
+    err = proc.stderr.decode()
+    for word in ("singular", "invalid_input", "not_physical", "worst residual", "rows/s"):
+        assert word in err
+
+
+def test_convert_precision_32_writes_float32(tmp_path):
+    out = tmp_path / "out.parquet"
+    assert run_hconv("convert", str(EXAMPLES / "scene.parquet"), str(out), "--precision", "32").returncode == 0
+    got = pq.read_table(out)
+    assert got.schema.field("wx").type == pa.float32()
+    res, cond = got.column("residual").to_numpy(), got.column("cond").to_numpy()
+    eps32 = np.finfo(np.float32).eps
+    assert (res <= 4 * cond * eps32).all()  # float32 rounding of inputs and arithmetic, no worse
+    assert res.max() > np.finfo(np.float64).eps * 1e3  # and it really did compute in float32
+
+
+def test_convert_refuses_to_overwrite_without_force(tmp_path):
+    out = tmp_path / "out.csv"
+    out.write_text("precious\n")
+    proc = run_hconv("convert", str(EXAMPLES / "scene.csv"), str(out))
+    assert_one_line_error(proc, 4, "already exists", "--force")
+    assert out.read_text() == "precious\n"
+    assert run_hconv("convert", str(EXAMPLES / "scene.csv"), str(out), "--force").returncode == 0
+    assert len(out.read_text().splitlines()) == 401
+    no_leftovers(tmp_path, {"out.csv"})
+
+
+# --- bad input on purpose --------------------------------------------------------------------
+
+def test_convert_missing_column_names_it(tmp_path):
+    src = write_csv(tmp_path / "in.csv", ["Hx", "Hy", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz"], [["1"] * 8])
+    proc = run_hconv("convert", str(src), str(tmp_path / "out.csv"))
+    assert_one_line_error(proc, 3, "in.csv", "missing column Hz")
+    no_leftovers(tmp_path, {"in.csv"})
+
+
+def test_convert_document_without_r_says_what_it_needs(tmp_path):
+    proc = run_hconv("convert", str(EXAMPLES / "scene.csv"), str(tmp_path / "o.csv"), "--method", "document")
+    assert proc.returncode == 0  # the example has r
+    src = write_csv(tmp_path / "in.csv", CONTRACT[:9], [["1"] * 9])
+    proc = run_hconv("convert", str(src), str(tmp_path / "out.csv"), "--method", "document")
+    assert_one_line_error(proc, 3, "missing columns rx, ry, rz", "'document' needs")
+
+
+def test_convert_non_numeric_names_column_value_and_row(tmp_path):
+    rows = [["1", "2", "3", "2", "3", "4", "0", "0", "0"]] * 3 + [["1", "two", "3", "2", "3", "4", "0", "0", "0"]]
+    src = write_csv(tmp_path / "in.csv", CONTRACT[:9], rows)
+    proc = run_hconv("convert", str(src), str(tmp_path / "out.csv"))
+    assert_one_line_error(proc, 3, "column 'Hy'", "'two'", "data row 4")
+    no_leftovers(tmp_path, {"in.csv"})
+
+
+def test_convert_non_numeric_parquet_column(tmp_path):
+    t = pa.table({c: ["1"] if c == "Izz" else [1.0] for c in CONTRACT[:9]})
+    pq.write_table(t, tmp_path / "in.parquet")
+    proc = run_hconv("convert", str(tmp_path / "in.parquet"), str(tmp_path / "out.parquet"))
+    assert_one_line_error(proc, 3, "column 'Izz' has type string", "must be numeric")
+
+
+@pytest.mark.parametrize("name,content,needle", [
+    ("empty.csv", b"", "the file is empty"),
+    ("empty.parquet", b"", "the file is empty"),
+    ("junk.parquet", b"this is not parquet at all, just text\n" * 20, "not a readable Parquet file"),
+    ("binary.csv", bytes(range(256)) * 4, "in.csv" if False else "binary.csv"),
+])
+def test_convert_unreadable_or_empty_file(tmp_path, name, content, needle):
+    src = tmp_path / name
+    src.write_bytes(content)
+    out = tmp_path / ("out" + src.suffix)
+    proc = run_hconv("convert", str(src), str(out))
+    assert_one_line_error(proc, 3, needle)
+    no_leftovers(tmp_path, {name})
+
+
+def test_convert_missing_input_file(tmp_path):
+    proc = run_hconv("convert", str(tmp_path / "nope.csv"), str(tmp_path / "out.csv"))
+    assert_one_line_error(proc, 3, "nope.csv", "check the path")
+
+
+def test_convert_unknown_extension_is_usage_error(tmp_path):
+    proc = run_hconv("convert", str(EXAMPLES / "scene.csv"), str(tmp_path / "out.txt"))
+    assert_one_line_error(proc, 2, "out.txt", ".csv or .parquet", "--to")
+
+
+def test_convert_output_directory_missing(tmp_path):
+    proc = run_hconv("convert", str(EXAMPLES / "scene.csv"), str(tmp_path / "no" / "out.csv"))
+    assert_one_line_error(proc, 4, "does not exist")
+
+
+def test_convert_output_is_input(tmp_path):
+    src = tmp_path / "scene.csv"
+    src.write_bytes((EXAMPLES / "scene.csv").read_bytes())
+    proc = run_hconv("convert", str(src), str(src), "--force")
+    assert_one_line_error(proc, 4, "is the input file")
+    assert src.read_bytes() == (EXAMPLES / "scene.csv").read_bytes()
+
+
+def test_convert_failure_midway_leaves_no_partial_output(tmp_path):
+    """The bad value sits past the first batches, so a careless writer would have written them."""
+    n = 400_000
+    src = tmp_path / "big.csv"
+    line = "1.25,2.5,3.75,2.0,3.0,4.0,0.125,0.0,0.0\n"
+    with src.open("w") as f:
+        f.write(",".join(CONTRACT[:9]) + "\n")
+        f.write(line * (n - 1))
+        f.write("1,2,3,2,3,oops,0,0,0\n")
+    assert src.stat().st_size > 3 * (4 << 20)  # several reader blocks
+    proc = run_hconv("convert", str(src), str(tmp_path / "out.parquet"))
+    assert_one_line_error(proc, 3, "column 'Izz'", "'oops'", f"data row {n}")
+    no_leftovers(tmp_path, {"big.csv"})
+
+
+def test_convert_interrupted_by_sigterm_leaves_nothing(tmp_path, rng):
+    n = 3_000_000
+    t = pa.table({c: rng.normal(size=n) + (3.0 if c in ("Ixx", "Iyy", "Izz") else 0.0) for c in CONTRACT[:9]})
+    pq.write_table(t, tmp_path / "big.parquet")
+    proc = subprocess.Popen([sys.executable, "-m", "hconv", "convert", str(tmp_path / "big.parquet"),
+                             str(tmp_path / "out.parquet")], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    deadline = time.time() + 60
+    while time.time() < deadline and not any(p.name.endswith(".hconv-tmp") for p in tmp_path.iterdir()):
+        time.sleep(0.02)  # wait until the output is under way
+    time.sleep(0.2)
+    assert proc.poll() is None, "the conversion ended before it could be interrupted"
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130
+    assert "interrupted" in err.decode() and "Traceback" not in err.decode()
+    no_leftovers(tmp_path, {"big.parquet"})
+
+
+# --- hconv one and hconv methods -------------------------------------------------------------
+
+def test_one_prints_w_unit_residual_cond_status():
+    proc = run_hconv("one", "--H", "1,2,3", "--I", "2,3,4,0,0,0", "--r", "0.1,0.2,0.3")
+    out = proc.stdout.decode()
+    assert proc.returncode == 0
+    assert "[0.5, 0.6666666666666666, 0.75] rad/s" in out
+    for word in ("residual", "cond", "status   = ok"):
+        assert word in out
+
+
+def test_one_json_has_the_documented_keys():
+    proc = run_hconv("one", "--H", "-1,2,3", "--I", "2,3,4,0,0,0", "--r", "0.1,0.2,0.3", "--method", "document", "--json")
+    obj = json.loads(proc.stdout)
+    assert set(obj) == {"w", "unit", "residual", "cond", "status", "method"}
+    assert obj["unit"] == "m^2/s" and obj["method"] == "document" and obj["status"] == "ok"
+    np.testing.assert_allclose(obj["w"], [-0.065, 1 / 15, 0.0375], rtol=1e-15)
+
+
+def test_one_nine_values_row_major_and_asymmetry():
+    ok = json.loads(run_hconv("one", "--H", "1,2,3", "--I", "2,0.5,0,0.5,3,0,0,0,4", "--json").stdout)
+    six = json.loads(run_hconv("one", "--H", "1,2,3", "--I", "2,3,4,0.5,0,0", "--json").stdout)
+    assert ok["w"] == six["w"]
+    bad = json.loads(run_hconv("one", "--H", "1,2,3", "--I", "2,0.5,0,0.4,3,0,0,0,4", "--json").stdout)
+    assert bad["status"] == "not_symmetric" and bad["w"] == [None, None, None]
+
+
+def test_one_singular_json_has_null_w_and_inf_cond():
+    obj = json.loads(run_hconv("one", "--H", "1,2,3", "--I", "0,2,2", "--json").stdout)
+    assert obj["status"] == "singular" and obj["w"] == [None, None, None]
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["--H", "1,2", "--I", "1,1,1"], "--H takes 3"),
+    (["--H", "1,2,x", "--I", "1,1,1"], "comma-separated numbers"),
+    (["--H", "1,2,3", "--I", "1,1,1,1"], "--I takes 3, 6 or 9"),
+    (["--H", "1,2,3", "--I", "1,1,1", "--method", "document"], "--r rx,ry,rz"),
+])
+def test_one_bad_arguments_one_line_exit_2(args, needle):
+    assert_one_line_error(run_hconv("one", *args), 2, needle)
+
+
+def test_one_does_not_import_pyarrow_or_rich():
+    code = ("import sys; sys.argv = ['hconv', 'one', '--H', '1,2,3', '--I', '1,2,2.5'];"
+            "from hconv.cli import main\ntry: main()\nexcept SystemExit: pass\n"
+            "print(sorted(m for m in ('pyarrow', 'rich') if m in sys.modules))")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=60)
+    assert proc.stdout.decode().splitlines()[-1] == "[]"
+
+
+def test_methods_json_lists_every_method_with_unit():
+    listed = json.loads(run_hconv("methods", "--json").stdout)
+    assert [m["name"] for m in listed] == list(hconv.METHODS)
+    units = {m["name"]: m["unit"] for m in listed}
+    assert units["exact"] == "rad/s" and units["document"] == "m^2/s"
+    assert all(m["fails"] and m["cost"] for m in listed)
+
+
+def test_methods_table_renders():
+    out = run_hconv("methods").stdout.decode()
+    for name in hconv.METHODS:
+        assert name in out
+
+
+def test_convert_table_accepts_record_batch():
+    batch = pa.RecordBatch.from_pydict({c: [1.0, 2.0] for c in CONTRACT[:9]} | {"id": ["a", "b"]})
+    got = hconv.convert_table(batch)
+    assert isinstance(got, pa.Table)
+    assert got.column_names == CONTRACT[:9] + ["id"] + OUT_COLS
