@@ -23,7 +23,7 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
     no_args_is_help=True,
-    help="Angular momentum H [kg·m²/s] to angular velocity ω, with the residual against I⁻¹H for every row.",
+    help="Angular momentum H (kg·m²/s) to angular velocity ω (rad/s), with the residual against I⁻¹H for every row.",
 )
 
 MethodName = Enum("MethodName", {name: name for name in METHODS}, type=str)
@@ -78,9 +78,9 @@ def _precision(value: int) -> int:
 @app.command()
 @friendly
 def one(
-    H: str = typer.Option(..., "--H", help="Hx,Hy,Hz [kg·m²/s]"),
-    I: str = typer.Option(..., "--I", help="3 (diagonal), 6 (Ixx,Iyy,Izz,Ixy,Ixz,Iyz) or 9 (row-major) values [kg·m²]"),
-    r: Optional[str] = typer.Option(None, "--r", help="rx,ry,rz [m]; needed by the document methods"),
+    H: str = typer.Option(..., "--H", help="Hx,Hy,Hz (kg·m²/s)"),
+    I: str = typer.Option(..., "--I", help="3 (diagonal), 6 (Ixx,Iyy,Izz,Ixy,Ixz,Iyz) or 9 (row-major) values (kg·m²)"),
+    r: Optional[str] = typer.Option(None, "--r", help="rx,ry,rz (m); needed by the document methods"),
     method: MethodName = typer.Option("exact", "--method", "-m", help="see `hconv methods`"),
     precision: int = typer.Option(64, "--precision", callback=_precision, help="64 or 32"),
     as_json: bool = typer.Option(False, "--json", help="print one JSON object"),
