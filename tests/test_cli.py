@@ -359,3 +359,20 @@ def test_convert_table_accepts_record_batch():
     got = hconv.convert_table(batch)
     assert isinstance(got, pa.Table)
     assert got.column_names == CONTRACT[:9] + ["id"] + OUT_COLS
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["convert", "in.csv", "out.csv", "--method", "nope"], "'nope' is not one of"),
+    (["convert", "in.csv", "out.csv", "--precision", "16"], "must be 64 or 32"),
+    (["convert", "in.csv"], "Missing argument 'OUT'"),
+    (["bogus"], "No such command 'bogus'"),
+])
+def test_cli_usage_errors_are_one_line_exit_2(args, needle):
+    assert_one_line_error(run_hconv(*args), 2, needle)
+
+
+def test_convert_semicolon_csv_names_the_delimiter(tmp_path):
+    src = tmp_path / "in.csv"
+    src.write_text(";".join(CONTRACT[:9]) + "\n" + ";".join(["1"] * 9) + "\n")
+    proc = run_hconv("convert", str(src), str(tmp_path / "out.csv"))
+    assert_one_line_error(proc, 3, "separated by semicolons", "comma-separated")

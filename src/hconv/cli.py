@@ -159,4 +159,15 @@ def _sigterm(signum, frame):  # let the atomic writer clean up as for Ctrl-C
 
 def main() -> None:
     signal.signal(signal.SIGTERM, _sigterm)
-    app()
+    try:
+        rv = app(standalone_mode=False)
+    except Exception as exc:  # click's usage errors: one line, like every other hconv error
+        if not (hasattr(exc, "format_message") and hasattr(exc, "exit_code")):
+            raise
+        if type(exc).__name__ == "NoArgsIsHelpError":
+            print(exc.ctx.get_help())
+            sys.exit(0)
+        command = getattr(getattr(exc, "ctx", None), "command_path", "hconv")
+        print(f"hconv: error: {' '.join(exc.format_message().split())} (see '{command} --help')", file=sys.stderr)
+        sys.exit(exc.exit_code)
+    sys.exit(rv if isinstance(rv, int) else 0)

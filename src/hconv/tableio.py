@@ -120,6 +120,11 @@ def _open_csv(path: str, name: str, method: str) -> Input:
         raise InputError(f"{name}: not a readable CSV file ({_first_line(exc)})") from None
     except OSError as exc:
         raise _oserror(name, exc) from None
+    if len(names) == 1:
+        for sep, word in ((";", "semicolons"), ("\t", "tabs"), ("|", "bars")):
+            if sep in names[0]:
+                raise InputError(f"{name}: the header is separated by {word}, but hconv reads comma-separated CSV; "
+                                 f"convert the delimiter to commas first")
     check_schema(pa.schema([(n, pa.float64()) for n in names]), method, name)
     nums = set(numeric_columns(pa.schema([(n, pa.null()) for n in names]), method))
     types = {n: (pa.float64() if n in nums else pa.string()) for n in names}
