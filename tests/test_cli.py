@@ -320,6 +320,7 @@ def test_one_nine_values_row_major_and_asymmetry():
 def test_one_singular_json_has_null_w_and_inf_cond():
     obj = json.loads(run_hconv("one", "--H", "1,2,3", "--I", "0,2,2", "--json").stdout)
     assert obj["status"] == "singular" and obj["w"] == [None, None, None]
+    assert obj["cond"] is None and obj["residual"] is None  # infinite and absent: null, valid JSON
 
 
 @pytest.mark.parametrize("args,needle", [

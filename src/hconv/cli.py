@@ -100,10 +100,9 @@ def one(
         raise UsageError(str(exc).replace("pass r=...", "pass --r rx,ry,rz")) from None
     w = [float(x) for x in res.w]
     if as_json:
-        clean = lambda x: None if math.isnan(x) else x  # noqa: E731 - JSON has no NaN
+        clean = lambda x: x if math.isfinite(x) else None  # noqa: E731 - JSON has no NaN or Infinity
         print(json.dumps({"w": [clean(x) for x in w], "unit": res.unit, "residual": clean(float(res.residual)),
-                          "cond": clean(float(res.cond)) if math.isfinite(res.cond) or math.isnan(res.cond) else str(res.cond),
-                          "status": res.status, "method": res.method}))
+                          "cond": clean(float(res.cond)), "status": res.status, "method": res.method}))
         return
     print(f"w        = [{', '.join(repr(x) for x in w)}] {res.unit}")
     print(f"residual = {float(res.residual):.3g}  (|w - I⁻¹H| / |I⁻¹H|)")

@@ -57,8 +57,9 @@ def ldlt_solve(f: LDLt, h: np.ndarray) -> np.ndarray:
 def lapack_solve(I: Sym3, h: np.ndarray) -> np.ndarray:
     """``numpy.linalg.solve`` (LU with partial pivoting) on the ``(N, 3, 3)`` stack.
 
-    numpy raises for the whole stack if one matrix is exactly singular, so such rows are solved
-    against the identity and returned as NaN instead.
+    numpy raises for the whole stack if one matrix is exactly singular, so rows whose LU has a
+    zero pivot (det = 0, from the same factorisation) are solved against the identity and
+    returned as NaN instead.
     """
     A = I.matrices()
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
@@ -66,15 +67,7 @@ def lapack_solve(I: Sym3, h: np.ndarray) -> np.ndarray:
     bad = ~np.isfinite(det) | (det == 0)
     if bad.any():
         A[bad] = np.eye(3, dtype=A.dtype)
-    try:
-        x = np.linalg.solve(A, h[..., None])[..., 0]
-    except np.linalg.LinAlgError:  # singular only after pivoting's rounding: solve row sets apart
-        x = np.full_like(h, np.nan)
-        for k in np.flatnonzero(~bad):  # pragma: no cover - needs det != 0 yet singular U
-            try:
-                x[k] = np.linalg.solve(A[k], h[k])
-            except np.linalg.LinAlgError:
-                pass
+    x = np.linalg.solve(A, h[..., None])[..., 0]
     x[bad] = np.nan
     return x
 
