@@ -108,8 +108,8 @@ def test_status_frame_ambiguous_is_real_two_valid_frames_disagree():
     for theta in (0.0, 0.6):
         c, s = np.cos(theta), np.sin(theta)
         R = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
-        w_p, _ = _seed_formula(S, H @ R, r @ R)  # H' = Rᵀ·H
-        answers.append(w_p @ R.T)
+        w_p, _ = _seed_formula(S.T, (H @ R).T, (r @ R).T)  # H' = Rᵀ·H, component-major (3, 1)
+        answers.append(w_p.T @ R.T)
     assert np.linalg.norm(answers[0] - answers[1]) > 0.01
 
 

@@ -1,46 +1,38 @@
-"""Error-free transformations in plain numpy: exact products and sums of float64 columns.
+"""Error-free transformations in plain numpy: exact products and sums of floating-point columns.
 
-``two_sum(a, b)`` returns ``(s, e)`` with ``s = fl(a + b)`` and ``a + b = s + e`` exactly (Knuth).
-``two_prod(a, b)`` returns ``(p, e)`` with ``p = fl(a·b)`` and ``a·b = p + e`` exactly (Dekker), valid
-while ``|a|, |b| < 2**996`` and the product does not underflow; callers equilibrate first.
-All arguments and results are arrays of one shape.
+``two_diff(a, b)`` returns ``(s, e)`` with ``s = fl(a - b)`` and ``a - b = s + e`` exactly (Knuth's
+TwoSum with the negation folded in).
+``split(a)`` returns ``(hi, lo)`` with ``a = hi + lo`` and each half short enough that the product
+of two halves is exact (Dekker). ``two_prod_split`` then gives ``a·b = p + e`` exactly, valid while
+the arguments are well inside the dtype's range (callers equilibrate first). All arrays of one
+shape and one dtype, float64 or float32.
 """
 from __future__ import annotations
 
 import numpy as np
 
-_SPLIT = 134217729.0  # 2**27 + 1: splits a float64 into two 26-bit halves (Dekker)
+
+def _splitter(dtype) -> float:
+    # 2**ceil(p/2) + 1 for a p-bit significand: 2**27 + 1 for float64, 2**12 + 1 for float32
+    p = np.finfo(dtype).nmant + 1
+    return float(2 ** ((p + 1) // 2) + 1)
 
 
-def two_sum(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    s = a + b
+def two_diff(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``a - b = s + e`` exactly."""
+    s = a - b
     bb = s - a
-    return s, (a - (s - bb)) + (b - bb)
+    return s, (a - (s - bb)) - (b + bb)
 
 
-def _split(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    c = _SPLIT * a
+def split(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    c = a.dtype.type(_splitter(a.dtype)) * a
     hi = c - (c - a)
     return hi, a - hi
 
 
-def two_prod(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def two_prod_split(a: np.ndarray, ah: np.ndarray, al: np.ndarray,
+                   b: np.ndarray, bh: np.ndarray, bl: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``a·b = p + e`` exactly, from ``a``, ``b`` and their splits (so a fixed factor is split once)."""
     p = a * b
-    ah, al = _split(a)
-    bh, bl = _split(b)
     return p, ((ah * bh - p) + ah * bl + al * bh) + al * bl
-
-
-def dot2(terms: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
-    """``Σ a·b`` over the pairs, as accurate as if computed in twice the working precision.
-
-    Ogita–Rump–Oishi "Dot2": each product and running sum is split exactly into value and error;
-    the errors are summed in ordinary arithmetic and added once at the end.
-    """
-    (a0, b0), *rest = terms
-    p, s = two_prod(a0, b0)
-    for a, b in rest:
-        h, r = two_prod(a, b)
-        p, q = two_sum(p, h)
-        s = s + (q + r)
-    return p + s

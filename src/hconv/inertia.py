@@ -45,18 +45,6 @@ class Sym3(NamedTuple):
         m[:, 1, 2] = m[:, 2, 1] = self.yz
         return m
 
-    def matvec(self, v: np.ndarray) -> np.ndarray:
-        """``I·v`` for v of shape ``(N, 3)``; returns shape ``(N, 3)``."""
-        x, y, z = v[:, 0], v[:, 1], v[:, 2]
-        return np.stack(
-            [
-                self.xx * x + self.xy * y + self.xz * z,
-                self.xy * x + self.yy * y + self.yz * z,
-                self.xz * x + self.yz * y + self.zz * z,
-            ],
-            axis=1,
-        )
-
 
 def sym_from_array(I: np.ndarray, *, symmetry_rtol: float = 1e-12) -> tuple[Sym3, np.ndarray]:
     """Read tensors given as ``(N, 6)``, ``(N, 3, 3)`` or ``(N, 3)`` (principal/diagonal moments).

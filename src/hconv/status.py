@@ -14,8 +14,10 @@ STATUSES: tuple[str, ...] = (
     "invalid_input",  # NaN or Inf in a value the method uses, or a value beyond float32 in --precision 32
     "not_symmetric",  # a 3×3 tensor whose Iij and Iji differ by more than SYMMETRY_RTOL·max|I|
     "singular",  # smallest |moment| <= SINGULAR_RTOL_EPS·eps·largest |moment|
+    "overflow",  # finite input, but ω is beyond the working precision's range
     "not_positive_definite",  # a negative principal moment
     "not_physical",  # principal moments break the triangle inequality I1 <= I2 + I3
+    "ill_conditioned",  # exact family: cond(I) so large that the error could exceed ILL_CONDITIONED_TOL
     "frame_ambiguous",  # document-principal on repeated principal moments
     "r_on_axis",  # document methods: r (nearly) on an axis, so a component is forced to zero
 )
@@ -25,6 +27,8 @@ SYMMETRY_RTOL = 1e-12
 #: A tensor is singular when cond(I) >= 1 / (SINGULAR_RTOL_EPS · eps) of the working precision:
 #: about 1.1e15 in float64 and 2.1e6 in float32. Beyond that no digit of I⁻¹H is reliable.
 SINGULAR_RTOL_EPS = 4.0
+#: A row is ill_conditioned when its method's error bound K·cond(I)·eps could exceed this.
+ILL_CONDITIONED_TOL = 1e-6
 #: Principal moments closer than this fraction of the largest count as repeated.
 REPEATED_RTOL = 1e-9
 #: The triangle inequality may be broken by this fraction of the trace before a row is flagged,
