@@ -35,6 +35,14 @@ def spd_bodies(rng: np.random.Generator, n: int, cond: float) -> np.ndarray:
     return rotate_tensors(random_rotations(rng, n), moments)
 
 
+def slender_bodies(rng: np.random.Generator, n: int, cond: float) -> np.ndarray:
+    """``n`` physical bodies with cond(I) ≈ ``cond``: rods and thin plates, moments (ε, 1, 1 + t·ε)
+    with ε = 1/cond and t in [0, 1] (t = 1 is a plate, on the triangle inequality's boundary)."""
+    eps_m = np.full(n, 1.0 / cond)
+    moments = np.stack([eps_m, np.ones(n), 1.0 + rng.random(n) * eps_m], axis=1)
+    return rotate_tensors(random_rotations(rng, n), moments)
+
+
 def physical_bodies(rng: np.random.Generator, n: int) -> np.ndarray:
     """``n`` rotated tensors whose moments obey the triangle inequality, cond ≤ ~20; ``(n, 3, 3)``."""
     # second moments of a random mass distribution along each principal axis
