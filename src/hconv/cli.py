@@ -144,12 +144,52 @@ def convert_cmd(
 def methods_cmd(as_json: bool = typer.Option(False, "--json", help="print a JSON list")) -> None:
     """List the methods: the unit of each result, whether it is exact, its cost and when it fails."""
     if as_json:
+        def limit(m, p):  # JSON has no Infinity: null means "up to the singular threshold"
+            return m.cond_limit(p) if m.exact and math.isfinite(m.cond_limit(p)) else None
+
         print(json.dumps([{"name": m.name, "unit": m.unit, "exact": m.exact, "needs_r": m.needs_r,
+                           "cond_limit_float64": limit(m, 64), "cond_limit_float32": limit(m, 32),
                            "summary": m.summary, "cost": m.cost, "fails": m.fails} for m in METHODS.values()], indent=1))
         return
     from hconv import report
 
     report.methods_table()
+
+
+@app.command("stability")
+@friendly
+def stability_cmd(
+    out: Optional[str] = typer.Option("stability.png", "--out", "-o", help="chart file, .png or .svg"),
+    no_chart: bool = typer.Option(False, "--no-chart", help="print the tables only"),
+    rows: int = typer.Option(48, "--rows", min=4, help="bodies per sweep point"),
+    seed: int = typer.Option(0, "--seed"),
+    as_json: bool = typer.Option(False, "--json", help="print every sweep point as JSON instead of tables"),
+) -> None:
+    """Sweep every method over hard inputs and show where each stops being trustworthy."""
+    from hconv import stability
+
+    chart = None if no_chart else out
+    if chart is not None:
+        if not chart.lower().endswith((".png", ".svg")):
+            raise UsageError(f"--out {chart!r}: name the chart .png or .svg")
+        from hconv import charts
+
+        charts.check_available()
+    points = stability.run(rows=rows, seed=seed)
+    if as_json:
+        from dataclasses import asdict
+
+        def clean(row: dict) -> dict:  # standard JSON has no NaN: null where no row had an answer
+            return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in row.items()}
+
+        print(json.dumps([clean(asdict(p)) for p in points]))
+    else:
+        from hconv import report
+
+        report.stability_tables(points, stability.SWEEPS)
+    if chart is not None:
+        charts.stability_chart(points, stability.SWEEPS, chart)
+        print(f"chart written to {chart}", file=sys.stderr)
 
 
 def _sigterm(signum, frame):  # let the atomic writer clean up as for Ctrl-C

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from typing import Optional
 
+import numpy as np
+
 from rich.console import Console
 from rich.table import Table
 
@@ -51,12 +53,46 @@ class ProgressBar:
         self._p.stop()
 
 
+def envelope(m) -> str:
+    """The cond(I) up to which a method's error stays within 1e-6, per precision, as text."""
+    if not m.exact:
+        return "n/a: not I⁻¹H"
+    return " · ".join(f"{'singular' if lim == float('inf') else f'{lim:.1e}'} (f{p})"
+                      for p, lim in ((64, m.cond_limit(64)), (32, m.cond_limit(32))))
+
+
 def methods_table(console: Optional[Console] = None) -> None:
     """Print the registered methods: unit, exactness, cost and when each fails."""
     console = console or Console()
     t = Table(show_lines=True)
-    for col in ("method", "unit", "exact", "what it computes", "cost", "fails when"):
+    for col in ("method", "unit", "exact", "trusted to 1e-6 up to cond", "what it computes", "cost", "fails when"):
         t.add_column(col)
     for m in METHODS.values():
-        t.add_row(m.name, m.unit, "yes" if m.exact else "no", m.summary, m.cost, m.fails)
+        t.add_row(m.name, m.unit, "yes" if m.exact else "no", envelope(m), m.summary, m.cost, m.fails)
     console.print(t)
+
+
+def stability_tables(points, sweeps, console: Optional[Console] = None) -> None:
+    """Per sweep and precision, a table of worst errors: rows are sweep points, columns methods;
+    a trailing * marks a cell where most rows are flagged, — one where no row had an answer."""
+    console = console or Console()
+    names = list(METHODS)
+
+    def cell(p) -> str:
+        if p is None or not np.isfinite(p.worst_error):
+            text = "—"
+        else:
+            text = "0" if p.worst_error == 0 else f"{p.worst_error:.0e}"
+        return text + ("*" if p is not None and p.flagged >= 0.5 else "")
+
+    for sw in sweeps:
+        for prec in (64, 32):
+            t = Table(title=f"{sw.title}, float{prec}: worst relative error vs I⁻¹H (* most rows flagged)",
+                      title_justify="left", header_style="bold")
+            t.add_column(sw.xlabel, justify="right")
+            for n in names:
+                t.add_column(n, justify="right")
+            for param in sw.params:
+                got = {p.method: p for p in points if p.sweep == sw.name and p.precision == prec and p.param == param}
+                t.add_row(f"{param:g}", *(cell(got.get(n)) for n in names))
+            console.print(t)

@@ -1,0 +1,73 @@
+"""Charts, drawn with matplotlib (the optional extra ``hconv[plot]``, imported only here)."""
+from __future__ import annotations
+
+import numpy as np
+
+from hconv.errors import UsageError
+
+#: Errors are drawn on log axes; an error of exactly 0 (correctly rounded) is drawn here.
+FLOOR = 1e-18
+
+
+def _pyplot():
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        raise UsageError("charts need matplotlib: pip install 'hconv[plot]' (or pass --no-chart)") from None
+    return plt
+
+
+def check_available() -> None:
+    """Raise UsageError now, before a long run, if charts cannot be drawn."""
+    _pyplot()
+
+
+def stability_chart(points, sweeps, path: str) -> None:
+    """One panel per sweep: worst error against the sweep parameter, log axes, a line per method
+    and precision (solid float64, dashed float32); hollow markers where most rows are flagged."""
+    plt = _pyplot()
+    from hconv.methods import METHODS
+
+    names = list(METHODS)
+    colours = {n: plt.get_cmap("tab10")(k) for k, n in enumerate(names)}
+    fig, axes = plt.subplots(2, 3, figsize=(17, 10), constrained_layout=True)
+    for ax, sw in zip(axes.flat, sweeps):
+        params = np.asarray(sw.params, dtype=float)
+        positive = params[params > 0]
+        zero_at = positive.min() / 100 if (params == 0).any() else None
+        for name in names:
+            for prec, style in ((64, "-"), (32, "--")):
+                pts = [p for p in points if p.sweep == sw.name and p.method == name and p.precision == prec]
+                x = np.array([p.param if p.param > 0 else zero_at for p in pts])
+                y = np.array([max(p.worst_error, FLOOR) if np.isfinite(p.worst_error) else np.nan for p in pts])
+                flagged = np.array([p.flagged >= 0.5 for p in pts])
+                ax.plot(x, y, style, color=colours[name], lw=1.4, alpha=0.9,
+                        label=f"{name} ({'float64' if prec == 64 else 'float32'})")
+                ax.scatter(x[~flagged], y[~flagged], s=16, color=colours[name], zorder=3)
+                ax.scatter(x[flagged], y[flagged], s=22, facecolors="none", edgecolors=[colours[name]], zorder=3)
+        for level, text in ((2.2e-16, "float64 eps"), (1.2e-7, "float32 eps"), (1e-6, "1e-6: flag beyond")):
+            ax.axhline(level, color="grey", lw=0.8, ls=":")
+            ax.text(0.99, level, text, transform=ax.get_yaxis_transform(), ha="right", va="bottom", fontsize=8, color="grey")
+        if sw.log_x:
+            ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_ylim(FLOOR / 3, 1e3)
+        if zero_at is not None:
+            ticks = [t for t in ax.get_xticks() if positive.min() <= t <= positive.max()]
+            ax.set_xticks([zero_at] + ticks[::2], ["0"] + [f"1e{int(np.log10(t))}" for t in ticks[::2]])
+            ax.set_xlim(zero_at / 3, positive.max() * 3)
+        if sw.params[0] > sw.params[-1]:
+            ax.invert_xaxis()
+        ax.set_title(sw.title, fontsize=12)
+        ax.set_xlabel(sw.xlabel)
+        ax.set_ylabel("worst relative error vs I⁻¹H")
+        ax.grid(True, which="major", alpha=0.3)
+    handles, labels = axes.flat[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside right center", fontsize=9,
+               title="solid float64, dashed float32\nhollow: most rows flagged\nat the floor: correctly rounded")
+    fig.suptitle("hconv stability: where each method stops being trustworthy", fontsize=14)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
