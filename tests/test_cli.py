@@ -377,3 +377,28 @@ def test_convert_semicolon_csv_names_the_delimiter(tmp_path):
     src.write_text(";".join(CONTRACT[:9]) + "\n" + ";".join(["1"] * 9) + "\n")
     proc = run_hconv("convert", str(src), str(tmp_path / "out.csv"))
     assert_one_line_error(proc, 3, "separated by semicolons", "comma-separated")
+
+
+def test_convert_file_write_failure_midway_leaves_nothing(tmp_path, monkeypatch, rng):
+    """A full disk on the writer thread: the error reaches the caller and no file is left."""
+    import errno
+
+    from hconv import pipeline, tableio
+
+    n = 300_000
+    t = pa.table({c: rng.normal(size=n) + (3.0 if c in ("Ixx", "Iyy", "Izz") else 0.0) for c in CONTRACT[:9]})
+    pq.write_table(t, tmp_path / "in.parquet")
+    calls = {"n": 0}
+    real = tableio.Output.write
+
+    def failing(self, table):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(self, table)
+
+    monkeypatch.setattr(tableio.Output, "write", failing)
+    with pytest.raises(OSError, match="No space left"):
+        pipeline.convert_file(str(tmp_path / "in.parquet"), str(tmp_path / "out.parquet"))
+    assert calls["n"] == 3
+    no_leftovers(tmp_path, {"in.parquet"})

@@ -4,6 +4,8 @@ The CLI's ``convert`` is a thin wrapper over :func:`convert_file`.
 """
 from __future__ import annotations
 
+import queue
+import threading
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Optional
@@ -44,6 +46,58 @@ class Tally:
         return {status.STATUSES[k]: int(c) for k, c in enumerate(self.per_status) if c}
 
 
+class BackgroundWriter:
+    """Writes tables to an :class:`~hconv.tableio.Output` on a second thread, so that encoding
+    and compressing one batch (pyarrow releases the GIL) overlaps converting the next.
+
+    At most ``depth`` tables wait in the queue, so memory stays bounded. Leaving the ``with``
+    block always stops and joins the thread before the output is committed or removed; an error
+    on the writer thread is raised in the caller's thread.
+    """
+
+    _DONE = object()
+
+    def __init__(self, out, depth: int = 2):
+        self._out = out
+        self._q: queue.Queue = queue.Queue(maxsize=depth)
+        self._error: Optional[BaseException] = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="hconv-writer", daemon=True)
+
+    def _run(self) -> None:
+        while True:
+            item = self._q.get()
+            if item is self._DONE:
+                return
+            if self._error is None and not self._stop.is_set():
+                try:
+                    self._out.write(item)
+                except BaseException as exc:  # handed to the caller's thread
+                    self._error = exc
+
+    def write(self, table: pa.Table) -> None:
+        if self._error is not None:
+            raise self._error
+        self._q.put(table)
+
+    def __enter__(self) -> "BackgroundWriter":
+        self._thread.start()
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is not None:
+            self._stop.set()
+            while True:  # drop what is queued, so the sentinel fits
+                try:
+                    self._q.get_nowait()
+                except queue.Empty:
+                    break
+        self._q.put(self._DONE)
+        self._thread.join()
+        if exc_type is None and self._error is not None:
+            raise self._error
+
+
 def convert_file(src: str, dst: str, *, method: str = "exact", precision: int = 64,
                  src_format: Optional[str] = None, dst_format: Optional[str] = None,
                  force: bool = False, diagnostics: bool = True,
@@ -63,13 +117,14 @@ def convert_file(src: str, dst: str, *, method: str = "exact", precision: int = 
     tally = Tally(m.name, m.unit)
     t0 = time.perf_counter()
     with open_input(src, fin, method) as inp, out:
-        for batch in inp.batches:
-            table = convert_table(batch, method, precision, diagnostics, source=inp.name)
-            out.write(table)
-            tally.add(table)
-            if progress is not None:
-                progress(inp.position(), inp.total)
-        if tally.rows == 0:  # a header and no rows is a valid empty table
-            out.write(convert_table(inp.schema.empty_table(), method, precision, diagnostics, source=inp.name))
+        with BackgroundWriter(out) as writer:
+            for batch in inp.batches:
+                table = convert_table(batch, method, precision, diagnostics, source=inp.name)
+                writer.write(table)
+                tally.add(table)
+                if progress is not None:
+                    progress(inp.position(), inp.total)
+            if tally.rows == 0:  # a header and no rows is a valid empty table
+                writer.write(convert_table(inp.schema.empty_table(), method, precision, diagnostics, source=inp.name))
     tally.seconds = time.perf_counter() - t0
     return tally
