@@ -128,3 +128,25 @@ def convert_file(src: str, dst: str, *, method: str = "exact", precision: int = 
                 writer.write(convert_table(inp.schema.empty_table(), method, precision, diagnostics, source=inp.name))
     tally.seconds = time.perf_counter() - t0
     return tally
+
+
+def generate_file(dst: str, rows: int, *, scene: str = "mix", cond_max: float = 1e3, seed: int = 0,
+                  dst_format: Optional[str] = None, force: bool = False) -> float:
+    """Write a synthetic scene of ``rows`` bodies (see :mod:`hconv.scene`) to ``dst``, atomically,
+    chunk by chunk; returns the seconds taken."""
+    from hconv.scene import SCENES, iter_scene, make_scene
+
+    if rows < 0:
+        raise UsageError(f"--rows must be 0 or more, got {rows}")
+    if scene not in SCENES:
+        raise UsageError(f"unknown scene {scene!r}; choose one of: {', '.join(SCENES)}")
+    if not cond_max >= 1:
+        raise UsageError(f"--cond-max must be at least 1, got {cond_max}")
+    fout = format_of(dst, dst_format, "--to")
+    t0 = time.perf_counter()
+    with Output(dst, fout, force=force) as out, BackgroundWriter(out) as writer:
+        for cols in iter_scene(rows, seed=seed, scene=scene, cond_max=cond_max):
+            writer.write(pa.table(cols))
+        if rows == 0:  # still a valid file, with the scene's columns
+            writer.write(pa.table(make_scene(0, scene=scene)))
+    return time.perf_counter() - t0

@@ -5,12 +5,17 @@ sizes [m]. A scene row holds a body turned by a random rotation R: I = R·diag(m
 entries, products negative-∫ convention of :mod:`hconv.inertia`), a random ω [rad/s], H = I·ω
 [kg·m²/s] and a random offset r [m]. The known ω differs from the exact I⁻¹H of the stored,
 rounded H by about cond(I)·eps.
+
+Each body's shape is drawn so that its condition number cond(I) = I_max / I_min is log-uniform
+between 1 and ``cond_max`` (as far as the kind allows: a sphere is always 1, a disk at most 2,
+a rod at least 100).
 """
 from __future__ import annotations
 
 import numpy as np
 
-KINDS = ("box", "cylinder", "rod", "sphere")
+KINDS = ("box", "cylinder", "rod", "sphere", "ellipsoid")
+SCENES = ("mix",) + KINDS
 
 
 def box_moments(m, a, b, c) -> np.ndarray:
@@ -51,33 +56,64 @@ def rotate_tensors(R: np.ndarray, moments: np.ndarray) -> np.ndarray:
     return 0.5 * (I + np.swapaxes(I, 1, 2))  # exactly symmetric despite rounding
 
 
-def make_scene(n: int, seed: int = 0, kinds=KINDS) -> dict[str, np.ndarray]:
-    """A scene of ``n`` bodies as named columns (the input contract plus ``id``, ``body``, ``mass``
-    and the known ``w_true_x, w_true_y, w_true_z``)."""
-    rng = np.random.default_rng(seed)
-    kind = rng.choice(np.asarray(kinds), size=n)
-    m = rng.uniform(0.1, 20.0, n)
-    size = rng.uniform(0.05, 2.0, (n, 3))
+def ellipsoid_moments(m, a, b, c) -> np.ndarray:
+    """Solid ellipsoid with semi-axes a, b, c along x, y, z; shape ``(..., 3)``."""
+    m, a, b, c = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (m, a, b, c)))
+    return np.stack([m * (b * b + c * c), m * (a * a + c * c), m * (a * a + b * b)], axis=-1) / 5.0
+
+
+def _shapes(rng: np.random.Generator, kind: np.ndarray, m: np.ndarray, cond_max: float) -> np.ndarray:
+    """Principal moments ``(n, 3)`` for bodies of the given kinds, each with a drawn target cond κ."""
+    n = kind.shape[0]
+    kappa = 10.0 ** (rng.random(n) * np.log10(max(cond_max, 1.0)))
+    w = rng.uniform(0.05, 1.0, n)  # the body's cross-section size [m]
+    u = rng.uniform(0.5, 1.0, n)  # aspect of the cross-section
     moments = np.empty((n, 3))
-    for k, fn in (
-        ("box", lambda s, mm: box_moments(mm, s[:, 0], s[:, 1], s[:, 2])),
-        ("cylinder", lambda s, mm: cylinder_moments(mm, 0.5 * s[:, 0], s[:, 1])),
-        # a rod: a slender cylinder, radius 1% of its length (a finite, physical rod)
-        ("rod", lambda s, mm: cylinder_moments(mm, 0.01 * s[:, 1], s[:, 1])),
-        ("sphere", lambda s, mm: sphere_moments(mm, 0.5 * s[:, 0])),
-    ):
+    # box / ellipsoid: cross-section a × b (a ≥ b), length L along z with cond = (a² + L²)/(a² + b²)
+    a, b = w, w * u
+    L = np.sqrt(np.maximum(kappa * (a * a + b * b) - a * a, 0.0))
+    sel = kind == "box"
+    moments[sel] = box_moments(m[sel], a[sel], b[sel], L[sel])
+    sel = kind == "ellipsoid"
+    moments[sel] = ellipsoid_moments(m[sel], a[sel], b[sel], L[sel])  # semi-axes: same relation
+    # cylinder: cond = (3R² + L²) / (6R²) → L² = 3R²(2κ − 1); a rod is a cylinder with κ ≥ 100
+    R = w / 2
+    for k, floor in (("cylinder", 1.0), ("rod", 100.0)):
         sel = kind == k
-        if sel.any():
-            moments[sel] = fn(size[sel], m[sel])
+        kk = np.maximum(kappa[sel], floor)
+        moments[sel] = cylinder_moments(m[sel], R[sel], np.sqrt(3 * R[sel] ** 2 * (2 * kk - 1)))
+    sel = kind == "sphere"
+    moments[sel] = sphere_moments(m[sel], R[sel])
+    return moments
+
+
+def make_scene(n: int, seed: int = 0, scene: str = "mix", cond_max: float = 1e3, *, first_id: int = 1,
+               rng: np.random.Generator | None = None) -> dict[str, np.ndarray]:
+    """A scene of ``n`` bodies as named columns: the input contract plus ``id``, ``body``, ``mass``
+    and the known ``w_true_x, w_true_y, w_true_z`` [rad/s]."""
+    if scene not in SCENES:
+        raise ValueError(f"unknown scene {scene!r}; choose one of: {', '.join(SCENES)}")
+    rng = rng if rng is not None else np.random.default_rng(seed)
+    kind = rng.choice(np.asarray(KINDS), size=n) if scene == "mix" else np.full(n, scene)
+    m = rng.uniform(0.1, 20.0, n)
+    moments = _shapes(rng, kind, m, cond_max)
     R = random_rotations(rng, n)
     I = rotate_tensors(R, moments)
     w = rng.normal(0.0, 2.0, (n, 3))
     H = np.einsum("nij,nj->ni", I, w)
     r = rng.uniform(-1.0, 1.0, (n, 3))
-    cols = {"id": np.arange(1, n + 1), "body": kind.astype(str), "mass": m}
+    cols = {"id": np.arange(first_id, first_id + n), "body": kind.astype(str), "mass": m}
     cols.update({f"H{a}": H[:, k] for k, a in enumerate("xyz")})
     for name, (i, j) in zip(("Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz"), ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))):
         cols[name] = I[:, i, j]
     cols.update({f"r{a}": r[:, k] for k, a in enumerate("xyz")})
     cols.update({f"w_true_{a}": w[:, k] for k, a in enumerate("xyz")})
     return cols
+
+
+def iter_scene(n: int, seed: int = 0, scene: str = "mix", cond_max: float = 1e3, chunk: int = 1 << 18):
+    """:func:`make_scene` in chunks of ``chunk`` rows, for bounded memory. The rows depend on the
+    seed and the chunk size; the same call always gives the same rows."""
+    rng = np.random.default_rng(seed)
+    for lo in range(0, n, chunk):
+        yield make_scene(min(chunk, n - lo), scene=scene, cond_max=cond_max, first_id=lo + 1, rng=rng)

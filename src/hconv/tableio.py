@@ -303,9 +303,9 @@ class _CsvWriter:
 
     def __init__(self, path: str, schema: pa.Schema):
         self._f = open(path, "wb")
-        unit = (schema.field("wx").metadata or {}).get(b"unit", b"").decode()
-        self._unit = unit
-        names = schema.names + [UNIT_COLUMN]
+        meta = schema.field("wx").metadata or {} if "wx" in schema.names else {}
+        self._unit = meta[b"unit"].decode() if b"unit" in meta else None  # only tables with ω have one
+        names = schema.names + ([UNIT_COLUMN] if self._unit else [])
         buf = io.StringIO()
         csv.writer(buf, lineterminator="\n").writerow(names)
         self._f.write(buf.getvalue().encode())
@@ -314,8 +314,11 @@ class _CsvWriter:
 
     def write(self, table: pa.Table) -> None:
         cols = [c.cast(pa.string()) if pa.types.is_dictionary(c.type) else c for c in table.columns]
-        cols.append(pa.repeat(self._unit, table.num_rows))
-        t = pa.Table.from_arrays(cols, names=table.schema.names + [UNIT_COLUMN])
+        names = table.schema.names
+        if self._unit:
+            cols.append(pa.repeat(self._unit, table.num_rows))
+            names = names + [UNIT_COLUMN]
+        t = pa.Table.from_arrays(cols, names=names)
         buf = pa.BufferOutputStream()
         try:
             pacsv.write_csv(t, buf, self._plain)
