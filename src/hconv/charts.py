@@ -71,3 +71,45 @@ def stability_chart(points, sweeps, path: str) -> None:
     fig.suptitle("hconv stability: where each method stops being trustworthy", fontsize=14)
     fig.savefig(path, dpi=90)
     plt.close(fig)
+
+
+def speed_accuracy_chart(res, path: str, cond: str = "10000") -> None:
+    """Accuracy (worst error at ``cond``, log) against kernel speed (rows/s, log): one point per
+    method and precision, with the Pareto front (nothing both faster and more accurate)."""
+    plt = _pyplot()
+    from hconv.methods import METHODS
+
+    colours = {n: plt.get_cmap("tab10")(k) for k, n in enumerate(METHODS)}
+    pts = []
+    for key, speed in res.kernel.items():
+        name, prec = key.split("/")
+        err = res.accuracy[key][cond][1]
+        if np.isfinite(err):
+            pts.append((speed, max(err, FLOOR), name, int(prec)))
+    fig, ax = plt.subplots(figsize=(12, 7.5), constrained_layout=True)
+    # neighbours in error alternate their labels above and below, so close points stay readable
+    for k, (speed, err, name, prec) in enumerate(sorted(pts, key=lambda p: (round(np.log10(p[1])), p[0]))):
+        ax.scatter(speed, err, s=90, marker="o" if prec == 64 else "s", color=colours[name],
+                   edgecolors="black", linewidths=0.6, zorder=3)
+        ax.annotate(f"{name} f{prec}", (speed, err), textcoords="offset points",
+                    xytext=(7, 6) if k % 2 == 0 else (7, -14), fontsize=9)
+    front, best = [], np.inf
+    for speed, err, name, prec in sorted(pts, key=lambda p: -p[0]):
+        if err < best:
+            front.append((speed, err))
+            best = err
+    fx, fy = zip(*front)
+    ax.step(fx, fy, where="post", color="black", lw=1.2, ls="--", label="Pareto front: nothing is both faster and more accurate")
+    for level, text in ((2.2e-16, "float64 eps"), (1.2e-7, "float32 eps"), (1e-6, "1e-6")):
+        ax.axhline(level, color="grey", lw=0.8, ls=":")
+        ax.text(0.995, level, text, transform=ax.get_yaxis_transform(), ha="right", va="bottom", fontsize=8, color="grey")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("kernel throughput, rows per second (median of repeats, one core)")
+    ax.set_ylabel(f"worst relative error vs exact I⁻¹H at cond(I) = {float(cond):g}")
+    ax.set_ylim(FLOOR / 3, 10)
+    ax.grid(True, which="major", alpha=0.3)
+    ax.legend(loc="lower right", fontsize=9, title="circles float64, squares float32\nat the floor: correctly rounded")
+    ax.set_title(f"hconv: speed against accuracy, {res.rows:,} rows\n{res.machine}", fontsize=11)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)

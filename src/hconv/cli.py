@@ -159,6 +159,38 @@ def generate_cmd(
     print(f"hconv generate: {rows:,} rows to {dst} in {seconds:.2f} s{rate}", file=sys.stderr)
 
 
+@app.command("bench")
+@friendly
+def bench_cmd(
+    rows: int = typer.Option(2_000_000, "--rows", "-n", help="rows per measurement"),
+    repeats: int = typer.Option(3, "--repeats", min=1, help="each speed is the median of this many runs"),
+    memory_rows: int = typer.Option(0, "--memory-rows", help="also measure peak RSS converting this many rows"),
+    out: Optional[str] = typer.Option("speed-vs-accuracy.png", "--out", "-o", help="chart file, .png or .svg"),
+    no_chart: bool = typer.Option(False, "--no-chart", help="print the tables only"),
+    json_out: Optional[str] = typer.Option(None, "--json", help="also write every figure to this JSON file"),
+    seed: int = typer.Option(0, "--seed"),
+) -> None:
+    """Measure speed and accuracy of every method and precision, and the speed targets."""
+    from hconv import bench, report
+
+    chart = None if no_chart else out
+    if chart is not None:
+        if not chart.lower().endswith((".png", ".svg")):
+            raise UsageError(f"--out {chart!r}: name the chart .png or .svg")
+        from hconv import charts
+
+        charts.check_available()
+    res = bench.run(rows=rows, repeats=repeats, seed=seed, memory_rows=memory_rows,
+                    log=lambda s: print(f"bench: {s}", file=sys.stderr))
+    report.bench_tables(res)
+    if json_out:
+        with open(json_out, "w") as f:
+            json.dump(bench.to_json(res), f, indent=1, default=lambda x: None)
+    if chart is not None:
+        charts.speed_accuracy_chart(res, chart)
+        print(f"chart written to {chart}", file=sys.stderr)
+
+
 @app.command("methods")
 @friendly
 def methods_cmd(as_json: bool = typer.Option(False, "--json", help="print a JSON list")) -> None:

@@ -96,3 +96,29 @@ def stability_tables(points, sweeps, console: Optional[Console] = None) -> None:
                 got = {p.method: p for p in points if p.sweep == sw.name and p.precision == prec and p.param == param}
                 t.add_row(f"{param:g}", *(cell(got.get(n)) for n in names))
             console.print(t)
+
+
+def bench_tables(res, console: Optional[Console] = None) -> None:
+    """The benchmark: a row per method and precision, then the targets as measured ratios."""
+    console = console or Console()
+    console.print(f"[bold]hconv bench[/bold] · {res.rows:,} rows · {res.machine}")
+    conds = list(next(iter(res.accuracy.values())))
+    t = Table(header_style="bold")
+    for col in ("method", "prec", "kernel Mrows/s", "× lapack", "convert Mrows/s"):
+        t.add_column(col, justify="right" if col != "method" else "left")
+    for c in conds:
+        t.add_column(f"error at cond {float(c):g}\nmedian / worst", justify="right")
+    lapack = res.kernel["lapack/64"]
+    for key, speed in res.kernel.items():
+        name, prec = key.split("/")
+        errs = [res.accuracy[key][c] for c in conds]
+        t.add_row(name, prec, f"{speed / 1e6:.2f}", f"{speed / lapack:.2f}", f"{res.convert[key] / 1e6:.2f}",
+                  *(f"{m:.0e} / {w:.0e}" for m, w in errs))
+    console.print(t)
+    g = Table(title="targets (ratios of rates measured in this run)", title_justify="left", header_style="bold")
+    for col in ("target", "measured", "required", "met"):
+        g.add_column(col, justify="left" if col == "target" else "right")
+    for name, value, required, met in res.targets:
+        g.add_row(name, "skipped" if value is None else f"{value:.2f}", f"≥ {required:g}",
+                  "—" if met is None else ("[green]yes[/green]" if met else "[red]no[/red]"))
+    console.print(g)

@@ -1,0 +1,232 @@
+"""`hconv bench`: speed against accuracy for every method and precision, and the speed targets.
+
+Every speed is a median of repeats, and every target is a ratio between two rates measured in the
+same run, because the machine is shared and noisy. Accuracy is scored like `hconv stability`:
+against I⁻¹H solved in exact rational arithmetic. Nothing here is needed at run time; numba (the
+compiled-loop yardstick) is imported only if installed (``pip install 'hconv[bench]'``).
+"""
+from __future__ import annotations
+
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import asdict, dataclass, field
+from typing import Callable, Optional
+
+import numpy as np
+
+from hconv import core, methods, stability
+from hconv.inertia import Sym3
+from hconv.scene import make_scene
+
+PRECISIONS = (64, 32)
+ACCURACY_CONDS = (1e1, 1e4, 1e8)
+
+
+@dataclass
+class Result:
+    rows: int
+    machine: str
+    kernel: dict = field(default_factory=dict)  #: "method/64" -> rows/s, the method's arithmetic only
+    convert: dict = field(default_factory=dict)  #: "method/64" -> rows/s, Parquet → Parquet end to end
+    accuracy: dict = field(default_factory=dict)  #: "method/64" -> {cond: [median, worst]}
+    baselines: dict = field(default_factory=dict)  #: named reference rates and times
+    targets: list = field(default_factory=list)  #: [name, measured ratio, required, met]
+
+
+def describe_machine() -> str:
+    model = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo") as f:
+            model = next(ln.split(":", 1)[1].strip() for ln in f if ln.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    import pyarrow
+
+    return (f"{model}, {os.cpu_count()} cores; Python {platform.python_version()}, "
+            f"numpy {np.__version__}, pyarrow {pyarrow.__version__}")
+
+
+def _median_rate(fn: Callable[[], None], rows: int, repeats: int) -> float:
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return rows / statistics.median(times)
+
+
+def _inputs(rows: int, seed: int):
+    cols = make_scene(rows, seed=seed)
+    I = Sym3(*(np.ascontiguousarray(cols[c]) for c in ("Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz")))
+    H = np.ascontiguousarray(np.stack([cols[f"H{a}"] for a in "xyz"]))
+    r = np.ascontiguousarray(np.stack([cols[f"r{a}"] for a in "xyz"]))
+    return cols, I, H, r
+
+
+def kernel_rates(I: Sym3, H: np.ndarray, r: np.ndarray, repeats: int) -> dict:
+    """Each method's own arithmetic over cache-sized blocks, as `convert` runs it."""
+    n, out = H.shape[1], {}
+    for prec in PRECISIONS:
+        dt = core.DTYPES[prec]
+        blocks = [(I.take(slice(lo, lo + core.BLOCK_ROWS)).astype(dt), H[:, lo:lo + core.BLOCK_ROWS].astype(dt),
+                   r[:, lo:lo + core.BLOCK_ROWS].astype(dt)) for lo in range(0, n, core.BLOCK_ROWS)]
+        for name, m in methods.METHODS.items():
+            out[f"{name}/{prec}"] = _median_rate(lambda: [m.kernel(*b) for b in blocks], n, repeats)
+    return out
+
+
+def accuracy(rows: int = 300, seed: int = 0) -> dict:
+    """Median and worst relative error vs exact I⁻¹H, per method and precision, at a few cond."""
+    rng = np.random.default_rng(seed)
+    out: dict = {}
+    for cond in ACCURACY_CONDS:
+        I, H, r = stability._cond(rng, rows, cond)
+        ref = stability.exact_solve(I, H)
+        ref_norm = np.linalg.norm(ref, axis=1)
+        for name in methods.METHODS:
+            for prec in PRECISIONS:
+                with np.errstate(all="ignore"):
+                    w = core.convert(H, I, r, method=name, precision=prec, diagnostics=False).w.astype(float)
+                    err = np.linalg.norm(w - ref, axis=1) / ref_norm
+                err = err[np.isfinite(err)]
+                out.setdefault(f"{name}/{prec}", {})[f"{cond:g}"] = (
+                    [float(np.median(err)), float(err.max())] if err.size else [float("nan")] * 2)
+    return out
+
+
+def compiled_loop_rate(I: Sym3, H: np.ndarray, repeats: int) -> Optional[float]:
+    """The yardstick: LDLᵀ's arithmetic as one compiled loop (numba), None if numba is missing."""
+    try:
+        import numba
+    except ImportError:
+        return None
+
+    @numba.njit(cache=False, fastmath=False)
+    def ldlt_loop(a, b, c, d, e, f, h, w):  # pragma: no cover - compiled
+        for k in range(a.shape[0]):
+            d1 = a[k]
+            l21, l31 = d[k] / d1, e[k] / d1
+            d2 = b[k] - l21 * d[k]
+            t = f[k] - l31 * d[k]
+            l32 = t / d2
+            d3 = c[k] - l31 * e[k] - l32 * t
+            y1 = h[0, k]
+            y2 = h[1, k] - l21 * y1
+            y3 = h[2, k] - l31 * y1 - l32 * y2
+            x3 = y3 / d3
+            x2 = y2 / d2 - l32 * x3
+            w[2, k], w[1, k], w[0, k] = x3, x2, y1 / d1 - l21 * x2 - l31 * x3
+
+    w = np.empty_like(H)
+    ldlt_loop(*I, H, w)  # compile outside the timing
+    return _median_rate(lambda: ldlt_loop(*I, H, w), H.shape[1], repeats)
+
+
+def _time_command(args: list, repeats: int) -> float:
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        subprocess.run(args, check=True, capture_output=True)
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+def _peak_rss_mb(args: list) -> float:
+    """Peak RSS of a command, measured from a fresh wrapper process whose only child it is."""
+    code = ("import resource, subprocess, sys; subprocess.run(sys.argv[1:], check=True, capture_output=True);"
+            "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)")
+    out = subprocess.run([sys.executable, "-c", code, *args], check=True, capture_output=True, text=True)
+    return int(out.stdout.strip()) / 1024.0
+
+
+_PLAIN_SCRIPT = """
+import sys, numpy as np, pyarrow as pa, pyarrow.parquet as pq
+t = pq.read_table(sys.argv[1])
+g = lambda c: t.column(c).to_numpy()
+I = np.empty((t.num_rows, 3, 3))
+I[:, 0, 0], I[:, 1, 1], I[:, 2, 2] = g("Ixx"), g("Iyy"), g("Izz")
+I[:, 0, 1] = I[:, 1, 0] = g("Ixy"); I[:, 0, 2] = I[:, 2, 0] = g("Ixz"); I[:, 1, 2] = I[:, 2, 1] = g("Iyz")
+w = np.linalg.solve(I, np.column_stack([g("Hx"), g("Hy"), g("Hz")])[..., None])[..., 0]
+for k, c in enumerate(("wx", "wy", "wz")):
+    t = t.append_column(c, pa.array(w[:, k]))
+pq.write_table(t, sys.argv[2])
+"""
+
+
+def _roofline(src: str, dst: str) -> None:
+    """hconv's own reading and writing of the same columns, with no computation at all."""
+    import pyarrow as pa
+
+    from hconv.arrow import output_fields
+    from hconv.pipeline import BackgroundWriter
+    from hconv.tableio import Output, open_input
+
+    fields = output_fields("exact", 64)
+    with open_input(src, "parquet", "exact") as inp, Output(dst, "parquet", force=True) as out, BackgroundWriter(out) as wr:
+        for batch in inp.batches:
+            n = batch.num_rows
+            cols = [pa.array(np.zeros(n)) for _ in fields[:-1]]
+            cols.append(pa.DictionaryArray.from_arrays(pa.array(np.zeros(n, np.int8)), pa.array(["ok"])))
+            wr.write(pa.Table.from_arrays(list(batch.columns) + cols, schema=pa.schema(list(batch.schema) + fields)))
+
+
+def run(rows: int = 2_000_000, repeats: int = 3, seed: int = 0, memory_rows: int = 0,
+        log: Callable[[str], None] = lambda s: None) -> Result:
+    """Measure everything; ``memory_rows`` > 0 also measures peak RSS converting that many rows."""
+    from hconv import pipeline
+
+    res = Result(rows=rows, machine=describe_machine())
+    log("generating inputs")
+    cols, I, H, r = _inputs(rows, seed)
+    log("kernels")
+    res.kernel = kernel_rates(I, H, r, repeats)
+    log("accuracy")
+    res.accuracy = accuracy(seed=seed)
+    compiled = compiled_loop_rate(I, H, repeats)
+    hconv_cmd = [sys.executable, "-m", "hconv"]
+    with tempfile.TemporaryDirectory(prefix="hconv-bench-") as tmp:
+        src, dst = os.path.join(tmp, "in.parquet"), os.path.join(tmp, "out.parquet")
+        pipeline.generate_file(src, rows, seed=seed)
+        log("end-to-end conversions")
+        pipeline.convert_file(src, dst, force=True)  # warm-up: page cache and first-call costs
+        for name in methods.METHODS:
+            for prec in PRECISIONS:
+                res.convert[f"{name}/{prec}"] = _median_rate(
+                    lambda: pipeline.convert_file(src, dst, method=name, precision=prec, force=True), rows, repeats)
+        roof = _median_rate(lambda: _roofline(src, dst), rows, repeats)
+        plain_s = _time_command([sys.executable, "-c", _PLAIN_SCRIPT, src, dst], repeats)
+        hconv_cli_s = _time_command(hconv_cmd + ["convert", src, dst, "--force", "-q"], repeats)
+        log("start-up")
+        one_s = _time_command(hconv_cmd + ["one", "--H", "1,2,3", "--I", "2,3,4,0,0,0"], 10)
+        numpy_s = _time_command([sys.executable, "-c", "import numpy"], 10)
+        res.baselines = {"io_roofline_rows_per_s": roof, "plain_script_s": plain_s, "hconv_convert_cli_s": hconv_cli_s,
+                         "compiled_loop_rows_per_s": compiled, "hconv_one_s": one_s, "import_numpy_s": numpy_s}
+        if memory_rows:
+            log(f"peak memory on {memory_rows:,} rows")
+            big = os.path.join(tmp, "big.parquet")
+            pipeline.generate_file(big, memory_rows, seed=seed)
+            res.baselines["memory_rows"] = memory_rows
+            res.baselines["peak_rss_mb"] = _peak_rss_mb(hconv_cmd + ["convert", big, dst, "--force", "-q"])
+    k = res.kernel
+    res.targets = [
+        ["exact kernel / lapack kernel", k["exact/64"] / k["lapack/64"], 10.0],
+        ["exact kernel / compiled loop", (k["exact/64"] / compiled) if compiled else None, 0.5],
+        ["refined kernel / lapack kernel", k["refined/64"] / k["lapack/64"], 3.0],
+        ["convert exact / I/O roofline", res.convert["exact/64"] / roof, 0.7],
+        ["plain script time / hconv convert time", plain_s / hconv_cli_s, 5.0],
+        ["import numpy time / hconv one time", numpy_s / one_s, 0.5],
+    ]
+    if memory_rows:
+        res.targets.append([f"400 MB / peak RSS on {memory_rows:,} rows", 400.0 / res.baselines["peak_rss_mb"], 1.0])
+    for t in res.targets:
+        t.append(None if t[1] is None else bool(t[1] >= t[2]))
+    return res
+
+
+def to_json(res: Result) -> dict:
+    return asdict(res)

@@ -1,0 +1,32 @@
+"""`hconv bench` on a small run: every method and precision measured, targets computed, chart drawn."""
+from __future__ import annotations
+
+import json
+
+import hconv
+from conftest import run_hconv
+
+
+def test_bench_command_small_run_writes_tables_json_and_chart(tmp_path):
+    chart, data = tmp_path / "sva.png", tmp_path / "bench.json"
+    proc = run_hconv("bench", "--rows", "20000", "--repeats", "1", "--out", str(chart), "--json", str(data))
+    assert proc.returncode == 0, proc.stderr.decode()
+    assert chart.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    res = json.loads(data.read_text())
+    keys = {f"{m}/{p}" for m in hconv.METHODS for p in (64, 32)}
+    assert set(res["kernel"]) == keys and set(res["convert"]) == keys and set(res["accuracy"]) == keys
+    assert all(v > 0 for v in res["kernel"].values())
+    # accuracy is measured, not assumed: refined is correctly rounded, document far off
+    assert res["accuracy"]["refined/64"]["10000"][1] <= 2.3e-16
+    assert res["accuracy"]["document/64"]["10000"][0] > 0.1
+    names = [t[0] for t in res["targets"]]
+    assert "exact kernel / lapack kernel" in names and "convert exact / I/O roofline" in names
+    for name, value, required, met in res["targets"]:
+        assert met is None or met == (value >= required)
+    out = proc.stdout.decode()
+    assert "targets" in out and "document-principal" in out
+
+
+def test_bench_rejects_other_chart_formats(tmp_path):
+    proc = run_hconv("bench", "--rows", "1000", "--out", str(tmp_path / "x.gif"))
+    assert proc.returncode == 2 and ".png or .svg" in proc.stderr.decode()
