@@ -1,12 +1,14 @@
 """`hconv bench`: speed against accuracy for every method and precision, and the speed targets.
 
 Every speed is a median of repeats, and every target is a ratio between two rates measured in the
-same run, because the machine is shared and noisy. Accuracy is scored like `hconv stability`:
+same run, because the machine is shared and noisy; the repeats run in interleaved rounds (every
+job once per round), so that a slow drift of the machine falls on both sides of a ratio. Accuracy is scored like `hconv stability`:
 against I⁻¹H solved in exact rational arithmetic. Nothing here is needed at run time; numba (the
 compiled-loop yardstick) is imported only if installed (``pip install 'hconv[bench]'``).
 """
 from __future__ import annotations
 
+import importlib.util
 import os
 import platform
 import statistics
@@ -51,13 +53,16 @@ def describe_machine() -> str:
             f"numpy {np.__version__}, pyarrow {pyarrow.__version__}")
 
 
-def _median_rate(fn: Callable[[], None], rows: int, repeats: int) -> float:
-    times = []
+def _rounds(jobs: dict, repeats: int) -> dict:
+    """Median seconds of each job, run in interleaved rounds (every job once per round), so that
+    the machine's slow drifts fall on every side of a ratio alike."""
+    times: dict = {k: [] for k in jobs}
     for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return rows / statistics.median(times)
+        for k, fn in jobs.items():
+            t0 = time.perf_counter()
+            fn()
+            times[k].append(time.perf_counter() - t0)
+    return {k: statistics.median(v) for k, v in times.items()}
 
 
 def _inputs(rows: int, seed: int):
@@ -68,16 +73,18 @@ def _inputs(rows: int, seed: int):
     return cols, I, H, r
 
 
-def kernel_rates(I: Sym3, H: np.ndarray, r: np.ndarray, repeats: int) -> dict:
-    """Each method's own arithmetic over cache-sized blocks, as `convert` runs it."""
-    n, out = H.shape[1], {}
+def kernel_rates(I: Sym3, H: np.ndarray, r: np.ndarray, repeats: int, only: Optional[str] = None) -> dict:
+    """Each method's own arithmetic over cache-sized blocks, as `convert` runs it, in rows/s;
+    ``only`` ("exact/64") measures just that one."""
+    n, jobs = H.shape[1], {}
     for prec in PRECISIONS:
         dt = core.DTYPES[prec]
         blocks = [(I.take(slice(lo, lo + core.BLOCK_ROWS)).astype(dt), H[:, lo:lo + core.BLOCK_ROWS].astype(dt),
                    r[:, lo:lo + core.BLOCK_ROWS].astype(dt)) for lo in range(0, n, core.BLOCK_ROWS)]
         for name, m in methods.METHODS.items():
-            out[f"{name}/{prec}"] = _median_rate(lambda: [m.kernel(*b) for b in blocks], n, repeats)
-    return out
+            if only in (None, f"{name}/{prec}"):
+                jobs[f"{name}/{prec}"] = (lambda m=m, blocks=blocks: [m.kernel(*b) for b in blocks])
+    return {k: n / v for k, v in _rounds(jobs, repeats).items()}
 
 
 def accuracy(rows: int = 300, seed: int = 0) -> dict:
@@ -99,8 +106,9 @@ def accuracy(rows: int = 300, seed: int = 0) -> dict:
     return out
 
 
-def compiled_loop_rate(I: Sym3, H: np.ndarray, repeats: int) -> Optional[float]:
-    """The yardstick: LDLᵀ's arithmetic as one compiled loop (numba), None if numba is missing."""
+def compiled_loop(I: Sym3, H: np.ndarray) -> Optional[Callable[[], None]]:
+    """The yardstick: LDLᵀ's arithmetic as one compiled loop (numba), ready to time; None if numba
+    is missing."""
     try:
         import numba
     except ImportError:
@@ -124,16 +132,42 @@ def compiled_loop_rate(I: Sym3, H: np.ndarray, repeats: int) -> Optional[float]:
 
     w = np.empty_like(H)
     ldlt_loop(*I, H, w)  # compile outside the timing
-    return _median_rate(lambda: ldlt_loop(*I, H, w), H.shape[1], repeats)
+    return lambda: ldlt_loop(*I, H, w)
 
 
-def _time_command(args: list, repeats: int) -> float:
-    times = []
+_YARDSTICK = """
+import sys, numpy as np
+from hconv import bench
+from hconv.inertia import Sym3
+d = np.load(sys.argv[1])
+I, H = Sym3(*(np.ascontiguousarray(d[k]) for k in range(6))), np.ascontiguousarray(d[6:9])
+if sys.argv[2] == "compiled":
+    print(H.shape[1] / bench._rounds({"c": bench.compiled_loop(I, H)}, 3)["c"])
+else:
+    print(bench.kernel_rates(I, H, np.zeros_like(H), 3, only="exact/64")["exact/64"])
+"""
+
+
+def yardstick(I: Sym3, H: np.ndarray, tmp: str, repeats: int) -> tuple[Optional[float], float]:
+    """(compiled loop, exact kernel) in rows/s, each in fresh processes, alternating per round.
+
+    Separate processes, because importing numba and compiling was measured (twice each way) to
+    slow the float64 numpy kernels of the same process from 55 to 40 M rows/s.
+    """
+    if importlib.util.find_spec("numba") is None:
+        return None, float("nan")
+    path = os.path.join(tmp, "yardstick.npy")
+    np.save(path, np.stack(list(I) + list(H)))
+    got: dict = {"compiled": [], "exact": []}
     for _ in range(repeats):
-        t0 = time.perf_counter()
-        subprocess.run(args, check=True, capture_output=True)
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+        for which in got:
+            out = subprocess.run([sys.executable, "-c", _YARDSTICK, path, which], check=True, capture_output=True, text=True)
+            got[which].append(float(out.stdout.strip().splitlines()[-1]))
+    return statistics.median(got["compiled"]), statistics.median(got["exact"])
+
+
+def _command(args: list) -> Callable[[], None]:
+    return lambda: subprocess.run(args, check=True, capture_output=True)
 
 
 def _peak_rss_mb(args: list) -> float:
@@ -187,25 +221,29 @@ def run(rows: int = 2_000_000, repeats: int = 3, seed: int = 0, memory_rows: int
     res.kernel = kernel_rates(I, H, r, repeats)
     log("accuracy")
     res.accuracy = accuracy(seed=seed)
-    compiled = compiled_loop_rate(I, H, repeats)
     hconv_cmd = [sys.executable, "-m", "hconv"]
     with tempfile.TemporaryDirectory(prefix="hconv-bench-") as tmp:
+        log("compiled-loop yardstick")
+        compiled, exact_fresh = yardstick(I, H, tmp, repeats)
         src, dst = os.path.join(tmp, "in.parquet"), os.path.join(tmp, "out.parquet")
         pipeline.generate_file(src, rows, seed=seed)
         log("end-to-end conversions")
         pipeline.convert_file(src, dst, force=True)  # warm-up: page cache and first-call costs
-        for name in methods.METHODS:
-            for prec in PRECISIONS:
-                res.convert[f"{name}/{prec}"] = _median_rate(
-                    lambda: pipeline.convert_file(src, dst, method=name, precision=prec, force=True), rows, repeats)
-        roof = _median_rate(lambda: _roofline(src, dst), rows, repeats)
-        plain_s = _time_command([sys.executable, "-c", _PLAIN_SCRIPT, src, dst], repeats)
-        hconv_cli_s = _time_command(hconv_cmd + ["convert", src, dst, "--force", "-q"], repeats)
+        jobs = {f"{name}/{prec}": (lambda name=name, prec=prec: pipeline.convert_file(
+            src, dst, method=name, precision=prec, force=True)) for name in methods.METHODS for prec in PRECISIONS}
+        jobs["roofline"] = lambda: _roofline(src, dst)
+        jobs["plain script"] = _command([sys.executable, "-c", _PLAIN_SCRIPT, src, dst])
+        jobs["hconv convert"] = _command(hconv_cmd + ["convert", src, dst, "--force", "-q"])
+        secs = _rounds(jobs, repeats)
+        roof, plain_s, hconv_cli_s = rows / secs.pop("roofline"), secs.pop("plain script"), secs.pop("hconv convert")
+        res.convert = {k: rows / v for k, v in secs.items()}
         log("start-up")
-        one_s = _time_command(hconv_cmd + ["one", "--H", "1,2,3", "--I", "2,3,4,0,0,0"], 10)
-        numpy_s = _time_command([sys.executable, "-c", "import numpy"], 10)
+        starts = _rounds({"one": _command(hconv_cmd + ["one", "--H", "1,2,3", "--I", "2,3,4,0,0,0"]),
+                          "numpy": _command([sys.executable, "-c", "import numpy"])}, 10)
+        one_s, numpy_s = starts["one"], starts["numpy"]
         res.baselines = {"io_roofline_rows_per_s": roof, "plain_script_s": plain_s, "hconv_convert_cli_s": hconv_cli_s,
-                         "compiled_loop_rows_per_s": compiled, "hconv_one_s": one_s, "import_numpy_s": numpy_s}
+                         "compiled_loop_rows_per_s": compiled, "exact_kernel_fresh_process_rows_per_s": exact_fresh,
+                         "hconv_one_s": one_s, "import_numpy_s": numpy_s}
         if memory_rows:
             log(f"peak memory on {memory_rows:,} rows")
             big = os.path.join(tmp, "big.parquet")
@@ -215,7 +253,7 @@ def run(rows: int = 2_000_000, repeats: int = 3, seed: int = 0, memory_rows: int
     k = res.kernel
     res.targets = [
         ["exact kernel / lapack kernel", k["exact/64"] / k["lapack/64"], 10.0],
-        ["exact kernel / compiled loop", (k["exact/64"] / compiled) if compiled else None, 0.5],
+        ["exact kernel / compiled loop (fresh processes)", (exact_fresh / compiled) if compiled else None, 0.5],
         ["refined kernel / lapack kernel", k["refined/64"] / k["lapack/64"], 3.0],
         ["convert exact / I/O roofline", res.convert["exact/64"] / roof, 0.7],
         ["plain script time / hconv convert time", plain_s / hconv_cli_s, 5.0],

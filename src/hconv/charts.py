@@ -21,8 +21,12 @@ def _pyplot():
 
 
 def check_available() -> None:
-    """Raise UsageError now, before a long run, if charts cannot be drawn."""
-    _pyplot()
+    """Raise UsageError now, before a long run, if charts cannot be drawn; matplotlib itself
+    (about 1 s to import) is loaded only when a chart is drawn."""
+    import importlib.util
+
+    if importlib.util.find_spec("matplotlib") is None:
+        raise UsageError("charts need matplotlib: pip install 'hconv[plot]' (or pass --no-chart)")
 
 
 def stability_chart(points, sweeps, path: str) -> None:

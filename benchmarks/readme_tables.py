@@ -1,0 +1,34 @@
+"""Print the README's benchmark tables (Markdown) from a `hconv bench --json` file.
+
+    python benchmarks/readme_tables.py docs/bench.json
+"""
+import json
+import sys
+
+res = json.load(open(sys.argv[1] if len(sys.argv) > 1 else "docs/bench.json"))
+conds = list(next(iter(res["accuracy"].values())))
+lapack = res["kernel"]["lapack/64"]
+
+
+def err(x):
+    m, w = x
+    return "flagged" if m is None or m != m else ("0 / 0" if w == 0 else f"{m:.0e} / {w:.0e}")
+
+
+print("| method | prec | kernel Mrows/s | × lapack | convert Mrows/s | " + " | ".join(f"error at cond {float(c):g}, median / worst" for c in conds) + " |")
+print("|---" * (5 + len(conds)) + "|")
+for key, speed in res["kernel"].items():
+    name, prec = key.split("/")
+    cells = [name, prec, f"{speed / 1e6:.3g}", f"{speed / lapack:.3g}", f"{res['convert'][key] / 1e6:.3g}"]
+    print("| " + " | ".join(cells + [err(res["accuracy"][key][c]) for c in conds]) + " |")
+print()
+print("| target | measured | required | met |")
+print("|---|---|---|---|")
+for name, value, required, met in res["targets"]:
+    print(f"| {name} | {'skipped' if value is None else f'{value:.2f}'} | ≥ {required:g} | "
+          f"{'—' if met is None else ('yes' if met else '**no**')} |")
+b = res["baselines"]
+print(f"\nroofline {b['io_roofline_rows_per_s'] / 1e6:.2f} M rows/s; plain script {b['plain_script_s']:.2f} s; "
+      f"hconv convert {b['hconv_convert_cli_s']:.2f} s; compiled loop {b['compiled_loop_rows_per_s'] / 1e6:.0f} M rows/s; "
+      f"exact kernel in a fresh process {b['exact_kernel_fresh_process_rows_per_s'] / 1e6:.1f} M rows/s; "
+      f"peak RSS {b.get('peak_rss_mb', float('nan')):.0f} MB on {b.get('memory_rows', 0):,} rows")
