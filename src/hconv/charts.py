@@ -1,6 +1,8 @@
 """Charts, drawn with matplotlib (the optional extra ``hconv[plot]``, imported only here)."""
 from __future__ import annotations
 
+from typing import Optional
+
 import numpy as np
 
 from hconv.errors import UsageError
@@ -20,13 +22,19 @@ def _pyplot():
     return plt
 
 
-def check_available() -> None:
-    """Raise UsageError now, before a long run, if charts cannot be drawn; matplotlib itself
-    (about 1 s to import) is loaded only when a chart is drawn."""
+def requested(out: Optional[str], no_chart: bool) -> Optional[str]:
+    """The chart path a command should write, or None; UsageError now, before a long run, if the
+    name is not .png/.svg or matplotlib is missing. matplotlib itself (about 1 s to import) is
+    loaded only when a chart is drawn."""
+    if no_chart or out is None:
+        return None
+    if not out.lower().endswith((".png", ".svg")):
+        raise UsageError(f"--out {out!r}: name the chart .png or .svg")
     import importlib.util
 
     if importlib.util.find_spec("matplotlib") is None:
         raise UsageError("charts need matplotlib: pip install 'hconv[plot]' (or pass --no-chart)")
+    return out
 
 
 def stability_chart(points, sweeps, path: str) -> None:

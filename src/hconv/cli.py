@@ -173,13 +173,9 @@ def bench_cmd(
     """Measure speed and accuracy of every method and precision, and the speed targets."""
     from hconv import bench, report
 
-    chart = None if no_chart else out
-    if chart is not None:
-        if not chart.lower().endswith((".png", ".svg")):
-            raise UsageError(f"--out {chart!r}: name the chart .png or .svg")
-        from hconv import charts
+    from hconv import charts
 
-        charts.check_available()
+    chart = charts.requested(out, no_chart)
     res = bench.run(rows=rows, repeats=repeats, seed=seed, memory_rows=memory_rows,
                     log=lambda s: print(f"bench: {s}", file=sys.stderr))
     report.bench_tables(res)
@@ -220,13 +216,9 @@ def stability_cmd(
     """Sweep every method over hard inputs and show where each stops being trustworthy."""
     from hconv import stability
 
-    chart = None if no_chart else out
-    if chart is not None:
-        if not chart.lower().endswith((".png", ".svg")):
-            raise UsageError(f"--out {chart!r}: name the chart .png or .svg")
-        from hconv import charts
+    from hconv import charts
 
-        charts.check_available()
+    chart = charts.requested(out, no_chart)
     points = stability.run(rows=rows, seed=seed)
     if as_json:
         from dataclasses import asdict
