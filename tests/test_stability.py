@@ -91,3 +91,21 @@ def test_ill_conditioned_not_applied_to_approximations():
     for method in ("diagonal", "document"):
         assert hconv.convert([1, 1, 1], I, [0.3, 0.5, 0.7], method=method).status == "ok"
     assert hconv.convert([1, 1, 1], I, method="exact").status == "ill_conditioned"
+
+
+def test_residual_of_refined_is_measured_against_a_longer_refinement(rng, monkeypatch):
+    """If refined stopped too early, its residual must show it, not compare it with itself."""
+    from hconv import linsolve
+
+    I, H = spd_bodies(rng, 50, 1e10), rng.normal(size=(50, 3))
+    assert np.nanmax(hconv.convert(H, I, method="refined").residual) <= 2 * EPS
+    real = linsolve.solve_refined
+
+    def one_step_when_adaptive(I_, h_, steps=None):  # a refined that stops after one step
+        return real(I_, h_, steps=1 if steps is None else steps)
+
+    monkeypatch.setattr(linsolve, "solve_refined", one_step_when_adaptive)
+    res = hconv.convert(H, I, method="refined")
+    true = rel_err(res.w, mp_solve(I, H))
+    assert true.max() > 1e-14  # one step is not enough at cond 1e10 ...
+    np.testing.assert_allclose(res.residual, true, rtol=1e-2, atol=1e-16)  # ... and the residual says so
