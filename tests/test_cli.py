@@ -402,3 +402,11 @@ def test_convert_file_write_failure_midway_leaves_nothing(tmp_path, monkeypatch,
         pipeline.convert_file(str(tmp_path / "in.parquet"), str(tmp_path / "out.parquet"))
     assert calls["n"] == 3
     no_leftovers(tmp_path, {"in.parquet"})
+
+
+@pytest.mark.parametrize("args", [["methods", "--json"], ["generate", "-", "--rows", "200000", "--to", "csv"]])
+def test_cli_reader_closing_pipe_early_is_quiet(args):
+    cmd = f'"{sys.executable}" -m hconv {" ".join(args)} | head -n 1'
+    proc = subprocess.run(cmd, shell=True, capture_output=True, timeout=120, executable="/bin/bash")
+    assert len(proc.stdout.decode().splitlines()) == 1
+    assert "error" not in proc.stderr.decode() and "Traceback" not in proc.stderr.decode()

@@ -46,6 +46,9 @@ def friendly(fn):
             _fail(str(exc), exc.exit_code)
         except KeyboardInterrupt:
             _fail("interrupted; no output was written", 130)
+        except BrokenPipeError:  # the reader stopped early (`| head`): its choice, not a failure
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            raise typer.Exit(0)
         except OSError as exc:
             _fail(f"{exc.filename or 'output'}: {exc.strerror or exc}; nothing was written", 4)
         except (typer.Exit, typer.Abort):
