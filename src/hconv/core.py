@@ -23,7 +23,7 @@ from typing import Optional
 import numpy as np
 
 from hconv import linsolve, methods, status
-from hconv.inertia import Sym3, eigenvalues, sym_from_array
+from hconv.inertia import Sym3, max_abs, eigenvalues, sym_from_array
 
 #: Rows per kernel block: small enough that a block's temporaries stay in cache.
 BLOCK_ROWS = 16384
@@ -113,7 +113,7 @@ def _convert_block(m, dtype, I: Sym3, asym, H, r, w_out, cond_out, code_out, res
     columns = [*I, *H] + ([] if r_used is None else list(r_used))
     limit = np.finfo(dtype).max  # a finite float64 beyond float32's range is no usable input there
     with np.errstate(invalid="ignore"):
-        invalid = ~np.logical_and.reduce([np.abs(c) <= limit for c in columns])
+        invalid = ~(max_abs(columns) <= limit)  # NaN compares false, so NaN rows are invalid too
     if invalid.any():
         # Stand-ins keep the kernels quiet; these rows' outputs are replaced below.
         keep = ~invalid
@@ -122,26 +122,29 @@ def _convert_block(m, dtype, I: Sym3, asym, H, r, w_out, cond_out, code_out, res
         if r_used is not None:
             r_used = np.where(keep, r_used, 1.0)
 
-    lam = eigenvalues(I)
-    big = np.max(np.abs(lam), axis=1)
-    small = np.min(np.abs(lam), axis=1)
+    lam = eigenvalues(I)  # (3, n), ascending
+    big = np.maximum(np.abs(lam[0]), np.abs(lam[2]))
+    small = np.minimum(np.minimum(np.abs(lam[0]), np.abs(lam[1])), np.abs(lam[2]))
     with np.errstate(divide="ignore", invalid="ignore"):
         cond = np.where(small > 0, big / np.where(small > 0, small, 1.0), np.inf)
     flags = {
         "invalid_input": invalid,
         "not_symmetric": asym & ~invalid,
         "singular": small <= status.singular_rtol(dtype) * big,
-        "not_positive_definite": lam[:, 0] < 0,
-        "not_physical": lam[:, 2] - lam[:, 1] - lam[:, 0] > status.TRIANGLE_RTOL * np.sum(np.abs(lam), axis=1),
+        "not_positive_definite": lam[0] < 0,
+        "not_physical": lam[2] - lam[1] - lam[0] > status.TRIANGLE_RTOL * (np.abs(lam[0]) + np.abs(lam[1]) + np.abs(lam[2])),
         "ill_conditioned": cond > m.cond_limit(8 * np.dtype(dtype).itemsize),
     }
 
     w, own = m.kernel(I.astype(dtype), H.astype(dtype), None if r_used is None else r_used.astype(dtype))
     for name, mask in own.items():
         flags[name] = flags[name] | mask if name in flags else mask
-    no_answer = np.logical_or.reduce([flags[s] for s in m.nan_on if s in flags])
+    no_answer = np.zeros(n, dtype=bool)
+    for s in m.nan_on:
+        if s in flags:
+            no_answer |= flags[s]
     # A finite row that still gives a non-finite ω must never pass as ok.
-    lost = ~np.isfinite(w).all(axis=0) & ~no_answer
+    lost = ~(np.isfinite(w[0]) & np.isfinite(w[1]) & np.isfinite(w[2])) & ~no_answer
     flags["overflow"] = lost & ~invalid
     w[:, no_answer | lost] = np.nan
 

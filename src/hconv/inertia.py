@@ -74,7 +74,8 @@ def sym_from_array(I: np.ndarray, *, symmetry_rtol: float = 1e-12) -> tuple[Sym3
 
 
 def eigenvalues(I: Sym3) -> np.ndarray:
-    """Principal moments of each tensor, ascending, shape ``(N, 3)`` [kg·m²]. Inputs must be finite.
+    """Principal moments of each tensor, ascending, shape ``(3, N)`` [kg·m²] (component-major, so
+    each of the three is a contiguous column). Inputs must be finite.
 
     Accurate to what the statuses and ``cond`` need, and about 5× faster than LAPACK's
     ``eigvalsh``, which it falls back to wherever a decision could be in doubt:
@@ -89,7 +90,7 @@ def eigenvalues(I: Sym3) -> np.ndarray:
       and rows that are not positive definite, go to ``eigvalsh``.
     """
     n = I.xx.shape[0]
-    lam = np.empty((n, 3))
+    lam = np.empty((3, n))
     if n == 0:
         return lam
     from hconv.linsolve import ldlt_factor, ldlt_inverse  # linsolve imports this module
@@ -104,11 +105,11 @@ def eigenvalues(I: Sym3) -> np.ndarray:
     tr = I.xx + I.yy + I.zz
     margin = np.abs(2.0 * hi - tr)
     fast &= np.isfinite(lo) & (lo > 0) & (margin > 1e-9 * tr + 4.0 * hi_err)
-    lam[:, 0], lam[:, 2] = lo, hi
-    lam[:, 1] = tr - hi - lo
+    lam[0], lam[2] = lo, hi
+    lam[1] = tr - hi - lo
     slow = ~fast
     if slow.any():
-        lam[slow] = np.linalg.eigvalsh(I.take(slow).matrices())
+        lam[:, slow] = np.linalg.eigvalsh(I.take(slow).matrices()).T
     return lam
 
 
@@ -121,7 +122,7 @@ def _largest_root(I: Sym3) -> tuple[np.ndarray, np.ndarray]:
     the error grows to about p·eps / √(1 − r²), capped at p·√eps.
     """
     # Scale by the largest entry so that squares and the determinant neither overflow nor underflow.
-    s = np.maximum.reduce([np.abs(c) for c in I])
+    s = max_abs(I)
     s = np.where(s > 0, s, 1.0)
     a, b, c, d, e, f = (comp / s for comp in I)
     q = (a + b + c) / 3.0
@@ -134,6 +135,15 @@ def _largest_root(I: Sym3) -> tuple[np.ndarray, np.ndarray]:
     eps = np.finfo(np.float64).eps
     err = p * np.minimum(np.sqrt(eps), 16.0 * eps / np.sqrt(np.maximum(1.0 - r * r, eps))) + 8.0 * eps * np.abs(q)
     return hi * s, err * s
+
+
+def max_abs(columns) -> np.ndarray:
+    """Elementwise max of |column| over a few ``(N,)`` columns (chained, no stacking copy)."""
+    it = iter(columns)
+    m = np.abs(next(it))
+    for c in it:
+        np.maximum(m, np.abs(c), out=m)
+    return m
 
 
 def principal_axes(I: Sym3) -> tuple[np.ndarray, np.ndarray]:

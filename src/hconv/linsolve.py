@@ -12,7 +12,7 @@ from typing import NamedTuple, Optional
 import numpy as np
 
 from hconv import eft
-from hconv.inertia import Sym3
+from hconv.inertia import Sym3, max_abs
 
 
 class LDLt(NamedTuple):
@@ -141,7 +141,7 @@ def pow2_scales(I: Sym3) -> np.ndarray:
     underflow. A zero diagonal entry borrows the row's largest entry.
     """
     diag = np.abs(np.stack([I.xx, I.yy, I.zz]))
-    big = np.maximum.reduce([np.abs(c) for c in I])
+    big = max_abs(I)
     ref = np.where(diag > 0, diag, big)
     ref = np.where((ref > 0) & np.isfinite(ref), ref, 1)
     _, e = np.frexp(ref)
