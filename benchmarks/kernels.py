@@ -1,17 +1,15 @@
-"""Kernel throughput of every method, as ratios to the `lapack` kernel measured in the same run.
+"""Kernel throughput of every method at one condition number, as ratios to `lapack` in the same run.
 
     python benchmarks/kernels.py [rows] [cond]
 
-Only the method's own arithmetic, in 16k-row blocks as `hconv.convert` runs it: no statuses, no
-diagnostics, no I/O. Median of 5 repeats, float64.
+Only the method's own arithmetic, in blocks as `hconv.convert` runs it (`hconv.bench.kernel_rates`),
+on rotated bodies whose cond(I) is exactly ``cond``: the way to see how `refined` slows with cond.
 """
 import sys
-import time
 
 import numpy as np
 
-from hconv import methods
-from hconv.core import BLOCK_ROWS
+from hconv import bench
 from hconv.inertia import Sym3
 from hconv.scene import random_rotations, rotate_tensors
 
@@ -20,25 +18,10 @@ cond = float(sys.argv[2]) if len(sys.argv) > 2 else 10.0
 rng = np.random.default_rng(0)
 moments = np.stack([np.ones(n), 10 ** (-np.log10(cond) * rng.random(n)), np.full(n, 1 / cond)], axis=1)
 M = rotate_tensors(random_rotations(rng, n), moments)
-I = Sym3(*(np.ascontiguousarray(c) for c in (M[:, 0, 0], M[:, 1, 1], M[:, 2, 2], M[:, 0, 1], M[:, 0, 2], M[:, 1, 2])))
+I = Sym3(*(np.ascontiguousarray(M[:, i, j]) for i, j in ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))))
 H = np.ascontiguousarray(rng.normal(size=(3, n)))
-r = np.ascontiguousarray(rng.normal(size=(3, n)))
-blocks = [(I.take(slice(lo, lo + BLOCK_ROWS)), H[:, lo:lo + BLOCK_ROWS], r[:, lo:lo + BLOCK_ROWS])
-          for lo in range(0, n, BLOCK_ROWS)]
-
-
-def rate(kernel) -> float:
-    times = []
-    for _ in range(5):
-        t0 = time.perf_counter()
-        for b in blocks:
-            kernel(*b)
-        times.append(time.perf_counter() - t0)
-    return n / float(np.median(times))
-
-
-rates = {name: rate(m.kernel) for name, m in methods.METHODS.items()}
-base = rates["lapack"]
+rates = bench.kernel_rates(I, H, np.ascontiguousarray(rng.normal(size=(3, n))), repeats=5)
+base = rates["lapack/64"]
 print(f"{n:,} rows, cond {cond:g}; lapack kernel {base / 1e6:.2f} M rows/s")
-for name, v in rates.items():
-    print(f"{name:20s} {v / 1e6:8.2f} M rows/s  {v / base:6.2f}x lapack")
+for key, v in rates.items():
+    print(f"{key:22s} {v / 1e6:8.2f} M rows/s  {v / base:6.2f}x lapack")
