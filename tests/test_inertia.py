@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from conftest import physical_bodies, six, slender_bodies, spd_bodies
-from hconv.inertia import Sym3, eigenvalues
+from hconv.inertia import Sym3
+from hconv.spectrum import eigenvalues
 from hconv.scene import cylinder_moments, random_rotations, rotate_tensors
 from hconv.status import TRIANGLE_RTOL
 

@@ -70,7 +70,7 @@ def _inputs(rows: int, seed: int):
     I = Sym3(*(np.ascontiguousarray(cols[c]) for c in ("Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz")))
     H = np.ascontiguousarray(np.stack([cols[f"H{a}"] for a in "xyz"]))
     r = np.ascontiguousarray(np.stack([cols[f"r{a}"] for a in "xyz"]))
-    return cols, I, H, r
+    return I, H, r
 
 
 def kernel_rates(I: Sym3, H: np.ndarray, r: np.ndarray, repeats: int, only: Optional[str] = None) -> dict:
@@ -216,7 +216,7 @@ def run(rows: int = 2_000_000, repeats: int = 3, seed: int = 0, memory_rows: int
 
     res = Result(rows=rows, machine=describe_machine())
     log("generating inputs")
-    cols, I, H, r = _inputs(rows, seed)
+    I, H, r = _inputs(rows, seed)
     log("kernels")
     res.kernel = kernel_rates(I, H, r, repeats)
     log("accuracy")

@@ -23,7 +23,8 @@ from typing import Optional
 import numpy as np
 
 from hconv import linsolve, methods, status
-from hconv.inertia import Sym3, max_abs, eigenvalues, sym_from_array
+from hconv.inertia import Sym3, max_abs, sym_from_array
+from hconv.spectrum import eigenvalues
 
 #: Rows per kernel block: small enough that a block's temporaries stay in cache.
 BLOCK_ROWS = 16384
