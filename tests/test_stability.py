@@ -80,10 +80,32 @@ def test_ill_conditioned_threshold_matches_method_limit(method):
     for precision in (64, 32):
         limit = m.cond_limit(precision)
         if np.isfinite(limit):
-            below = hconv.convert([1, 1, 1], [1, 1, 2 / limit], method=method, precision=precision)  # cond = limit/2
-            above = hconv.convert([1, 1, 1], [1, 1, 0.5 / limit], method=method, precision=precision)  # cond = 2·limit
+            # Six numbers, so that the method's own solver runs (three take the division path).
+            below = hconv.convert([1, 1, 1], [1, 1, 2 / limit, 0, 0, 0], method=method, precision=precision)  # cond = limit/2
+            above = hconv.convert([1, 1, 1], [1, 1, 0.5 / limit, 0, 0, 0], method=method, precision=precision)  # cond = 2·limit
             assert below.status == "ok"
             assert above.status == "ill_conditioned"
+
+
+@pytest.mark.parametrize("precision", [64, 32])
+def test_convert_diagonal_form_correctly_rounded_at_any_cond(precision):
+    # Principal moments given as three numbers: ω_i = H_i / I_i, one rounding per component, so
+    # the error stays at half an ulp however ill-conditioned I is, and no row is flagged.
+    rng = np.random.default_rng(7)
+    n = 300
+    dtype = np.float64 if precision == 64 else np.float32
+    tiny = 10.0 ** rng.uniform(-6 if precision == 32 else -14, 0, n)  # cond up to 1e6 / 1e14
+    base = rng.uniform(0.5, 2.0, n)
+    moments = np.stack([tiny * base, base, base * (1 + tiny * rng.uniform(-1, 1, n))], axis=1)
+    moments = rng.permuted(moments, axis=1).astype(dtype).astype(float)  # physical: a thin body
+    H = rng.normal(size=(n, 3)).astype(dtype).astype(float)
+    for method in EXACT_FAMILY:
+        res = hconv.convert(H, moments, method=method, precision=precision)
+        assert set(res.status) == {"ok"}, method
+        got = res.w.astype(float)
+        want = mp_solve(np.stack([np.diag(m) for m in moments]), H)
+        per_component = np.abs(got - want) / np.abs(want)
+        assert per_component.max() <= 0.5 * np.finfo(dtype).eps * (1 + 1e-9), method
 
 
 def test_ill_conditioned_not_applied_to_approximations():

@@ -23,12 +23,13 @@ from typing import Optional
 import numpy as np
 
 from hconv import linsolve, methods, status
-from hconv.inertia import Sym3, max_abs, sym_from_array
+from hconv.inertia import Sym3, max_abs, principal_axes, sym_from_array
 from hconv.spectrum import eigenvalues
 
 #: Rows per kernel block: small enough that a block's temporaries stay in cache.
 BLOCK_ROWS = 16384
 DTYPES = {64: np.float64, 32: np.float32}
+DEGENERATE_MODES = ("error", "pinv", "lock")
 
 
 @dataclass(frozen=True)
@@ -41,6 +42,10 @@ class Result:
     status_code: np.ndarray  #: (N,) uint8, or scalar; names in hconv.status.STATUSES
     unit: str  #: unit of w: "rad/s" or "m^2/s"
     method: str
+    #: with degenerate="pinv"/"lock": the dropped axis, (N, 3) unit vectors, NaN where none or
+    #: more than one was dropped; and how many axes were dropped, (N,) int8
+    null_axis: Optional[np.ndarray] = None
+    null_dim: Optional[np.ndarray] = None
 
     @property
     def status(self):
@@ -61,16 +66,33 @@ def _as_float(name: str, a) -> np.ndarray:
 
 
 def convert(H, I, r=None, *, method: str = "exact", precision: int = 64,
-            diagnostics: bool = True) -> Result:
+            diagnostics: bool = True, degenerate: str = "error",
+            degenerate_rtol: Optional[float] = None, extra_k: float = 0.0) -> Result:
     """Convert angular momentum to angular velocity with ``method``; see the module docstring.
 
     ``precision`` (64 or 32) sets the dtype the method computes in; diagnostics are always
     computed in float64 from the inputs as given. ``diagnostics=False`` skips the residual
     (the costliest diagnostic); cond and status are always computed.
+
+    Diagonal tensors given as ``(N, 3)`` moments take the cheapest exact path: every method of
+    the exact family answers ``H_i / I_i``, which is correctly rounded.
+
+    Degenerate bodies (a principal moment at or below ``degenerate_rtol`` times the trace
+    Σ|Ik|, or singular in the working precision): ``degenerate="error"`` gives them status
+    ``singular`` and no ω; ``"pinv"`` and ``"lock"`` answer with the pseudo-inverse (no rotation
+    about the dropped axis), status ``degenerate``, and fill ``null_axis`` and ``null_dim``.
+    ``extra_k`` adds to the method's error constant K for the ``ill_conditioned`` test, for a
+    caller that has already rounded H in a way that grows with cond (a frame rotation: 2).
     """
     m = methods.get(method)
     if precision not in DTYPES:
         raise ValueError(f"precision must be 64 or 32, got {precision!r}")
+    if degenerate not in DEGENERATE_MODES:
+        raise ValueError(f"degenerate must be one of {', '.join(DEGENERATE_MODES)}, got {degenerate!r}")
+    if degenerate != "error" and not m.exact:
+        raise ValueError(f"degenerate={degenerate!r} applies to the exact methods, not to {method!r}")
+    if degenerate_rtol is not None and not 0 <= degenerate_rtol < 1:
+        raise ValueError(f"degenerate_rtol must be in [0, 1), got {degenerate_rtol!r}")
     H = _as_float("H", H)
     I = _as_float("I", I)
     single = H.ndim == 1
@@ -89,25 +111,51 @@ def convert(H, I, r=None, *, method: str = "exact", precision: int = 64,
     elif m.needs_r:
         raise ValueError(f"method {method!r} needs the offset r [m]; pass r=...")
     Isym, asym = sym_from_array(I)
+    diagonal = I.ndim == 2 and I.shape[1] == 3
 
     dtype = DTYPES[precision]
     w = np.empty((n, 3), dtype=dtype)
     cond = np.empty(n)
     code = np.empty(n, dtype=np.uint8)
     residual = np.empty(n) if diagnostics else None
+    deg = None
+    if degenerate != "error":
+        deg = _Degenerate(np.full((n, 3), np.nan), np.zeros(n, dtype=np.int8))
+    opts = _BlockOptions(m, dtype, diagonal, degenerate_rtol, extra_k)
     for lo in range(0, n, BLOCK_ROWS):
         sl = slice(lo, min(n, lo + BLOCK_ROWS))
         _convert_block(
-            m, dtype, Isym.take(sl), asym[sl], H[sl], None if r is None else r[sl],
+            opts, Isym.take(sl), asym[sl], H[sl], None if r is None else r[sl],
             w[sl], cond[sl], code[sl], None if residual is None else residual[sl],
+            None if deg is None else _Degenerate(deg.axis[sl], deg.dim[sl]),
         )
+    axis, dim = (None, None) if deg is None else (deg.axis, deg.dim)
     if single:
-        return Result(w[0], None if residual is None else residual[0], cond[0], code[0], m.unit, m.name)
-    return Result(w, residual, cond, code, m.unit, m.name)
+        return Result(w[0], None if residual is None else residual[0], cond[0], code[0], m.unit, m.name,
+                      None if axis is None else axis[0], None if dim is None else dim[0])
+    return Result(w, residual, cond, code, m.unit, m.name, axis, dim)
 
 
-def _convert_block(m, dtype, I: Sym3, asym, H, r, w_out, cond_out, code_out, res_out) -> None:
-    """One block of rows; writes into the ``*_out`` views."""
+@dataclass(frozen=True)
+class _BlockOptions:
+    m: methods.Method
+    dtype: type
+    diagonal: bool  #: I holds diagonal tensors (principal moments in their own frame)
+    degenerate_rtol: Optional[float]
+    extra_k: float
+
+
+@dataclass(frozen=True)
+class _Degenerate:
+    """Outputs for pinv/lock: views into the caller's arrays."""
+
+    axis: np.ndarray  #: (n, 3)
+    dim: np.ndarray  #: (n,) int8
+
+
+def _convert_block(o: _BlockOptions, I: Sym3, asym, H, r, w_out, cond_out, code_out, res_out, deg) -> None:
+    """One block of rows; writes into the ``*_out`` views (and ``deg``'s, for pinv/lock)."""
+    m, dtype = o.m, o.dtype
     n = H.shape[0]
     H = np.ascontiguousarray(H.T)  # (3, n): the kernels' component-major layout
     r_used = np.ascontiguousarray(r.T) if m.needs_r else None
@@ -123,23 +171,50 @@ def _convert_block(m, dtype, I: Sym3, asym, H, r, w_out, cond_out, code_out, res
         if r_used is not None:
             r_used = np.where(keep, r_used, 1.0)
 
-    lam = eigenvalues(I)  # (3, n), ascending
-    big = np.maximum(np.abs(lam[0]), np.abs(lam[2]))
-    small = np.minimum(np.minimum(np.abs(lam[0]), np.abs(lam[1])), np.abs(lam[2]))
+    if o.diagonal:
+        moments = np.stack([I.xx, I.yy, I.zz])
+        lam = np.sort(moments, axis=0)
+    else:
+        lam = eigenvalues(I)  # (3, n), ascending
+    a0, a1, a2 = np.abs(lam[0]), np.abs(lam[1]), np.abs(lam[2])
+    big = np.maximum(a0, a2)
+    small = np.minimum(np.minimum(a0, a1), a2)
     with np.errstate(divide="ignore", invalid="ignore"):
         cond = np.where(small > 0, big / np.where(small > 0, small, 1.0), np.inf)
+    singular = small <= status.singular_rtol(dtype) * big
+    tol = np.zeros(n)  # a moment at or below tol counts as zero (degenerate)
+    if o.degenerate_rtol is not None:
+        tol = o.degenerate_rtol * (a0 + a1 + a2)
+        singular |= small <= tol
+    tol = np.maximum(tol, status.singular_rtol(dtype) * big)
+    dropped = singular & ~invalid & ~asym if deg is not None else np.zeros(n, dtype=bool)
+    # The division is correctly rounded, so on diagonal tensors the error does not grow with cond.
+    k_extra = o.extra_k if o.diagonal else o.extra_k + (m.error_k or {}).get(8 * np.dtype(dtype).itemsize, 0.0)
+    if m.exact and k_extra:
+        cond_limit = status.ILL_CONDITIONED_TOL / (k_extra * float(np.finfo(dtype).eps))
+    else:
+        cond_limit = np.inf
     flags = {
         "invalid_input": invalid,
         "not_symmetric": asym & ~invalid,
-        "singular": small <= status.singular_rtol(dtype) * big,
-        "not_positive_definite": lam[0] < 0,
-        "not_physical": lam[2] - lam[1] - lam[0] > status.TRIANGLE_RTOL * (np.abs(lam[0]) + np.abs(lam[1]) + np.abs(lam[2])),
-        "ill_conditioned": cond > m.cond_limit(8 * np.dtype(dtype).itemsize),
+        "singular": singular & ~dropped,
+        "not_positive_definite": (lam[0] < -tol) | ((lam[0] < 0) & ~dropped),
+        "degenerate": dropped,
+        "not_physical": lam[2] - lam[1] - lam[0] > status.TRIANGLE_RTOL * (a0 + a1 + a2),
+        "ill_conditioned": cond > cond_limit,
     }
 
-    w, own = m.kernel(I.astype(dtype), H.astype(dtype), None if r_used is None else r_used.astype(dtype))
+    if o.diagonal and m.exact:
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            w = H.astype(dtype) / moments.astype(dtype)
+        own = {}
+    else:
+        w, own = m.kernel(I.astype(dtype), H.astype(dtype), None if r_used is None else r_used.astype(dtype))
     for name, mask in own.items():
         flags[name] = flags[name] | mask if name in flags else mask
+    if dropped.any():
+        flags["singular"] &= ~dropped  # a method's own singular flag does not apply to these rows
+        w[:, dropped] = _pseudo_inverse(I.take(dropped), H[:, dropped], tol[dropped], o.diagonal, deg, dropped)
     no_answer = np.zeros(n, dtype=bool)
     for s in m.nan_on:
         if s in flags:
@@ -155,15 +230,55 @@ def _convert_block(m, dtype, I: Sym3, asym, H, r, w_out, cond_out, code_out, res
     code_out[:] = status.combine(n, flags)
     if res_out is not None:
         res_out[:] = np.nan
-        ok = ~(invalid | flags["not_symmetric"] | flags["singular"])
+        ok = ~(invalid | flags["not_symmetric"] | flags["singular"] | dropped)
         if ok.any():
-            # For `refined` itself the same algorithm stopping adaptively would compare it with
-            # itself; the reference then runs every step, so the residual shows an early stop.
-            steps = linsolve.MAX_REFINE_STEPS if m.name == "refined" else None
-            ref = linsolve.solve_refined(I.take(ok), H[:, ok], steps=steps)
+            if o.diagonal:  # H_i / I_i in float64 is the correctly rounded reference
+                with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                    ref = H[:, ok] / moments[:, ok]
+            else:
+                # For `refined` itself the same algorithm stopping adaptively would compare it with
+                # itself; the reference then runs every step, so the residual shows an early stop.
+                steps = linsolve.MAX_REFINE_STEPS if m.name == "refined" else None
+                ref = linsolve.solve_refined(I.take(ok), H[:, ok], steps=steps)
             d = w[:, ok].astype(np.float64) - ref
             num = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
             den = np.sqrt(ref[0] * ref[0] + ref[1] * ref[1] + ref[2] * ref[2])
             with np.errstate(divide="ignore", invalid="ignore"):
                 # H = 0 gives I⁻¹H = 0: an answer of 0 is exact, anything else infinitely off.
                 res_out[ok] = np.where(den > 0, num / np.where(den > 0, den, 1.0), np.where(num == 0, 0.0, np.inf))
+
+
+def _pseudo_inverse(I: Sym3, H: np.ndarray, tol: np.ndarray, diagonal: bool, deg: _Degenerate,
+                    rows: np.ndarray) -> np.ndarray:
+    """ω = I⁺·H on degenerate rows, in float64: moments at or below ``tol`` ``(k,)`` are dropped.
+
+    ``H`` is ``(3, k)``; writes the dropped axis (when exactly one) and the count into ``deg``
+    at ``rows``. Returns ω as ``(3, k)``.
+    """
+    if diagonal:
+        S = np.stack([I.xx, I.yy, I.zz])
+        R = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, S.shape[1]))
+        Hp = H
+    else:
+        S, Rn = principal_axes(I)  # (k, 3), (k, 3, 3): column j of Rn[n] is the axis of S[n, j]
+        S = np.ascontiguousarray(S.T)
+        R = np.moveaxis(Rn, 0, -1)  # (3, 3, k)
+        Hp = np.einsum("jin,jn->in", R, H)  # Rᵀ·H
+    zero = np.abs(S) <= tol
+    with np.errstate(divide="ignore"):
+        inv = np.where(zero, 0.0, 1.0 / np.where(zero, 1.0, S))
+    w = np.einsum("ijn,jn->in", R, inv * Hp)
+    count = zero.sum(axis=0)
+    axis = np.full((3, S.shape[1]), np.nan)
+    one = count == 1
+    if one.any():
+        k = np.argmax(zero, axis=0)
+        cols = np.arange(S.shape[1])
+        picked = R[:, k, cols]  # (3, k): the axis of the dropped moment
+        # A sign is arbitrary for an axis; make its largest component positive, so output is stable.
+        big = np.argmax(np.abs(picked), axis=0)
+        sign = np.sign(picked[big, cols])
+        axis[:, one] = (picked * sign)[:, one]
+    deg.axis[rows] = axis.T
+    deg.dim[rows] = count
+    return w

@@ -14,7 +14,7 @@ import numpy as np
 import pyarrow as pa
 
 from hconv import methods, status
-from hconv.arrow import convert_table
+from hconv.arrow import Job, convert_table
 from hconv.errors import UsageError
 from hconv.tableio import Output, format_of, open_input
 
@@ -100,32 +100,32 @@ class BackgroundWriter:
 
 def convert_file(src: str, dst: str, *, method: str = "exact", precision: int = 64,
                  src_format: Optional[str] = None, dst_format: Optional[str] = None,
-                 force: bool = False, diagnostics: bool = True,
+                 force: bool = False, diagnostics: bool = True, job: Optional[Job] = None,
                  progress: Optional[Callable[[int, Optional[int]], None]] = None) -> Tally:
     """Convert the table in ``src`` into ``dst`` ("-" for stdin/stdout); returns the tally.
 
+    ``job`` (conventions, units, mapping) overrides ``method``, ``precision`` and ``diagnostics``.
     ``progress(done, total)`` is called after each batch with rows or bytes read so far.
     Raises :class:`hconv.errors.HconvError` subclasses with one-line messages.
     """
-    try:
-        m = methods.get(method)
-    except ValueError as exc:
-        raise UsageError(str(exc)) from None
+    job = job or Job(method, precision, diagnostics)
+    job.check()
+    m = methods.get(job.method)
     fin = format_of(src, src_format, "--from")
     fout = format_of(dst, dst_format, "--to")
     out = Output(dst, fout, force=force, input_path=src)  # refuses early, before reading
-    tally = Tally(m.name, m.unit)
+    tally = Tally(m.name, job.unit)
     t0 = time.perf_counter()
-    with open_input(src, fin, method) as inp, out:
+    with open_input(src, fin, job) as inp, out:
         with BackgroundWriter(out) as writer:
             for batch in inp.batches:
-                table = convert_table(batch, method, precision, diagnostics, source=inp.name)
+                table = convert_table(batch, source=inp.name, job=job, plan=inp.plan)
                 writer.write(table)
                 tally.add(table)
                 if progress is not None:
                     progress(inp.position(), inp.total)
             if tally.rows == 0:  # a header and no rows is a valid empty table
-                writer.write(convert_table(inp.schema.empty_table(), method, precision, diagnostics, source=inp.name))
+                writer.write(convert_table(inp.schema.empty_table(), source=inp.name, job=job, plan=inp.plan))
     tally.seconds = time.perf_counter() - t0
     return tally
 

@@ -15,8 +15,10 @@ STATUSES: tuple[str, ...] = (
     "not_symmetric",  # a 3×3 tensor whose Iij and Iji differ by more than SYMMETRY_RTOL·max|I|
     "singular",  # smallest |moment| <= SINGULAR_RTOL_EPS·eps·largest |moment|
     "overflow",  # finite input, but ω is beyond the working precision's range
-    "not_positive_definite",  # a negative principal moment
+    "not_positive_definite",  # a negative principal moment (beyond the degenerate threshold)
+    "degenerate",  # --degenerate pinv|lock: a (near-)zero principal moment was dropped or locked
     "not_physical",  # principal moments break the triangle inequality I1 <= I2 + I3
+    "unit_suspect",  # with a mass column: no solid of that mass has that inertia (a unit slip?)
     "ill_conditioned",  # exact family: cond(I) so large that the error could exceed ILL_CONDITIONED_TOL
     "frame_ambiguous",  # document-principal on repeated principal moments
     "r_on_axis",  # document methods: r (nearly) on an axis, so a component is forced to zero
@@ -41,6 +43,19 @@ R_AXIS_RTOL = 1e-9
 def singular_rtol(dtype) -> float:
     """The ratio |moment|min / |moment|max at or below which I counts as singular in ``dtype``."""
     return SINGULAR_RTOL_EPS * float(np.finfo(dtype).eps)
+
+
+#: unit_suspect: the density of the uniform cube with the body's mass and radius of gyration
+#: must lie in this band [kg/m³]. Real bodies, from a kite to a tungsten ball, lie within
+#: 1e-2…3e4; a kg·m² ↔ g·cm² slip moves the figure by about 3e10, a kg ↔ g mass slip by 3e7.
+UNIT_DENSITY_BAND = (1e-4, 1e6)
+
+
+def merge(code: np.ndarray, mask: np.ndarray, name: str) -> np.ndarray:
+    """``code`` with status ``name`` set on ``mask`` rows, unless they hold a status that takes
+    precedence over it; a new array."""
+    c = CODE[name]
+    return np.where(mask & ((code == 0) | (code > c)), np.uint8(c), code).astype(np.uint8)
 
 
 def combine(n: int, flags: dict[str, np.ndarray]) -> np.ndarray:

@@ -25,7 +25,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
-from hconv.arrow import check_schema, numeric_columns, required_columns
+from hconv.arrow import H_COLUMNS, I_COLUMNS, Job
 from hconv.errors import InputError, OutputError, UsageError
 
 EXTENSIONS = {".csv": "csv", ".parquet": "parquet", ".pq": "parquet"}
@@ -58,6 +58,7 @@ class Input:
     batches: Iterator[pa.RecordBatch]
     total: Optional[int]  #: rows (Parquet) or bytes (CSV); None if unknown
     position: Callable[[], int]  #: rows or bytes read so far
+    plan: object = None  #: the input's column sets (hconv.layout.Layout)
     _closers: list = field(default_factory=list)
 
     def close(self) -> None:
@@ -72,8 +73,11 @@ class Input:
         self.close()
 
 
-def open_input(path: str, fmt: str, method: str) -> Input:
-    """Open ``path`` ("-" for stdin) as ``fmt`` for ``method``; InputError with a fix if it can't be."""
+def open_input(path: str, fmt: str, job) -> Input:
+    """Open ``path`` ("-" for stdin) as ``fmt`` for ``job`` (an :class:`hconv.arrow.Job`, or a
+    method name); InputError with a fix if it can't be."""
+    if isinstance(job, str):
+        job = Job(job)
     closers = []
     name = path
     if path == "-":
@@ -87,9 +91,9 @@ def open_input(path: str, fmt: str, method: str) -> Input:
         path = spool.name
     try:
         if fmt == "csv":
-            inp = _open_csv(path, name, method)
+            inp = _open_csv(path, name, job)
         else:
-            inp = _open_parquet(path, name, method)
+            inp = _open_parquet(path, name, job)
     except BaseException:
         for c in closers:
             c()
@@ -106,7 +110,7 @@ def _first_line(exc: Exception) -> str:
     return str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
 
 
-def _open_csv(path: str, name: str, method: str) -> Input:
+def _open_csv(path: str, name: str, job) -> Input:
     if os.path.isdir(path):
         raise InputError(f"{name}: is a directory, not a CSV file")
     ropts = pacsv.ReadOptions(block_size=CSV_BLOCK_BYTES)
@@ -116,7 +120,7 @@ def _open_csv(path: str, name: str, method: str) -> Input:
     except pa.ArrowInvalid as exc:
         if "Empty CSV file" in str(exc):
             raise InputError(f"{name}: the file is empty; a CSV needs a header line naming the columns "
-                             f"{', '.join(required_columns(method))}") from None
+                             f"{', '.join(H_COLUMNS + I_COLUMNS)}") from None
         raise InputError(f"{name}: not a readable CSV file ({_first_line(exc)})") from None
     except OSError as exc:
         raise _oserror(name, exc) from None
@@ -125,8 +129,8 @@ def _open_csv(path: str, name: str, method: str) -> Input:
             if sep in names[0]:
                 raise InputError(f"{name}: the header is separated by {word}, but hconv reads comma-separated CSV; "
                                  f"convert the delimiter to commas first")
-    check_schema(pa.schema([(n, pa.float64()) for n in names]), method, name)
-    nums = set(numeric_columns(pa.schema([(n, pa.null()) for n in names]), method))
+    plan = job.plan(pa.schema([(n, pa.float64()) for n in names]), name)
+    nums = set(plan.numeric)
     types = {n: (pa.float64() if n in nums else pa.string()) for n in names}
     copts = pacsv.ConvertOptions(column_types=types, strings_can_be_null=False)
     f = open(path, "rb")
@@ -150,7 +154,7 @@ def _open_csv(path: str, name: str, method: str) -> Input:
                 raise _csv_value_error(path, name, names, ropts, exc) from None
             yield batch
 
-    return Input(name, reader.schema, batches(), total, f.tell, [f.close])
+    return Input(name, reader.schema, batches(), total, f.tell, plan, [f.close])
 
 
 _CSV_COLUMN = re.compile(r"In CSV column #(\d+): CSV conversion error to \w+: invalid value '(.*)'")
@@ -182,7 +186,7 @@ def _csv_value_error(path: str, name: str, names: list, ropts, exc: Exception) -
                       "fix or blank that value (a blank becomes a row with status invalid_input)")
 
 
-def _open_parquet(path: str, name: str, method: str) -> Input:
+def _open_parquet(path: str, name: str, job) -> Input:
     if os.path.isdir(path):
         raise InputError(f"{name}: is a directory, not a Parquet file")
     try:
@@ -197,7 +201,7 @@ def _open_parquet(path: str, name: str, method: str) -> Input:
     except OSError as exc:
         raise _oserror(name, exc) from None
     schema = pf.schema_arrow
-    check_schema(schema, method, name)
+    plan = job.plan(schema, name)
     done = [0]
 
     def batches():
@@ -209,7 +213,7 @@ def _open_parquet(path: str, name: str, method: str) -> Input:
             raise InputError(f"{name}: not a readable Parquet file ({_first_line(exc)}); "
                              "check that it was completely written") from None
 
-    return Input(name, schema, batches(), pf.metadata.num_rows, lambda: done[0], [pf.close])
+    return Input(name, schema, batches(), pf.metadata.num_rows, lambda: done[0], plan, [pf.close])
 
 
 class Output:

@@ -1,0 +1,106 @@
+"""Units: factors from the units a file uses to SI, and the unit-slip check.
+
+hconv computes in SI: H [kg·m²/s], I [kg·m²], r [m], m [kg], v [m/s], ω [rad/s]. A unit given by
+``--unit COLUMN=UNIT`` or by a Parquet field's ``unit`` metadata is turned into a factor to SI;
+ω can be written in another unit (``--omega-unit``). SI spellings are recognised without pint;
+anything else goes through pint, an optional extra (``pip install 'hconv[units]'``) that is
+imported only then. Only multiplicative units are accepted (no offsets such as °C).
+"""
+from __future__ import annotations
+
+import functools
+import re
+
+import numpy as np
+
+from hconv.errors import UsageError
+from hconv.status import UNIT_DENSITY_BAND
+
+#: The SI unit of each quantity, written as pint parses it.
+SI = {
+    "H": "kg*m**2/s",
+    "I": "kg*m**2",
+    "r": "m",
+    "m": "kg",
+    "v": "m/s",
+    "w": "rad/s",
+    "q": "",
+}
+QUANTITY = {"H": "angular momentum", "I": "inertia", "r": "length", "m": "mass", "v": "velocity",
+            "w": "angular velocity", "q": "a quaternion (no unit)"}
+
+# Spellings of the SI units that need no pint: with spaces, '·', '^' and '²' normalised away.
+_SI_SPELLINGS = {
+    "H": {"kg*m**2/s", "kgm**2/s", "kg*m**2*s**-1", "n*m*s", "nms", "j*s", "js"},
+    "I": {"kg*m**2", "kgm**2"},
+    "r": {"m", "meter", "metre", "meters", "metres"},
+    "m": {"kg", "kilogram", "kilograms"},
+    "v": {"m/s", "m*s**-1"},
+    "w": {"rad/s", "1/s", "s**-1", "radian/second", "radians/second"},
+    "q": {"", "1", "dimensionless"},
+}
+
+
+def _normal(unit: str) -> str:
+    u = unit.strip().lower().replace(" ", "*").replace("·", "*").replace("^", "**")
+    u = u.replace("²", "**2").replace("³", "**3").replace("⁻¹", "**-1")
+    return re.sub(r"\*+(?=\*\*)", "", re.sub(r"\*{3,}", "**", u))
+
+
+@functools.lru_cache(maxsize=None)
+def _registry():
+    try:
+        import pint
+    except ImportError:
+        raise UsageError("units other than SI need pint; install it with: pip install 'hconv[units]'") from None
+    return pint.UnitRegistry()
+
+
+@functools.lru_cache(maxsize=None)
+def factor(quantity: str, unit: str, where: str = "--unit") -> float:
+    """The factor that turns a value in ``unit`` into the SI unit of ``quantity`` (a key of SI).
+
+    ``where`` names the source of the unit in error messages (an option, or a file's column).
+    """
+    if _normal(unit) in _SI_SPELLINGS[quantity]:
+        return 1.0
+    ureg = _registry()
+    import pint
+
+    try:
+        q = ureg.Quantity(1.0, unit)
+        value = q.to(SI[quantity] or "dimensionless").magnitude
+    except pint.errors.DimensionalityError:
+        raise UsageError(f"{where}: {unit!r} is not a unit of {QUANTITY[quantity]} ({SI[quantity] or 'no unit'})") from None
+    except pint.errors.OffsetUnitCalculusError:
+        raise UsageError(f"{where}: {unit!r} has an offset; give a unit without one") from None
+    except Exception as exc:  # pint raises several kinds for text it cannot parse
+        raise UsageError(f"{where}: pint does not understand the unit {unit!r} ({type(exc).__name__}); "
+                         "write it like g*cm**2 or lb*ft**2/s") from None
+    value = float(value)
+    if not (np.isfinite(value) and value > 0):
+        raise UsageError(f"{where}: {unit!r} gives a factor of {value}; give a positive unit")
+    return value
+
+
+def omega_factor(unit: str) -> float:
+    """The factor from rad/s to ``unit`` (``--omega-unit``), e.g. 180/π for deg/s."""
+    return 1.0 / factor("w", unit, "--omega-unit")
+
+
+def implausible(lam: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """Rows whose inertia no solid of mass ``m`` could have: a unit slip, most likely.
+
+    ``lam``: principal moments ``(3, N)`` about the centre of mass [kg·m²]; ``m``: ``(N,)`` [kg].
+    The radius of gyration ρ_g = √(Σλ / 2m) is the root-mean-square distance of the mass from the
+    centre; a uniform cube with the same mass and ρ_g has side 2ρ_g. A row is implausible when
+    that cube's density m / (2ρ_g)³ lies outside :data:`hconv.status.UNIT_DENSITY_BAND`.
+    Rows without a positive mass or trace are not judged (False).
+    """
+    trace = np.abs(lam[0]) + np.abs(lam[1]) + np.abs(lam[2])
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        side = 2.0 * np.sqrt(trace / (2.0 * m))
+        density = m / side**3
+    lo, hi = UNIT_DENSITY_BAND
+    judged = (m > 0) & (trace > 0) & np.isfinite(density)
+    return judged & ((density < lo) | (density > hi))
