@@ -326,7 +326,7 @@ def test_one_singular_json_has_null_w_and_inf_cond():
 @pytest.mark.parametrize("args,needle", [
     (["--H", "1,2", "--I", "1,1,1"], "--H takes 3"),
     (["--H", "1,2,x", "--I", "1,1,1"], "comma-separated numbers"),
-    (["--H", "1,2,3", "--I", "1,1,1,1"], "--I takes 3, 6 or 9"),
+    (["--H", "1,2,3", "--I", "1,1,1,1"], "--I takes 1, 3, 6 or 9"),
     (["--H", "1,2,3", "--I", "1,1,1", "--method", "document"], "--r rx,ry,rz"),
 ])
 def test_one_bad_arguments_one_line_exit_2(args, needle):

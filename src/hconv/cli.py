@@ -12,7 +12,7 @@ import os
 import signal
 import sys
 from enum import Enum
-from typing import Optional
+from typing import List, Optional
 
 import typer
 
@@ -28,6 +28,28 @@ app = typer.Typer(
 
 MethodName = Enum("MethodName", {name: name for name in METHODS}, type=str)
 Fmt = Enum("Fmt", {"csv": "csv", "parquet": "parquet"}, type=str)
+Frame = Enum("Frame", {"world": "world", "body": "body"}, type=str)
+About = Enum("About", {"same": "same", "pivot": "pivot", "free": "free"}, type=str)
+Products = Enum("Products", {"tensor": "tensor", "positive": "positive"}, type=str)
+Degenerate = Enum("Degenerate", {"error": "error", "pinv": "pinv", "lock": "lock"}, type=str)
+QuatOrder = Enum("QuatOrder", {"wxyz": "wxyz", "xyzw": "xyzw"}, type=str)
+
+# Options shared by every command that reads scenes (convert, diagnose, compare, one).
+FRAME_OPT = typer.Option("world", "--frame", help="the frame of H (and r, v): world, or body (the frame of q's body)")
+OMEGA_FRAME_OPT = typer.Option(None, "--omega-frame", help="the frame of ω; default: the frame of H (another needs q)")
+ABOUT_OPT = typer.Option("same", "--about", help="same: I and H about one point; pivot: I about the centre of mass, "
+                         "H about a fixed pivot (needs m, r); free: H about an origin (needs m, r, v)")
+PRODUCTS_OPT = typer.Option("tensor", "--products", help="tensor: Ixy = -∫xy dm (hconv, URDF, engines); "
+                            "positive: Pxy = +∫xy dm (CAD reports)")
+DEGENERATE_OPT = typer.Option("error", "--degenerate", help="zero principal moments (rods, point masses): error "
+                              "(status singular), pinv or lock (no rotation about the dropped axis)")
+DEGENERATE_RTOL_OPT = typer.Option(None, "--degenerate-rtol", help="a principal moment <= this × the trace counts as "
+                                   "zero; default: singular in the working precision (about 1e-15 in float64)")
+MAP_OPT = typer.Option(None, "--map", help="NAME=COLUMN: read hconv's NAME from COLUMN (repeatable, or comma-separated)")
+UNIT_OPT = typer.Option(None, "--unit", help="COLUMN=UNIT or SET=UNIT (H, I, r, m, v, w_obs), e.g. I=g*cm**2 "
+                        "(repeatable; non-SI units need pint)")
+OMEGA_UNIT_OPT = typer.Option("rad/s", "--omega-unit", help="unit of ω: rad/s, deg/s, rpm, ...")
+QUAT_ORDER_OPT = typer.Option("wxyz", "--quat-order", help="order of a 4-value list column q (named columns need none)")
 
 
 def _fail(msg: str, code: int) -> None:
@@ -78,42 +100,113 @@ def _precision(value: int) -> int:
     return value
 
 
+def _pairs(option: str, items: Optional[List[str]]) -> tuple:
+    """``NAME=VALUE`` items (repeatable, each possibly comma-separated) as a tuple of pairs."""
+    pairs = []
+    for item in items or ():
+        for part in item.split(",") if option == "--map" else [item]:
+            name, eq, value = part.partition("=")
+            if not eq or not name.strip() or not value.strip():
+                raise UsageError(f"{option} takes NAME=VALUE, got {part!r}")
+            pairs.append((name.strip(), value.strip()))
+    return tuple(pairs)
+
+
+def _conventions(frame, omega_frame, about, products, degenerate, degenerate_rtol):
+    from hconv.bodies import Conventions
+
+    if degenerate_rtol is not None and not 0 <= degenerate_rtol < 1:
+        raise UsageError(f"--degenerate-rtol must be at least 0 and below 1, got {degenerate_rtol}")
+    return Conventions(frame.value, omega_frame and omega_frame.value, about.value, products.value,
+                       degenerate.value, degenerate_rtol)
+
+
 @app.command()
 @friendly
 def one(
     H: str = typer.Option(..., "--H", help="Hx,Hy,Hz (kg·m²/s)"),
-    I: str = typer.Option(..., "--I", help="3 (diagonal), 6 (Ixx,Iyy,Izz,Ixy,Ixz,Iyz) or 9 (row-major) values (kg·m²)"),
-    r: Optional[str] = typer.Option(None, "--r", help="rx,ry,rz (m); needed by the document methods"),
+    I: str = typer.Option(..., "--I", help="1 (isotropic), 3 (principal), 6 (Ixx,Iyy,Izz,Ixy,Ixz,Iyz) or 9 (row-major) values (kg·m²)"),
+    r: Optional[str] = typer.Option(None, "--r", help="rx,ry,rz (m): the document methods' offset; for --about, the centre of mass relative to the point of H"),
+    q: Optional[str] = typer.Option(None, "--q", help="qw,qx,qy,qz: the body's orientation (body → world)"),
+    mass: Optional[float] = typer.Option(None, "--m", help="mass (kg), for --about pivot|free and the unit check"),
+    v: Optional[str] = typer.Option(None, "--v", help="vx,vy,vz (m/s): velocity of the centre of mass, for --about free"),
     method: MethodName = typer.Option("exact", "--method", "-m", help="see `hconv methods`"),
     precision: int = typer.Option(64, "--precision", callback=_precision, help="64 or 32"),
+    frame: Frame = FRAME_OPT,
+    omega_frame: Optional[Frame] = OMEGA_FRAME_OPT,
+    about: About = ABOUT_OPT,
+    products: Products = PRODUCTS_OPT,
+    degenerate: Degenerate = DEGENERATE_OPT,
+    degenerate_rtol: Optional[float] = DEGENERATE_RTOL_OPT,
+    unit: Optional[List[str]] = UNIT_OPT,
+    omega_unit: str = OMEGA_UNIT_OPT,
     as_json: bool = typer.Option(False, "--json", help="print one JSON object"),
 ) -> None:
     """Convert one body state and print ω with its unit, the residual, cond and the status."""
     import numpy as np
 
-    from hconv.core import convert
+    from hconv import bodies, methods, units
 
-    h = _numbers("--H", H, (3,))
-    i = _numbers("--I", I, (3, 6, 9))
-    rr = None if r is None else _numbers("--r", r, (3,))
-    inertia = np.reshape(i, (3, 3)) if len(i) == 9 else np.asarray(i)
+    conv = _conventions(frame, omega_frame, about, products, degenerate, degenerate_rtol)
+    i = _numbers("--I", I, (1, 3, 6, 9))
+    form = {1: "scalar", 3: "principal", 6: "sym6", 9: "full9"}[len(i)]
+    sets = {"H": _numbers("--H", H, (3,)), "I": i}
+    for name, text, k in (("r", r, 3), ("q", q, 4), ("v", v, 3)):
+        if text is not None:
+            sets[name] = _numbers(f"--{name}", text, (k,))
+    if mass is not None:
+        sets["m"] = [mass]
+    given = dict(_pairs("--unit", unit))
+    for key, value in given.items():
+        if key not in ("H", "I", "r", "m", "v"):
+            raise UsageError(f"--unit {key}={value}: hconv one takes a unit per set: H, I, r, m or v")
+    for name in list(sets):
+        f = units.factor(name, given[name], f"--unit {name}={given[name]}") if name in given else 1.0
+        sets[name] = np.asarray(sets[name], dtype=np.float64)[:, None] * f
+    m = methods.get(method.value)
+    if m.unit != methods.RAD_S and units.factor("w", omega_unit, "--omega-unit") != 1.0:
+        raise UsageError(f"--omega-unit {omega_unit}: method {m.name!r} gives {m.unit}, which cannot be converted")
+    missing = [k for k in conv.needs(m.name) if k not in sets]
+    if missing:
+        why = conv.needs(m.name)[missing[0]]
+        raise UsageError(f"{why}; pass --{missing[0]} " + {"r": "rx,ry,rz", "m": "MASS", "v": "vx,vy,vz", "q": "qw,qx,qy,qz"}[missing[0]])
     try:
-        res = convert(h, inertia, rr, method=method.value, precision=precision)
+        res = bodies.solve(sets, form, m.name, precision, conv)
     except ValueError as exc:
-        raise UsageError(str(exc).replace("pass r=...", "pass --r rx,ry,rz")) from None
-    w = [float(x) for x in res.w]
+        raise UsageError(str(exc)) from None
+    unit_out = omega_unit if m.unit == methods.RAD_S else m.unit
+    scale = units.omega_factor(omega_unit) if m.unit == methods.RAD_S else 1.0
+    w = [float(x) * scale for x in res.w[0]]
+    residual, cond, state = float(res.residual[0]), float(res.cond[0]), str(res.status[0])
+    axis = None if res.null_axis is None or not np.isfinite(res.null_axis[0]).all() else [float(x) for x in res.null_axis[0]]
     if as_json:
         clean = lambda x: x if math.isfinite(x) else None  # noqa: E731 - JSON has no NaN or Infinity
-        print(json.dumps({"w": [clean(x) for x in w], "unit": res.unit, "residual": clean(float(res.residual)),
-                          "cond": clean(float(res.cond)), "status": res.status, "method": res.method}))
+        out = {"w": [clean(x) for x in w], "unit": unit_out, "residual": clean(residual),
+               "cond": clean(cond), "status": state, "method": m.name}
+        if res.null_dim is not None:
+            out.update(null_axis=axis, null_dim=int(res.null_dim[0]))
+        print(json.dumps(out))
         return
-    print(f"w        = [{', '.join(repr(x) for x in w)}] {res.unit}")
-    print(f"residual = {float(res.residual):.3g}  (|w - I⁻¹H| / |I⁻¹H|)")
-    print(f"cond     = {float(res.cond):.3g}")
-    print(f"status   = {res.status}")
-    print(f"method   = {res.method}")
-    if res.unit != "rad/s":
-        print(f"note: {res.unit} is not a unit of angular velocity; see 'The seed's three questions' in the README")
+    print(f"w        = [{', '.join(repr(x) for x in w)}] {unit_out}")
+    print(f"residual = {residual:.3g}  (|w - I⁻¹H| / |I⁻¹H|)")
+    print(f"cond     = {cond:.3g}")
+    print(f"status   = {state}")
+    print(f"method   = {m.name}")
+    if res.null_dim is not None and res.null_dim[0]:
+        print(f"dropped  = {int(res.null_dim[0])} axis" + (f" {axis}" if axis else "es"))
+    if unit_out == methods.M2_S:
+        print(f"note: {unit_out} is not a unit of angular velocity; see 'The seed's three questions' in the README")
+
+
+def _job(method, precision, frame, omega_frame, about, products, degenerate, degenerate_rtol,
+         mapping, unit, omega_unit, quat_order, diagnostics: bool = True):
+    from hconv.arrow import Job
+
+    conv = _conventions(frame, omega_frame, about, products, degenerate, degenerate_rtol)
+    job = Job(method.value, precision, diagnostics, conv, _pairs("--map", mapping), _pairs("--unit", unit),
+              quat_order.value, omega_unit)
+    job.check()
+    return job
 
 
 @app.command("convert")
@@ -127,12 +220,23 @@ def convert_cmd(
     to: Optional[Fmt] = typer.Option(None, "--to", help="output format; needed when OUT is -"),
     force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no summary on stderr"),
+    frame: Frame = FRAME_OPT,
+    omega_frame: Optional[Frame] = OMEGA_FRAME_OPT,
+    about: About = ABOUT_OPT,
+    products: Products = PRODUCTS_OPT,
+    degenerate: Degenerate = DEGENERATE_OPT,
+    degenerate_rtol: Optional[float] = DEGENERATE_RTOL_OPT,
+    mapping: Optional[List[str]] = MAP_OPT,
+    unit: Optional[List[str]] = UNIT_OPT,
+    omega_unit: str = OMEGA_UNIT_OPT,
+    quat_order: QuatOrder = QUAT_ORDER_OPT,
 ) -> None:
     """Convert every row of a CSV or Parquet table; OUT gets the input columns, ω and diagnostics."""
     from hconv import pipeline, report
 
-    kwargs = dict(method=method.value, precision=precision, src_format=from_ and from_.value,
-                  dst_format=to and to.value, force=force)
+    job = _job(method, precision, frame, omega_frame, about, products, degenerate, degenerate_rtol,
+               mapping, unit, omega_unit, quat_order)
+    kwargs = dict(job=job, src_format=from_ and from_.value, dst_format=to and to.value, force=force)
     if sys.stderr.isatty() and dst != "-" and not quiet:
         with report.ProgressBar(f"converting {src}") as bar:
             tally = pipeline.convert_file(src, dst, progress=bar, **kwargs)
