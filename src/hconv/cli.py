@@ -246,6 +246,62 @@ def convert_cmd(
         report.summary(tally)
 
 
+@app.command("diagnose")
+@friendly
+def diagnose_cmd(
+    src: str = typer.Argument(..., metavar="IN", help="input .csv or .parquet with H, I and wx_obs, wy_obs, wz_obs"),
+    tol: float = typer.Option(1e-3, "--tol", help="a row is explained when |ω - ω_obs| / |ω_obs| <= this"),
+    from_: Optional[Fmt] = typer.Option(None, "--from", help="input format; needed when IN is -"),
+    as_json: bool = typer.Option(False, "--json", help="print the ranking as JSON, best first"),
+    mapping: Optional[List[str]] = MAP_OPT,
+    unit: Optional[List[str]] = UNIT_OPT,
+    quat_order: QuatOrder = QUAT_ORDER_OPT,
+) -> None:
+    """Find which convention explains the ω your engine produced (columns wx_obs, wy_obs, wz_obs)."""
+    from hconv import diagnose
+    from hconv.arrow import Job
+
+    job = Job(mapping=_pairs("--map", mapping), unit_options=_pairs("--unit", unit), quat_order=quat_order.value)
+    job.check()
+    d = diagnose.diagnose_file(src, src_format=from_ and from_.value, tol=tol, job=job)
+    if as_json:
+        clean = lambda x: x if math.isfinite(x) else None  # noqa: E731 - JSON has no NaN or Infinity
+        print(json.dumps([{"hypothesis": s.hypothesis, "median_residual": clean(s.residual.median),
+                           "share_explained": clean(s.residual.share_within),
+                           "median_angle_deg": clean(s.angle.median)} for s in d.ranking()], indent=1))
+        return
+    from hconv import report
+
+    report.diagnosis_tables(d)
+
+
+@app.command("compare")
+@friendly
+def compare_cmd(
+    src: str = typer.Argument(..., metavar="IN", help="input .csv or .parquet"),
+    dst: Optional[str] = typer.Argument(None, metavar="[OUT]", help="also write per-row figures here (.csv or .parquet, - for stdout)"),
+    from_: Optional[Fmt] = typer.Option(None, "--from", help="input format; needed when IN is -"),
+    to: Optional[Fmt] = typer.Option(None, "--to", help="output format; needed when OUT is -"),
+    force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
+    frame: Frame = FRAME_OPT,
+    omega_frame: Optional[Frame] = OMEGA_FRAME_OPT,
+    about: About = ABOUT_OPT,
+    products: Products = PRODUCTS_OPT,
+    mapping: Optional[List[str]] = MAP_OPT,
+    unit: Optional[List[str]] = UNIT_OPT,
+    quat_order: QuatOrder = QUAT_ORDER_OPT,
+) -> None:
+    """Run every method on the same rows: how far each is from exact, and where the shortcuts fail."""
+    from hconv import compare, report
+
+    job = _job(MethodName("exact"), 64, frame, omega_frame, about, products, Degenerate("error"), None,
+               mapping, unit, "rad/s", quat_order)
+    c = compare.compare_file(src, dst, src_format=from_ and from_.value, dst_format=to and to.value, force=force, job=job)
+    from rich.console import Console
+
+    report.comparison_tables(c, Console(stderr=True) if dst == "-" else None)
+
+
 @app.command("generate")
 @friendly
 def generate_cmd(

@@ -122,3 +122,77 @@ def bench_tables(res, console: Optional[Console] = None) -> None:
         g.add_row(name, "skipped" if value is None else f"{value:.2f}", f"≥ {required:g}",
                   "—" if met is None else ("[green]yes[/green]" if met else "[red]no[/red]"))
     console.print(g)
+
+
+def _g(x: float) -> str:
+    return "-" if x is None or not np.isfinite(x) else f"{x:.3g}"
+
+
+def diagnosis_tables(d, console: Optional[Console] = None) -> None:
+    """Print ``hconv diagnose``'s ranking, what was left out, and the rows nothing explains."""
+    console = console or Console()
+    console.print(f"[bold]hconv diagnose[/bold] · {d.rows:,} rows · a row is explained when "
+                  f"|ω - ω_obs| / |ω_obs| <= {d.tol:g}")
+    t = Table(show_header=True, header_style="bold")
+    for col, just in (("rank", "right"), ("hypothesis", "left"), ("explains", "right"), ("median residual", "right"),
+                      ("median angle °", "right"), ("worst residual", "right"), ("what it assumes", "left")):
+        t.add_column(col, justify=just)
+    ranking = d.ranking()
+    for k, s in enumerate(ranking, 1):
+        share = s.residual.share_within
+        t.add_row(str(k), s.hypothesis, "-" if not np.isfinite(share) else f"{100 * share:.1f} %",
+                  _g(s.residual.median), _g(s.angle.median), _g(s.residual.maximum), s.summary,
+                  style="bold green" if k == 1 and share > 0 else None)
+    console.print(t)
+    left = [s for s in d.scores if not s.applicable]
+    if left:
+        console.print("not scored: " + "; ".join(f"{s.hypothesis} ({s.why_not})" for s in left))
+    if d.unexplained:
+        rows = ", ".join(f"row {r + 1} (closest: {name}, {_g(res)})" for r, name, res in d.examples)
+        console.print(f"[yellow]{d.unexplained:,} rows no hypothesis explains[/yellow]; first: {rows}")
+    elif d.rows:
+        console.print("every row is explained by at least one hypothesis")
+
+
+def comparison_tables(c, console: Optional[Console] = None) -> None:
+    """Print ``hconv compare``: each method against exact, and where the shortcuts fail."""
+    from hconv.compare import OFFDIAG_BINS, R_AXIS_BINS, SHORTCUTS
+
+    console = console or Console()
+    console.print(f"[bold]hconv compare[/bold] · {c.rows:,} rows · difference from the exact ω, "
+                  "|ω_m - ω_exact| / |ω_exact| (bare numbers for m²/s methods)")
+    t = Table(show_header=True, header_style="bold")
+    for col in ("method", "unit", "median diff", "worst diff", "worst row", "median angle °", "worst angle °", "no answer"):
+        t.add_column(col, justify="left" if col in ("method", "unit") else "right")
+    for s in c.scores:
+        t.add_row(s.method, s.unit, _g(s.diff.median), _g(s.diff.maximum),
+                  "-" if s.diff.max_row is None or not s.diff.maximum > 0 else str(s.diff.max_row + 1),
+                  _g(s.angle.median), _g(s.angle.maximum),
+                  f"{s.diff.missing:,}")
+    console.print(t)
+    if c.skipped:
+        console.print("not run: " + "; ".join(f"{m} ({why})" for m, why in c.skipped))
+    shortcuts = [s for s in c.scores if s.method in SHORTCUTS]
+    for title, edges, attr in (("off-diagonal ratio max|Iij|/√(Iii·Ijj)", OFFDIAG_BINS, "by_offdiag"),
+                               ("offset geometry min (|r|² - r_i²)/|r|² (0: r on an axis)", R_AXIS_BINS, "by_r_axis")):
+        if not shortcuts or all(sum(b.rows for b in getattr(s, attr)) == 0 for s in shortcuts):
+            continue
+        t = Table(title=f"median diff of the shortcuts by {title}", show_header=True, header_style="bold")
+        t.add_column("bin", justify="left")
+        t.add_column("rows", justify="right")
+        for s in shortcuts:
+            t.add_column(s.method, justify="right")
+        for b in range(len(edges) - 1):
+            n = getattr(shortcuts[0], attr)[b].rows
+            if n:
+                t.add_row(f"[{edges[b]:g}, {edges[b + 1]:g})", f"{n:,}",
+                          *(_g(getattr(s, attr)[b].median) for s in shortcuts))
+        console.print(t)
+    for s in shortcuts:
+        if s.worst:
+            t = Table(title=f"rows where {s.method} is furthest off", show_header=True, header_style="bold")
+            for col in ("row", "diff", "offdiag", "|r| m", "r_axis"):
+                t.add_column(col, justify="right")
+            for diff, row, off, rn, ra in s.worst:
+                t.add_row(str(row + 1), _g(diff), _g(off), _g(rn), _g(ra))
+            console.print(t)

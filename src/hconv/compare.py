@@ -1,0 +1,169 @@
+"""``hconv compare``: every method on the same rows, measured against the exact answer.
+
+Per row and method: ``diff`` = |ω_m - ω_exact| / |ω_exact| (of the bare numbers, for the m²/s
+methods) and ``angle`` between the two vectors [degrees]. The geometry that drives the shortcuts'
+failures is measured per row too:
+
+* ``offdiag`` = max over i≠j of |Iij| / √(Iii·Ijj): how far the tensor is from diagonal in the
+  axes it is given in (0: diagonal; the diagonal shortcut is then exact);
+* ``r_axis`` = min over i of (|r|² - r_i²) / |r|²: 0 when r lies on an axis, where the document
+  formula forces two components to zero.
+
+The summary bins the rows by ``offdiag`` and by ``r_axis`` and gives the median difference of the
+diagonal and document methods in each bin, and lists the rows where they are furthest off.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+from hconv import bodies, methods
+from hconv.bodies import Conventions
+from hconv.diagnose import residual_and_angle
+from hconv.stats import Summary
+
+OFFDIAG_BINS = (0.0, 1e-3, 1e-2, 0.1, 0.3, 1.0)
+R_AXIS_BINS = (0.0, 1e-6, 1e-3, 1e-2, 0.1, 1.0)
+SHORTCUTS = ("diagonal", "document")
+WORST_ROWS = 5
+
+
+def offdiag_ratio(sets: dict, form: str) -> np.ndarray:
+    """max |Iij| / √(Iii·Ijj) per row, ``(N,)``; 0 for the scalar and principal forms."""
+    I = sets["I"]
+    n = I.shape[1]
+    if form in ("scalar", "principal"):
+        return np.zeros(n)
+    if form == "full9":
+        I = np.stack([I[0], I[4], I[8], 0.5 * (I[1] + I[3]), 0.5 * (I[2] + I[6]), 0.5 * (I[5] + I[7])])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratios = [np.abs(I[3]) / np.sqrt(np.abs(I[0] * I[1])), np.abs(I[4]) / np.sqrt(np.abs(I[0] * I[2])),
+                  np.abs(I[5]) / np.sqrt(np.abs(I[1] * I[2]))]
+    return np.fmax(np.fmax(ratios[0], ratios[1]), ratios[2])
+
+
+def r_axis_ratio(r: np.ndarray) -> np.ndarray:
+    """min over i of (|r|² - r_i²) / |r|² per row, from ``r`` ``(3, N)``; NaN for r = 0."""
+    sq = r * r
+    total = sq.sum(axis=0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.min(np.stack([sq[1] + sq[2], sq[0] + sq[2], sq[0] + sq[1]]), axis=0) / np.where(total > 0, total, np.nan)
+
+
+@dataclass
+class MethodScore:
+    method: str
+    unit: str
+    diff: Summary = field(default_factory=lambda: Summary(1e-6))
+    angle: Summary = field(default_factory=Summary)
+    by_offdiag: list = field(default_factory=lambda: [Summary() for _ in OFFDIAG_BINS[:-1]])
+    by_r_axis: list = field(default_factory=lambda: [Summary() for _ in R_AXIS_BINS[:-1]])
+    worst: list = field(default_factory=list)  #: (diff, row, offdiag, |r|, r_axis), largest first
+
+
+@dataclass
+class Comparison:
+    scores: list
+    rows: int
+    skipped: list  #: (method, why) for methods that could not run on this input
+
+
+def _binned(summaries: list, edges: tuple, key: np.ndarray, values: np.ndarray, first_row: int) -> None:
+    idx = np.clip(np.searchsorted(edges, key, side="right") - 1, 0, len(edges) - 2)
+    ok = np.isfinite(key)
+    for b, s in enumerate(summaries):
+        sel = ok & (idx == b)
+        if sel.any():
+            s.add(values[sel], first_row)
+
+
+class Comparer:
+    """Runs every method batch by batch; :meth:`result` gives the :class:`Comparison`."""
+
+    def __init__(self, present: set, conv: Conventions = Conventions()):
+        self.conv = conv
+        self.scores, self.skipped = [], []
+        for m in methods.METHODS.values():
+            if m.needs_r and "r" not in present:
+                self.skipped.append((m.name, "needs rx, ry, rz"))
+            else:
+                self.scores.append(MethodScore(m.name, m.unit))
+        self.rows = 0
+
+    def add(self, sets: dict, form: str) -> dict:
+        """Score one batch; returns its per-row columns (name -> ``(n,)`` array)."""
+        n = sets["H"].shape[1]
+        exact = bodies.solve(sets, form, "exact", 64, self.conv, diagnostics=False).w.T
+        off = offdiag_ratio(sets, form)
+        r = sets.get("r")
+        r_axis = r_axis_ratio(r) if r is not None else np.full(n, np.nan)
+        r_norm = np.sqrt((r * r).sum(axis=0)) if r is not None else np.full(n, np.nan)
+        cols = {"offdiag": off, "r_axis": r_axis}
+        for s in self.scores:
+            w = exact if s.method == "exact" else bodies.solve(sets, form, s.method, 64, self.conv, diagnostics=False).w.T
+            diff, ang = residual_and_angle(w.astype(np.float64), exact)
+            s.diff.add(diff, self.rows)
+            s.angle.add(ang, self.rows)
+            _binned(s.by_offdiag, OFFDIAG_BINS, off, diff, self.rows)
+            _binned(s.by_r_axis, R_AXIS_BINS, r_axis, diff, self.rows)
+            if s.method in SHORTCUTS:
+                order = np.argsort(np.where(np.isnan(diff), -np.inf, diff))[::-1][:WORST_ROWS]
+                s.worst += [(float(diff[k]), self.rows + int(k), float(off[k]), float(r_norm[k]), float(r_axis[k]))
+                            for k in order if np.isfinite(diff[k])]
+                s.worst = sorted(s.worst, key=lambda t: -t[0])[:WORST_ROWS]
+            cols[f"diff_{s.method}"] = diff
+            cols[f"angle_{s.method}"] = ang
+        self.rows += n
+        return cols
+
+    def result(self) -> Comparison:
+        return Comparison(self.scores, self.rows, self.skipped)
+
+
+def compare_file(src: str, dst: Optional[str] = None, *, src_format: Optional[str] = None,
+                 dst_format: Optional[str] = None, force: bool = False, job=None) -> Comparison:
+    """Compare every method on the rows of ``src``; with ``dst``, also write the per-row figures
+    (the input columns, then offdiag, r_axis, diff_<method>, angle_<method>), atomically."""
+    import contextlib
+
+    import pyarrow as pa
+
+    from hconv.arrow import Job
+    from hconv.pipeline import BackgroundWriter
+    from hconv.tableio import Output, format_of, open_input
+
+    job = job or Job()
+    job.check()
+    fin = format_of(src, src_format, "--from")
+    out = Output(dst, format_of(dst, dst_format, "--to"), force=force, input_path=src) if dst else None
+    with open_input(src, fin, job) as inp, (out or contextlib.nullcontext()):
+        writer = BackgroundWriter(out) if out else contextlib.nullcontext()
+        with writer:
+            comp = None
+            for batch in inp.batches:
+                table = pa.Table.from_batches([batch])
+                sets = inp.plan.read(table)
+                if comp is None:
+                    comp = Comparer(set(sets), job.conventions)
+                cols = comp.add(sets, inp.plan.form)
+                if out is not None:
+                    clash = [c for c in cols if c in table.column_names]
+                    if clash:
+                        from hconv.errors import InputError
+
+                        raise InputError(f"{inp.name}: already has column {clash[0]!r}; rename it (is this compare's own output?)")
+                    for name, values in cols.items():
+                        table = table.append_column(pa.field(name, pa.float64(), metadata={
+                            "unit": "deg" if name.startswith("angle_") else "1"}), pa.array(values))
+                    writer.write(table)
+            if comp is None:  # a header and no rows: still a valid (empty) output
+                comp = Comparer(set(inp.plan.groups), job.conventions)
+                if out is not None:
+                    table = inp.schema.empty_table()
+                    names = ["offdiag", "r_axis"] + [f"{k}_{s.method}" for s in comp.scores for k in ("diff", "angle")]
+                    for name in names:
+                        table = table.append_column(name, pa.array([], pa.float64()))
+                    writer.write(table)
+    return comp.result()

@@ -1,0 +1,268 @@
+"""``hconv diagnose``: which convention explains the ω that the user's engine produced?
+
+Each hypothesis is a way to get ω from the same row that a real engine or script might have
+used. Every one is computed for every row and compared with the observed ω (``w_obs``):
+
+* ``residual`` = |ω_hyp - ω_obs| / |ω_obs|, and ``angle`` between the two vectors [degrees];
+* a row is *explained* by a hypothesis when its residual is at most ``tol`` (default 1e-3, loose
+  enough for an engine that works in float32 and tight enough to tell the hypotheses apart).
+
+Hypotheses (those that need a column the input lacks, or that coincide with ``exact`` for the
+input's form, are left out and listed as such):
+
+=====================  ===========================================================================
+exact                  ω = I⁻¹H with hconv's conventions (q turns body into world)
+transposed-rotation    q used the other way round (world into body): R and Rᵀ swapped
+ignored-rotation       the body-frame tensor used with world-frame H, no rotation at all
+flipped-products       the products of inertia with the opposite sign
+ordering-urdf          the six numbers read in URDF's order (xx, xy, xz, yy, yz, zz)
+ordering-sympy         the six numbers read in SymPy's order (xx, yy, zz, xy, yz, zx)
+pivot                  I shifted from the centre of mass to the pivot at -r (needs m, r)
+diagonal               ω_i = H_i / I_ii, products ignored
+document               the seed's Version 1 (needs r; a number in m²/s)
+document-principal     the seed's Version 2 (needs r; a number in m²/s)
+=====================  ===========================================================================
+
+hconv's own order (xx, yy, zz, xy, xz, yz) is also MuJoCo's ``fullinertia`` order, so a MuJoCo
+ordering is ``exact`` here.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Callable, Optional
+
+import numpy as np
+
+from hconv import bodies
+from hconv.bodies import Conventions
+from hconv.stats import Summary
+
+#: The six-number orders, as positions in hconv's (xx, yy, zz, xy, xz, yz).
+_HCONV = ("xx", "yy", "zz", "xy", "xz", "yz")
+ORDERINGS = {
+    "urdf": ("xx", "xy", "xz", "yy", "yz", "zz"),
+    "sympy": ("xx", "yy", "zz", "xy", "yz", "xz"),  # SymPy's inertia(frame, ixx, iyy, izz, ixy, iyz, izx)
+}
+DEFAULT_TOL = 1e-3
+WORST_ROWS = 10
+
+
+def reorder(I6: np.ndarray, order: tuple) -> np.ndarray:
+    """The tensor an engine builds when it reads hconv's six numbers ``(6, N)`` in ``order``:
+    the k-th number lands in entry ``order[k]``. Returns ``(6, N)`` in hconv's order."""
+    out = np.empty_like(I6)
+    for k, entry in enumerate(order):
+        out[_HCONV.index(entry)] = I6[k]
+    return out
+
+
+def _conjugate(q: np.ndarray) -> np.ndarray:
+    return np.concatenate([q[:1], -q[1:]])
+
+
+def _six(sets: dict, form: str) -> Optional[np.ndarray]:
+    """The inertia as six numbers ``(6, N)``, for the hypotheses that permute them."""
+    I = sets["I"]
+    if form == "sym6":
+        return I
+    if form == "full9":
+        return I[[0, 4, 8, 1, 2, 5]]
+    return None
+
+
+@dataclass(frozen=True)
+class Hypothesis:
+    name: str
+    needs: tuple  #: sets it needs besides H and I
+    predict: Callable  #: (sets, form) -> ω (3, N) in rad/s or m²/s, or None when it equals exact
+    summary: str
+
+
+def _solve(sets, form, method="exact", **conv) -> np.ndarray:
+    res = bodies.solve(sets, form, method, 64, Conventions(**conv), diagnostics=False)
+    return res.w.T
+
+
+def _transposed(sets, form):
+    return _solve({**sets, "q": _conjugate(sets["q"])}, form)
+
+
+def _ignored(sets, form):
+    return _solve({k: v for k, v in sets.items() if k != "q"}, form)
+
+
+def _flipped(sets, form):
+    return None if form in ("scalar", "principal") else _solve(sets, form, products="positive")
+
+
+def _ordering(order):
+    def predict(sets, form):
+        six = _six(sets, form)
+        if six is None:
+            return None
+        return _solve({**sets, "I": reorder(six, order)}, "sym6")
+    return predict
+
+
+def _pivot(sets, form):
+    return _solve(sets, form, about="pivot")
+
+
+def _method(name):
+    def predict(sets, form):
+        return _solve(sets, form, name)
+    return predict
+
+
+HYPOTHESES = (
+    Hypothesis("exact", (), _method("exact"), "ω = I⁻¹H with hconv's conventions"),
+    Hypothesis("transposed-rotation", ("q",), _transposed, "q applied the other way (R and Rᵀ swapped)"),
+    Hypothesis("ignored-rotation", ("q",), _ignored, "body-frame tensor with world-frame H, not rotated"),
+    Hypothesis("flipped-products", (), _flipped, "products of inertia with the opposite sign"),
+    *(Hypothesis(f"ordering-{k}", (), _ordering(v), f"six numbers read in {k.upper() if k == 'urdf' else 'SymPy'}'s "
+                 f"order ({', '.join(v)})") for k, v in ORDERINGS.items()),
+    Hypothesis("pivot", ("m", "r"), _pivot, "I shifted from the centre of mass to the pivot"),
+    Hypothesis("diagonal", (), _method("diagonal"), "ω_i = H_i / I_ii, products ignored"),
+    Hypothesis("document", ("r",), _method("document"), "the seed's Version 1 (m²/s)"),
+    Hypothesis("document-principal", ("r",), _method("document-principal"), "the seed's Version 2 (m²/s)"),
+)
+NAMES = tuple(h.name for h in HYPOTHESES)
+
+
+def residual_and_angle(w: np.ndarray, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Relative distance |w - obs| / |obs| and the angle between them [degrees], per row.
+
+    ``w`` and ``obs`` are ``(3, N)``. Rows with obs = 0 give 0 when w = 0 too, else inf; the
+    angle is NaN where either vector is zero.
+    """
+    d = w - obs
+    num = np.sqrt(np.sum(d * d, axis=0))
+    no = np.sqrt(np.sum(obs * obs, axis=0))
+    nw = np.sqrt(np.sum(w * w, axis=0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        res = np.where(no > 0, num / np.where(no > 0, no, 1.0), np.where(num == 0, 0.0, np.inf))
+        cos = np.sum(w * obs, axis=0) / (nw * no)
+        # atan2 of |w × obs| and w·obs keeps small angles accurate, where acos(cos) loses them.
+        cr = np.cross(w.T, obs.T).T
+        ang = np.degrees(np.arctan2(np.sqrt(np.sum(cr * cr, axis=0)), np.sum(w * obs, axis=0)))
+    ang = np.where(np.isfinite(cos), ang, np.nan)
+    return res, ang
+
+
+@dataclass
+class Score:
+    """One hypothesis over the whole input."""
+
+    hypothesis: str
+    summary: str
+    applicable: bool = True
+    why_not: str = ""
+    residual: Summary = None
+    angle: Summary = None
+
+
+@dataclass
+class Diagnosis:
+    scores: list
+    rows: int = 0
+    tol: float = DEFAULT_TOL
+    unexplained: int = 0  #: rows no hypothesis explains
+    examples: list = field(default_factory=list)  #: (row, best hypothesis, its residual) for some of those
+
+    def ranking(self) -> list:
+        """Applicable hypotheses, best first: most rows explained, then smallest median residual."""
+        usable = [s for s in self.scores if s.applicable]
+        return sorted(usable, key=lambda s: (-s.residual.share_within, _key(s.residual.median)))
+
+
+def _key(x: float) -> float:
+    return x if np.isfinite(x) else np.inf
+
+
+class Diagnoser:
+    """Scores every hypothesis batch by batch; :meth:`result` gives the :class:`Diagnosis`."""
+
+    def __init__(self, present: set, form: str, tol: float = DEFAULT_TOL):
+        self.tol = tol
+        self.form = form
+        self.scores = []
+        for h in HYPOTHESES:
+            lacking = [s for s in h.needs if s not in present]
+            s = Score(h.name, h.summary, not lacking, f"needs {', '.join(lacking)}" if lacking else "",
+                      Summary(tol), Summary(0.0))
+            self.scores.append(s)
+        self.rows = 0
+        self.unexplained = 0
+        self.examples = []
+
+    def add(self, sets: dict) -> None:
+        obs = sets["w_obs"]
+        n = obs.shape[1]
+        best = np.full(n, np.inf)
+        best_name = np.full(n, "", dtype=object)
+        for h, s in zip(HYPOTHESES, self.scores):
+            if not s.applicable:
+                continue
+            w = h.predict(sets, self.form)
+            if w is None:
+                s.applicable, s.why_not = False, f"same as exact for the {self.form} form"
+                continue
+            res, ang = residual_and_angle(w.astype(np.float64), obs)
+            s.residual.add(res, self.rows)
+            s.angle.add(ang, self.rows)
+            better = res < best
+            best = np.where(better, res, best)
+            best_name[better] = h.name
+        fail = ~(best <= self.tol)
+        self.unexplained += int(fail.sum())
+        for k in np.flatnonzero(fail)[: max(0, WORST_ROWS - len(self.examples))]:
+            self.examples.append((self.rows + int(k), best_name[k] or "none", float(best[k])))
+        self.rows += n
+
+    def result(self) -> Diagnosis:
+        return Diagnosis(self.scores, self.rows, self.tol, self.unexplained, self.examples)
+
+
+def diagnose_file(src: str, *, src_format: Optional[str] = None, tol: float = DEFAULT_TOL, job=None,
+                  progress=None) -> Diagnosis:
+    """Score every hypothesis on the rows of ``src`` (CSV or Parquet, "-" for stdin)."""
+    from hconv.arrow import Job
+    from hconv.errors import UsageError
+    from hconv.tableio import format_of, open_input
+
+    if not tol > 0:
+        raise UsageError(f"--tol must be positive, got {tol}")
+    job = job or Job()
+    job = dataclasses.replace(job, conventions=dataclasses.replace(job.conventions, about="same"))
+    job = _NeedsObserved(job)
+    fin = format_of(src, src_format, "--from")
+    with open_input(src, fin, job) as inp:
+        plan = inp.plan
+        d = None
+        for batch in inp.batches:
+            import pyarrow as pa
+
+            sets = plan.read(pa.Table.from_batches([batch]))
+            if d is None:
+                d = Diagnoser(set(sets), plan.form, tol)
+            d.add(sets)
+            if progress is not None:
+                progress(inp.position(), inp.total)
+        if d is None:
+            d = Diagnoser(set(plan.groups), plan.form, tol)
+    return d.result()
+
+
+class _NeedsObserved:
+    """A Job whose plan also requires w_obs and reads v, without changing the Job class."""
+
+    def __init__(self, job):
+        self._job = job
+
+    def plan(self, schema, source="input"):
+        from hconv import layout
+
+        spec = self._job.spec()
+        spec = dataclasses.replace(spec, need=spec.need + (("w_obs", "diagnose compares with the ω your engine produced"),))
+        return layout.plan(schema, spec, source)
