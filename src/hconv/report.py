@@ -135,15 +135,17 @@ def diagnosis_tables(d, console: Optional[Console] = None) -> None:
                   f"|ω - ω_obs| / |ω_obs| <= {d.tol:g}")
     t = Table(show_header=True, header_style="bold")
     for col, just in (("rank", "right"), ("hypothesis", "left"), ("explains", "right"), ("median residual", "right"),
-                      ("median angle °", "right"), ("worst residual", "right"), ("what it assumes", "left")):
-        t.add_column(col, justify=just)
+                      ("median angle °", "right"), ("worst residual", "right")):
+        t.add_column(col, justify=just, no_wrap=True)
     ranking = d.ranking()
     for k, s in enumerate(ranking, 1):
         share = s.residual.share_within
         t.add_row(str(k), s.hypothesis, "-" if not np.isfinite(share) else f"{100 * share:.1f} %",
-                  _g(s.residual.median), _g(s.angle.median), _g(s.residual.maximum), s.summary,
+                  _g(s.residual.median), _g(s.angle.median), _g(s.residual.maximum),
                   style="bold green" if k == 1 and share > 0 else None)
     console.print(t)
+    if ranking:
+        console.print(f"best: [bold]{ranking[0].hypothesis}[/bold]: {ranking[0].summary}")
     left = [s for s in d.scores if not s.applicable]
     if left:
         console.print("not scored: " + "; ".join(f"{s.hypothesis} ({s.why_not})" for s in left))

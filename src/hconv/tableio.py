@@ -302,6 +302,15 @@ class _ParquetWriter:
         self._w.close()
 
 
+def _list_as_text(col):
+    """A list column as text, ``[1.5, 2.0, 3.0]``, since CSV has no lists; other columns as they are."""
+    t = col.type
+    if not (pa.types.is_list(t) or pa.types.is_large_list(t) or pa.types.is_fixed_size_list(t)):
+        return col
+    return pa.array([None if v is None else "[" + ", ".join(repr(x) for x in v) + "]" for v in col.to_pylist()],
+                    type=pa.string())
+
+
 class _CsvWriter:
     """CSV with a minimal-quoting header, ``status`` as text and ω's unit in a ``w_unit`` column."""
 
@@ -317,7 +326,7 @@ class _CsvWriter:
         self._quoted = pacsv.WriteOptions(include_header=False)
 
     def write(self, table: pa.Table) -> None:
-        cols = [c.cast(pa.string()) if pa.types.is_dictionary(c.type) else c for c in table.columns]
+        cols = [c.cast(pa.string()) if pa.types.is_dictionary(c.type) else _list_as_text(c) for c in table.columns]
         names = table.schema.names
         if self._unit:
             cols.append(pa.repeat(self._unit, table.num_rows))
