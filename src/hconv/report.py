@@ -164,13 +164,15 @@ def comparison_tables(c, console: Optional[Console] = None) -> None:
     console.print(f"[bold]hconv compare[/bold] · {c.rows:,} rows · difference from the exact ω, "
                   "|ω_m - ω_exact| / |ω_exact| (bare numbers for m²/s methods)")
     t = Table(show_header=True, header_style="bold")
-    for col in ("method", "unit", "median diff", "worst diff", "worst row", "median angle °", "worst angle °", "no answer"):
-        t.add_column(col, justify="left" if col in ("method", "unit") else "right")
+    nan_col = any(s.diff.missing for s in c.scores)
+    for col in ("method", "med diff", "max diff", "max row", "med °", "max °") + (("NaN",) if nan_col else ()):
+        t.add_column(col, justify="left" if col == "method" else "right", no_wrap=True)
+    def g2(x: float) -> str:  # short, so that the table fits 80 columns
+        return "-" if not np.isfinite(x) else (f"{x:.3g}" if x == 0 or 0.01 <= abs(x) < 1000 else f"{x:.1e}")
     for s in c.scores:
-        t.add_row(s.method, s.unit, _g(s.diff.median), _g(s.diff.maximum),
+        t.add_row(s.method + (" (m²/s)" if s.unit != "rad/s" else ""), g2(s.diff.median), g2(s.diff.maximum),
                   "-" if s.diff.max_row is None or not s.diff.maximum > 0 else str(s.diff.max_row + 1),
-                  _g(s.angle.median), _g(s.angle.maximum),
-                  f"{s.diff.missing:,}")
+                  g2(s.angle.median), g2(s.angle.maximum), *((f"{s.diff.missing:,}",) if nan_col else ()))
     console.print(t)
     if c.skipped:
         console.print("not run: " + "; ".join(f"{m} ({why})" for m, why in c.skipped))
