@@ -57,7 +57,7 @@ class Conventions:
             if value not in allowed:
                 raise ValueError(f"{opt} must be one of {', '.join(allowed)}, got {value!r}")
         if self.degenerate != "error" and not methods.get(method).exact:
-            raise ValueError(f"degenerate={self.degenerate} applies to the exact methods, not to {method!r}")
+            raise ValueError(f"--degenerate {self.degenerate} applies to the exact methods, not to {method!r}")
 
     def needs(self, method: str) -> dict:
         """The column sets, besides H and I, that this run cannot do without, each with the reason."""

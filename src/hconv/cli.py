@@ -94,6 +94,11 @@ def _numbers(option: str, text: str, allowed: tuple[int, ...]) -> list[float]:
     return values
 
 
+def _json_number(x: float):
+    """``x``, or None where it is NaN or infinite: standard JSON has neither."""
+    return x if math.isfinite(x) else None
+
+
 def _precision(value: int) -> int:
     if value not in (64, 32):
         raise typer.BadParameter("must be 64 or 32")
@@ -180,7 +185,7 @@ def one(
     residual, cond, state = float(res.residual[0]), float(res.cond[0]), str(res.status[0])
     axis = None if res.null_axis is None or not np.isfinite(res.null_axis[0]).all() else [float(x) for x in res.null_axis[0]]
     if as_json:
-        clean = lambda x: x if math.isfinite(x) else None  # noqa: E731 - JSON has no NaN or Infinity
+        clean = _json_number
         out = {"w": [clean(x) for x in w], "unit": unit_out, "residual": clean(residual),
                "cond": clean(cond), "status": state, "method": m.name}
         if res.null_dim is not None:
@@ -265,7 +270,7 @@ def diagnose_cmd(
     job.check()
     d = diagnose.diagnose_file(src, src_format=from_ and from_.value, tol=tol, job=job)
     if as_json:
-        clean = lambda x: x if math.isfinite(x) else None  # noqa: E731 - JSON has no NaN or Infinity
+        clean = _json_number
         print(json.dumps([{"hypothesis": s.hypothesis, "median_residual": clean(s.residual.median),
                            "share_explained": clean(s.residual.share_within),
                            "median_angle_deg": clean(s.angle.median)} for s in d.ranking()], indent=1))
