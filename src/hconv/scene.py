@@ -102,7 +102,7 @@ def make_scene(n: int, seed: int = 0, scene: str = "mix", cond_max: float = 1e3,
     w = rng.normal(0.0, 2.0, (n, 3))
     H = np.einsum("nij,nj->ni", I, w)
     r = rng.uniform(-1.0, 1.0, (n, 3))
-    cols = {"id": np.arange(first_id, first_id + n), "body": kind.astype(str), "mass": m}
+    cols = {"id": np.arange(first_id, first_id + n), "body": kind.astype(str), "m": m}
     cols.update({f"H{a}": H[:, k] for k, a in enumerate("xyz")})
     for name, (i, j) in zip(("Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz"), ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))):
         cols[name] = I[:, i, j]
