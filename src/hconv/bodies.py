@@ -136,6 +136,11 @@ def solve(sets: dict, form: str, method: str = "exact", precision: int = 64, con
     ``q`` ``(4, N)`` (w, x, y, z), ``r`` ``(3, N)`` [m], ``m`` ``(1, N)`` [kg], ``v`` ``(3, N)`` [m/s].
     """
     conv.check(method)
+    with np.errstate(all="ignore"):  # extreme rows get statuses, never warnings
+        return _solve(sets, form, method, precision, conv, diagnostics)
+
+
+def _solve(sets, form, method, precision, conv, diagnostics) -> core.Result:
     H, I = sets["H"], sets["I"]
     q, r, v = sets.get("q"), sets.get("r"), sets.get("v")
     m = sets["m"][0] if "m" in sets else None

@@ -122,6 +122,16 @@ def convert(H, I, r=None, *, method: str = "exact", precision: int = 64,
     if degenerate != "error":
         deg = _Degenerate(np.full((n, 3), np.nan), np.zeros(n, dtype=np.int8))
     opts = _BlockOptions(m, dtype, diagonal, degenerate_rtol, extra_k)
+    with np.errstate(all="ignore"):  # every row that would warn gets a status instead
+        _convert_blocks(n, opts, Isym, asym, H, r, w, cond, code, residual, deg)
+    axis, dim = (None, None) if deg is None else (deg.axis, deg.dim)
+    if single:
+        return Result(w[0], None if residual is None else residual[0], cond[0], code[0], m.unit, m.name,
+                      None if axis is None else axis[0], None if dim is None else dim[0])
+    return Result(w, residual, cond, code, m.unit, m.name, axis, dim)
+
+
+def _convert_blocks(n, opts, Isym, asym, H, r, w, cond, code, residual, deg) -> None:
     for lo in range(0, n, BLOCK_ROWS):
         sl = slice(lo, min(n, lo + BLOCK_ROWS))
         _convert_block(
@@ -129,11 +139,6 @@ def convert(H, I, r=None, *, method: str = "exact", precision: int = 64,
             w[sl], cond[sl], code[sl], None if residual is None else residual[sl],
             None if deg is None else _Degenerate(deg.axis[sl], deg.dim[sl]),
         )
-    axis, dim = (None, None) if deg is None else (deg.axis, deg.dim)
-    if single:
-        return Result(w[0], None if residual is None else residual[0], cond[0], code[0], m.unit, m.name,
-                      None if axis is None else axis[0], None if dim is None else dim[0])
-    return Result(w, residual, cond, code, m.unit, m.name, axis, dim)
 
 
 @dataclass(frozen=True)
@@ -224,6 +229,11 @@ def _convert_block(o: _BlockOptions, I: Sym3, asym, H, r, w_out, cond_out, code_
     flags["overflow"] = lost & ~invalid
     w[:, no_answer | lost] = np.nan
 
+    if m.exact:
+        # ω so small that the spacing of subnormal numbers alone exceeds the promise.
+        grid = float(np.finfo(dtype).smallest_subnormal) / status.ILL_CONDITIONED_TOL
+        wmax = max_abs(w)
+        flags["inaccurate"] = (wmax > 0) & (wmax < grid)
     w_out[:] = w.T
     cond[invalid] = np.nan
     cond_out[:] = cond
@@ -241,11 +251,24 @@ def _convert_block(o: _BlockOptions, I: Sym3, asym, H, r, w_out, cond_out, code_
                 steps = linsolve.MAX_REFINE_STEPS if m.name == "refined" else None
                 ref = linsolve.solve_refined(I.take(ok), H[:, ok], steps=steps)
             d = w[:, ok].astype(np.float64) - ref
+            # Both norms in units of the reference's largest component, so that neither the
+            # squares of 1e200 nor those of 1e-200 leave the range (the ratio is unchanged).
+            unit = max_abs(ref)
+            unit = np.where((unit > 0) & np.isfinite(unit), unit, 1.0)
+            d, ref = d / unit, ref / unit
             num = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
             den = np.sqrt(ref[0] * ref[0] + ref[1] * ref[1] + ref[2] * ref[2])
             with np.errstate(divide="ignore", invalid="ignore"):
                 # H = 0 gives I⁻¹H = 0: an answer of 0 is exact, anything else infinitely off.
-                res_out[ok] = np.where(den > 0, num / np.where(den > 0, den, 1.0), np.where(num == 0, 0.0, np.inf))
+                res = np.where(den > 0, num / np.where(den > 0, den, 1.0), np.where(num == 0, 0.0, np.inf))
+            # A row without an answer (NaN, or overflow) has no residual either.
+            res_out[ok] = np.where(no_answer[ok] | lost[ok], np.nan, res)
+            if m.exact:
+                # The safety net under the a-priori statuses: an exact-family answer measured off
+                # by more than the promise (subnormal numbers on the way, say) is never ok.
+                bad = np.zeros(n, dtype=bool)
+                bad[ok] = res > status.ILL_CONDITIONED_TOL
+                code_out[:] = status.merge(code_out, bad, "inaccurate")
 
 
 def _pseudo_inverse(I: Sym3, H: np.ndarray, tol: np.ndarray, diagonal: bool, deg: _Degenerate,

@@ -260,6 +260,9 @@ def _vector_group(name: str, schema, has, src, source: str, why: Optional[str]) 
         if len(cols) > 1 and has(name) and _is_list(schema.field(src(name)).type):
             raise InputError(f"{source}: has both {', '.join(cols)} and a list column {src(name)!r}; keep one")
         return Group(name, tuple(src(c) for c in cols), False, len(cols))
+    if len(cols) > 1 and has(name) and not _is_list(schema.field(src(name)).type):
+        raise InputError(f"{source}: column {src(name)!r} has type {schema.field(src(name)).type}; {name} is read "
+                         f"from {', '.join(cols)} or from a list column of {len(cols)} numbers")
     if len(cols) > 1 and has(name) and _is_list(schema.field(src(name)).type):
         t = schema.field(src(name)).type
         size = t.list_size if pa.types.is_fixed_size_list(t) else None

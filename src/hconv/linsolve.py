@@ -185,7 +185,14 @@ def solve_refined(I: Sym3, h: np.ndarray, steps: Optional[int] = None) -> np.nda
         if _in_safe_range([np.where(np.isfinite(x), x, 0)], h.dtype):
             return x
     s = pow2_scales(I)
-    return _refine(scale_sym(I, s), h * s, steps) * s
+    hs = h * s
+    # The right-hand side too, per row by a power of two (exact), so that neither it nor the
+    # solution sits near the end of the range while the residual is split and multiplied.
+    big = np.maximum(np.maximum(np.abs(hs[0]), np.abs(hs[1])), np.abs(hs[2]))
+    emax = np.finfo(h.dtype).maxexp - 24  # t itself must stay finite, even for subnormal rows
+    t = np.where((big > 0) & np.isfinite(big), np.ldexp(1.0, np.clip(-np.frexp(big)[1], -emax, emax)), 1.0).astype(h.dtype)
+    with np.errstate(over="ignore", invalid="ignore"):
+        return _refine(scale_sym(I, s), hs * t, steps) * s / t
 
 
 def _refine(I: Sym3, h: np.ndarray, steps: Optional[int]) -> np.ndarray:

@@ -20,6 +20,7 @@ STATUSES: tuple[str, ...] = (
     "not_physical",  # principal moments break the triangle inequality I1 <= I2 + I3
     "unit_suspect",  # with a mass column: no solid of that mass has that inertia (a unit slip?)
     "ill_conditioned",  # exact family: cond(I) so large that the error could exceed ILL_CONDITIONED_TOL
+    "inaccurate",  # exact family: the measured residual exceeds ILL_CONDITIONED_TOL anyway (subnormals on the way)
     "frame_ambiguous",  # document-principal on repeated principal moments
     "r_on_axis",  # document methods: r (nearly) on an axis, so a component is forced to zero
 )

@@ -110,9 +110,52 @@ def _first_line(exc: Exception) -> str:
     return str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
 
 
+def _sniff_csv(path: str, name: str) -> None:
+    """Refuse, with the reason, a file that is not comma-separated UTF-8 text (first 64 KiB)."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(1 << 16)
+    except OSError as exc:
+        raise _oserror(name, exc) from None
+    if not head:
+        return  # the empty file has its own message
+    if b"\x00" in head or head.startswith(b"\x89PNG") or head.startswith(b"PAR1"):
+        raise InputError(f"{name}: is not a text file, so not CSV" + (" (it looks like Parquet: name it .parquet or pass --from parquet)"
+                                                                     if head.startswith(b"PAR1") else ""))
+    head = head[3:] if head.startswith(b"\xef\xbb\xbf") else head
+    cut = head.rfind(b"\n") + 1 if len(head) == 1 << 16 else len(head)
+    try:
+        head[:cut or len(head)].decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = head[: exc.start].count(b"\n") + 1
+        raise InputError(f"{name}: line {line} is not UTF-8 text; convert the file to UTF-8 first "
+                         "(for example: iconv -f latin1 -t utf-8)") from None
+    first = head.split(b"\n", 1)[0].decode("utf-8").strip("\r")
+    if not first.strip():
+        raise InputError(f"{name}: the first line is blank; a CSV needs a header line naming the columns")
+    if "," not in first:
+        for sep, word in ((";", "semicolons"), ("\t", "tabs"), ("|", "bars")):
+            if sep in first:
+                raise InputError(f"{name}: the header is separated by {word}, but hconv reads comma-separated CSV; "
+                                 f"convert the delimiter to commas first")
+
+
+def _header_hint(names: list) -> str:
+    """Why a header may not have matched: spaces around names, or a first line that is no header."""
+    from hconv.layout import ALL_NAMES
+
+    spaced = [n for n in names if n != n.strip() and n.strip() in ALL_NAMES]
+    if spaced:
+        return f" (the header has spaces around {', '.join(repr(n) for n in spaced[:3])}; remove them)"
+    if not any(n.strip() in ALL_NAMES for n in names):
+        return f" (the first line, {','.join(names)[:50]!r}, names none of hconv's columns: is it a CSV header?)"
+    return ""
+
+
 def _open_csv(path: str, name: str, job) -> Input:
     if os.path.isdir(path):
         raise InputError(f"{name}: is a directory, not a CSV file")
+    _sniff_csv(path, name)
     ropts = pacsv.ReadOptions(block_size=CSV_BLOCK_BYTES)
     try:
         with pacsv.open_csv(path, read_options=ropts) as probe:
@@ -121,15 +164,13 @@ def _open_csv(path: str, name: str, job) -> Input:
         if "Empty CSV file" in str(exc):
             raise InputError(f"{name}: the file is empty; a CSV needs a header line naming the columns "
                              f"{', '.join(H_COLUMNS + I_COLUMNS)}") from None
-        raise InputError(f"{name}: not a readable CSV file ({_first_line(exc)})") from None
+        raise _csv_parse_error(path, name, exc) from None
     except OSError as exc:
         raise _oserror(name, exc) from None
-    if len(names) == 1:
-        for sep, word in ((";", "semicolons"), ("\t", "tabs"), ("|", "bars")):
-            if sep in names[0]:
-                raise InputError(f"{name}: the header is separated by {word}, but hconv reads comma-separated CSV; "
-                                 f"convert the delimiter to commas first")
-    plan = job.plan(pa.schema([(n, pa.float64()) for n in names]), name)
+    try:
+        plan = job.plan(pa.schema([(n, pa.float64()) for n in names]), name)
+    except InputError as exc:
+        raise InputError(f"{exc}{_header_hint(names)}") from None
     nums = set(plan.numeric)
     types = {n: (pa.float64() if n in nums else pa.string()) for n in names}
     copts = pacsv.ConvertOptions(column_types=types, strings_can_be_null=False)
@@ -160,11 +201,38 @@ def _open_csv(path: str, name: str, job) -> Input:
 _CSV_COLUMN = re.compile(r"In CSV column #(\d+): CSV conversion error to \w+: invalid value '(.*)'")
 
 
-def _csv_value_error(path: str, name: str, names: list, ropts, exc: Exception) -> InputError:
-    """Turn pyarrow's conversion error into one naming the column, the value and its row."""
-    m = _CSV_COLUMN.search(str(exc))
+_CSV_RAGGED = re.compile(r"Expected (\d+) columns, got (\d+)")
+_CSV_UTF8 = re.compile(r"In CSV column #(\d+): CSV conversion error to string: invalid UTF8")
+
+
+def _csv_parse_error(path: str, name: str, exc: Exception) -> InputError:
+    """A row with the wrong number of values, named by its data row; else pyarrow's first line."""
+    m = _CSV_RAGGED.search(str(exc))
     if not m:
         return InputError(f"{name}: not a readable CSV file ({_first_line(exc)})")
+    expected, got = int(m.group(1)), int(m.group(2))
+    row = ""
+    try:  # the error path only: find the row with Python's csv module
+        with open(path, newline="", encoding="utf-8-sig") as f:
+            for k, fields in enumerate(csv.reader(f)):
+                if k and fields and len(fields) != expected:
+                    row = f"data row {k}"
+                    break
+    except (OSError, UnicodeDecodeError, csv.Error):
+        pass
+    return InputError(f"{name}: {row or 'a row'} has {got} values, but the header names {expected} columns; "
+                      "every row needs one value per column (quote a value that holds a comma)")
+
+
+def _csv_value_error(path: str, name: str, names: list, ropts, exc: Exception) -> InputError:
+    """Turn pyarrow's conversion error into one naming the column, the value and its row."""
+    u = _CSV_UTF8.search(str(exc))
+    if u:
+        return InputError(f"{name}: column {names[int(u.group(1))]!r} holds text that is not UTF-8; convert the "
+                          "file to UTF-8 first (for example: iconv -f latin1 -t utf-8)")
+    m = _CSV_COLUMN.search(str(exc))
+    if not m:
+        return _csv_parse_error(path, name, exc)
     col, value = names[int(m.group(1))], m.group(2)
     where = ""
     try:  # a second pass, on the error path only, to find the row
@@ -199,6 +267,9 @@ def _open_parquet(path: str, name: str, job) -> Input:
         raise InputError(f"{name}: not a readable Parquet file ({_first_line(exc)}); "
                          "check that it is Parquet and was completely written") from None
     except OSError as exc:
+        if exc.errno is None and os.path.isfile(path):  # pyarrow's own errors about the bytes
+            raise InputError(f"{name}: not a readable Parquet file ({_first_line(exc)}); "
+                             "check that it is Parquet and was completely written") from None
         raise _oserror(name, exc) from None
     schema = pf.schema_arrow
     plan = job.plan(schema, name)
