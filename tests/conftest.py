@@ -69,3 +69,21 @@ def run_hconv(*args: str, input: bytes | None = None, cwd=None) -> subprocess.Co
     env = dict(os.environ, COLUMNS="200")
     return subprocess.run([sys.executable, "-m", "hconv", *args], input=input, capture_output=True,
                           cwd=cwd, env=env, timeout=120)
+
+
+def run_inprocess(*args: str, capsys) -> tuple[int, str, str]:
+    """``hconv ARGS`` in this process, through the console script's ``cli.main``; returns
+    (exit code, stdout, stderr). For tests that run the command hundreds of times."""
+    from hconv import cli
+
+    old = sys.argv
+    sys.argv = ["hconv", *args]
+    try:
+        cli.main()
+        code = 0
+    except SystemExit as exc:
+        code = exc.code if isinstance(exc.code, int) else 1
+    finally:
+        sys.argv = old
+    out, err = capsys.readouterr()
+    return code, out, err

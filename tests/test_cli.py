@@ -272,22 +272,7 @@ def test_convert_failure_midway_leaves_no_partial_output(tmp_path):
     no_leftovers(tmp_path, {"big.csv"})
 
 
-def test_convert_interrupted_by_sigterm_leaves_nothing(tmp_path, rng):
-    n = 3_000_000
-    t = pa.table({c: rng.normal(size=n) + (3.0 if c in ("Ixx", "Iyy", "Izz") else 0.0) for c in CONTRACT[:9]})
-    pq.write_table(t, tmp_path / "big.parquet")
-    proc = subprocess.Popen([sys.executable, "-m", "hconv", "convert", str(tmp_path / "big.parquet"),
-                             str(tmp_path / "out.parquet")], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    deadline = time.time() + 60
-    while time.time() < deadline and not any(p.name.endswith(".hconv-tmp") for p in tmp_path.iterdir()):
-        time.sleep(0.02)  # wait until the output is under way
-    time.sleep(0.2)
-    assert proc.poll() is None, "the conversion ended before it could be interrupted"
-    proc.send_signal(signal.SIGTERM)
-    _, err = proc.communicate(timeout=60)
-    assert proc.returncode == 130
-    assert "interrupted" in err.decode() and "Traceback" not in err.decode()
-    no_leftovers(tmp_path, {"big.parquet"})
+# Interrupts (SIGINT, SIGTERM, to a file and to stdout): tests/test_invariants.py
 
 
 # --- hconv one and hconv methods -------------------------------------------------------------

@@ -8,14 +8,12 @@ from __future__ import annotations
 
 import csv
 import io
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from conftest import mp_solve, rel_err
-from hconv import cli
+from conftest import mp_solve, rel_err, run_inprocess
 
 FILES = Path(__file__).resolve().parent / "corpus" / "files"
 
@@ -80,18 +78,7 @@ STATUSES = {  # file: the status of each row, in order
 
 
 def run(*args: str, capsys) -> tuple[int, str, str]:
-    """``hconv ARGS`` in this process; returns (exit code, stdout, stderr)."""
-    old = sys.argv
-    sys.argv = ["hconv", *args]
-    try:
-        cli.main()
-        code = 0
-    except SystemExit as exc:
-        code = exc.code if isinstance(exc.code, int) else 1
-    finally:
-        sys.argv = old
-    out, err = capsys.readouterr()
-    return code, out, err
+    return run_inprocess(*args, capsys=capsys)
 
 
 def test_corpus_is_big_and_fully_covered():

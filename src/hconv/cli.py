@@ -84,8 +84,11 @@ def friendly(fn):
 
 
 def _numbers(option: str, text: str, allowed: tuple[int, ...]) -> list[float]:
+    parts = text.replace(" ", "").split(",")
+    if "" in parts:
+        raise UsageError(f"{option} has an empty value in {text!r}; give comma-separated numbers, like 1,2,3")
     try:
-        values = [float(v) for v in text.replace(" ", "").split(",") if v != ""]
+        values = [float(v) for v in parts]
     except ValueError:
         raise UsageError(f"{option} takes comma-separated numbers, got {text!r}") from None
     if len(values) not in allowed:
@@ -225,6 +228,7 @@ def convert_cmd(
     to: Optional[Fmt] = typer.Option(None, "--to", help="output format; needed when OUT is -"),
     force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no summary on stderr"),
+    strict: bool = typer.Option(False, "--strict", help="fail (exit 5, nothing written) if any row's status is not ok"),
     frame: Frame = FRAME_OPT,
     omega_frame: Optional[Frame] = OMEGA_FRAME_OPT,
     about: About = ABOUT_OPT,
@@ -241,7 +245,7 @@ def convert_cmd(
 
     job = _job(method, precision, frame, omega_frame, about, products, degenerate, degenerate_rtol,
                mapping, unit, omega_unit, quat_order)
-    kwargs = dict(job=job, src_format=from_ and from_.value, dst_format=to and to.value, force=force)
+    kwargs = dict(job=job, src_format=from_ and from_.value, dst_format=to and to.value, force=force, strict=strict)
     if sys.stderr.isatty() and dst != "-" and not quiet:
         with report.ProgressBar(f"converting {src}") as bar:
             tally = pipeline.convert_file(src, dst, progress=bar, **kwargs)

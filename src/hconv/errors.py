@@ -2,7 +2,7 @@
 
 Exit codes (the CLI's contract): 0 success, even when some rows carry non-ok statuses; 1 an
 internal error; 2 a usage error; 3 an input that cannot be read; 4 an output that cannot be
-written; 130 interrupted (Ctrl-C or SIGTERM).
+written; 5 rows that are not ok under ``--strict``; 130 interrupted (Ctrl-C or SIGTERM).
 """
 from __future__ import annotations
 
@@ -23,3 +23,9 @@ class InputError(HconvError, ValueError):
 
 class OutputError(HconvError, OSError):
     exit_code = 4
+
+
+class StrictError(HconvError):
+    """``--strict``: a row's status is not ok; the message names the first few such rows."""
+
+    exit_code = 5

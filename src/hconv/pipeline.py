@@ -15,7 +15,7 @@ import pyarrow as pa
 
 from hconv import methods, status
 from hconv.arrow import Job, convert_table
-from hconv.errors import UsageError
+from hconv.errors import StrictError, UsageError
 from hconv.tableio import Output, format_of, open_input
 
 
@@ -101,10 +101,13 @@ class BackgroundWriter:
 def convert_file(src: str, dst: str, *, method: str = "exact", precision: int = 64,
                  src_format: Optional[str] = None, dst_format: Optional[str] = None,
                  force: bool = False, diagnostics: bool = True, job: Optional[Job] = None,
+                 strict: bool = False,
                  progress: Optional[Callable[[int, Optional[int]], None]] = None) -> Tally:
     """Convert the table in ``src`` into ``dst`` ("-" for stdin/stdout); returns the tally.
 
     ``job`` (conventions, units, mapping) overrides ``method``, ``precision`` and ``diagnostics``.
+    ``strict``: any row whose status is not ok fails the run (StrictError naming the first rows),
+    and nothing is written.
     ``progress(done, total)`` is called after each batch with rows or bytes read so far.
     Raises :class:`hconv.errors.HconvError` subclasses with one-line messages.
     """
@@ -120,6 +123,8 @@ def convert_file(src: str, dst: str, *, method: str = "exact", precision: int = 
         with BackgroundWriter(out) as writer:
             for batch in inp.batches:
                 table = convert_table(batch, source=inp.name, job=job, plan=inp.plan)
+                if strict:
+                    _check_strict(table, tally.rows, inp.name)
                 writer.write(table)
                 tally.add(table)
                 if progress is not None:
@@ -128,6 +133,19 @@ def convert_file(src: str, dst: str, *, method: str = "exact", precision: int = 
                 writer.write(convert_table(inp.schema.empty_table(), source=inp.name, job=job, plan=inp.plan))
     tally.seconds = time.perf_counter() - t0
     return tally
+
+
+STRICT_ROWS_NAMED = 5
+
+
+def _check_strict(table: pa.Table, first_row: int, source: str) -> None:
+    codes = table.column("status").combine_chunks().indices.to_numpy(zero_copy_only=False)
+    bad = np.flatnonzero(codes != 0)
+    if bad.size:
+        named = ", ".join(f"row {first_row + int(k) + 1} ({status.STATUSES[codes[k]]})" for k in bad[:STRICT_ROWS_NAMED])
+        more = f" and {bad.size - STRICT_ROWS_NAMED} more in this batch" if bad.size > STRICT_ROWS_NAMED else ""
+        raise StrictError(f"{source}: --strict, and {named}{more} are not ok; nothing was written "
+                          "(drop --strict to keep every row with its status)")
 
 
 def generate_file(dst: str, rows: int, *, scene: str = "mix", cond_max: float = 1e3, seed: int = 0,
