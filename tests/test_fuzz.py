@@ -122,7 +122,7 @@ def test_fuzz_one_arguments(capsys, H, I, r, q, method):
         res = json.loads(out)
         assert res["status"] and len(res["w"]) == 3
         if res["status"] == "ok" and method in ("exact", "refined") and q is None:
-            h = np.array([float(x) for x in H.split(",")])
+            h = np.array([float(x) for x in H.split(",")])  # the CLI took them, so float() must too
             i = np.array([float(x) for x in I.split(",")])
             tensor = {1: lambda: np.eye(3) * i[0], 3: lambda: np.diag(i),
                       6: lambda: np.array([[i[0], i[3], i[4]], [i[3], i[1], i[5]], [i[4], i[5], i[2]]]),

@@ -84,7 +84,7 @@ def friendly(fn):
 
 
 def _numbers(option: str, text: str, allowed: tuple[int, ...]) -> list[float]:
-    parts = text.replace(" ", "").split(",")
+    parts = [p.strip() for p in text.split(",")]  # "0 1" is an error, never the number 01
     if "" in parts:
         raise UsageError(f"{option} has an empty value in {text!r}; give comma-separated numbers, like 1,2,3")
     try:
