@@ -86,23 +86,25 @@ def test_convert_csv_passthrough_is_byte_for_byte(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("fmt", ["csv", "parquet"])
-def test_convert_full_disk_is_one_line_and_leaves_nothing(inputs, tmp_path, capsys, monkeypatch, fmt):
+@pytest.mark.parametrize("when", ["write", "close"])
+def test_convert_full_disk_is_one_line_and_leaves_nothing(inputs, tmp_path, capsys, monkeypatch, fmt, when):
     d, _ = inputs
     writer = tableio._CsvWriter if fmt == "csv" else tableio._ParquetWriter
-    real = writer.write
+    real = getattr(writer, when)
     calls = []
 
-    def write(self, table):
+    def full(self, *table):
         calls.append(1)
-        if len(calls) > 1:  # the first batch fits, the second finds the disk full
+        if when == "close" or len(calls) > 1:  # the first batch fits, the second (or the footer) does not
+            real(self, *table) if when == "close" else None
             raise OSError(errno.ENOSPC, "No space left on device")
-        real(self, table)
+        real(self, *table)
 
-    monkeypatch.setattr(writer, "write", write)
+    monkeypatch.setattr(writer, when, full)
     monkeypatch.setattr(tableio, "PARQUET_BATCH_ROWS", 100)
     monkeypatch.setattr(tableio, "CSV_BLOCK_BYTES", 4096)
     code, _, err = run_inprocess("convert", str(d / "in.parquet"), str(tmp_path / f"out.{fmt}"), "-q", capsys=capsys)
-    assert len(calls) >= 2
+    assert len(calls) >= (2 if when == "write" else 1)
     assert code == 4 and len(err.strip().splitlines()) == 1 and "No space left on device" in err, err
     assert list(tmp_path.iterdir()) == []
 
