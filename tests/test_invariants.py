@@ -134,13 +134,16 @@ def test_convert_interrupted_leaves_no_output_and_no_temporary(big_file, tmp_pat
     args = [sys.executable, "-m", "hconv", "convert", str(big), dst if dst == "-" else str(tmp_path / dst), "-q"]
     if dst == "-":
         args += ["--to", "csv"]
-    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     import tempfile
+    from pathlib import Path
+
+    spools = lambda: {p.name for p in Path(tempfile.gettempdir()).iterdir() if p.name.startswith("hconv-stdout-")}  # noqa: E731
+    before = spools()
+    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
 
     def started():
         here = any(p.name.endswith(".hconv-tmp") for p in tmp_path.iterdir())
-        spooled = any(p.name.startswith("hconv-stdout-") for p in __import__("pathlib").Path(tempfile.gettempdir()).iterdir())
-        return here or (dst == "-" and spooled)
+        return here or (dst == "-" and bool(spools() - before))
 
     deadline = time.time() + 60
     while time.time() < deadline and not started():
@@ -153,3 +156,4 @@ def test_convert_interrupted_leaves_no_output_and_no_temporary(big_file, tmp_pat
     assert b"interrupted" in err and b"Traceback" not in err and len(err.strip().splitlines()) == 1
     assert out == b""  # with '-' as OUT, nothing reached stdout
     assert list(tmp_path.iterdir()) == []
+    assert spools() - before == set()  # nor a spooled stdout left in the temporary folder
