@@ -3,7 +3,7 @@
     python benchmarks/soak.py --rows 50000000 --dir /path/with/20GB/free
 
 It generates the scene (hconv generate), converts it (hconv convert, a separate process whose peak
-RSS is read from the kernel with wait4), then checks that every row came out, in order, and that
+RSS is read from the kernel by a small wrapper process), then checks that every row came out, in order, and that
 a random sample of rows agrees with the ω that generated them and with numpy's own solve. It is
 not run in CI at full size; tests/test_soak.py runs it scaled down.
 """
@@ -24,17 +24,21 @@ import pyarrow.parquet as pq
 RSS_LIMIT_MB = 400
 
 
+# A small wrapper process whose only child is the command: the child's peak RSS then cannot
+# include the memory of a big parent (ru_maxrss counts the pages a child shared before its exec).
+_WRAPPER = ("import resource, subprocess, sys, time; t = time.perf_counter(); "
+            "p = subprocess.run(sys.argv[1:], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE); "
+            "print(p.returncode, time.perf_counter() - t, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss); "
+            "sys.stderr.write(p.stderr.decode(errors='replace'))")
+
+
 def _run(args: list[str]) -> tuple[float, float]:
     """Run a command; returns (seconds, peak RSS in MB) of that process alone."""
-    t0 = time.perf_counter()
-    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(proc.pid, 0)
-    err = proc.stderr.read().decode()
-    proc.stderr.close()
-    code = os.waitstatus_to_exitcode(status)
-    if code:
-        raise SystemExit(f"soak: {' '.join(args[2:4])} failed with exit {code}: {err.strip()}")
-    return time.perf_counter() - t0, usage.ru_maxrss / 1024  # ru_maxrss is in KiB on Linux
+    out = subprocess.run([sys.executable, "-c", _WRAPPER, *args], capture_output=True, text=True)
+    code, seconds, kib = out.stdout.split()
+    if int(code):
+        raise SystemExit(f"soak: {' '.join(args[2:4])} failed with exit {code}: {out.stderr.strip()}")
+    return float(seconds), int(kib) / 1024  # ru_maxrss is in KiB on Linux
 
 
 def soak(rows: int, workdir: Path, sample: int = 2000, seed: int = 0) -> dict:
