@@ -27,7 +27,6 @@ import numpy as np
 
 from hconv import core, frames, methods, status, units
 from hconv.inertia import Sym3
-from hconv.spectrum import eigenvalues
 
 FRAMES = ("world", "body")
 ABOUT = ("same", "pivot", "free")
@@ -97,21 +96,16 @@ def _flip_products(form: str, I: np.ndarray) -> np.ndarray:
     return I  # scalar and principal forms have no products
 
 
-def _moments(form: str, I: np.ndarray) -> np.ndarray:
-    """Principal moments ``(3, N)`` (for the unit check), any form."""
+def _trace(form: str, I: np.ndarray) -> np.ndarray:
+    """|trace(I)| ``(N,)`` in any form: Σ|λ| for a positive semi-definite tensor, which is all the
+    unit check needs (rows that are not are flagged not_positive_definite, which takes precedence)."""
     if form == "scalar":
-        return np.repeat(I, 3, axis=0)
+        return np.abs(3.0 * I[0])
     if form == "principal":
-        return I
+        return np.abs(I[0] + I[1] + I[2])
     if form == "full9":
-        sym = 0.5 * (I + I[[0, 3, 6, 1, 4, 7, 2, 5, 8]])
-        I = sym[[0, 4, 8, 1, 2, 5]]
-    with np.errstate(all="ignore"):
-        finite = np.isfinite(I).all(axis=0)
-        lam = np.full((3, I.shape[1]), np.nan)
-        if finite.any():
-            lam[:, finite] = eigenvalues(Sym3(*(np.ascontiguousarray(c[finite]) for c in I)))
-    return lam
+        return np.abs(I[0] + I[4] + I[8])
+    return np.abs(I[0] + I[1] + I[2])
 
 
 def _pivot(form: str, I: np.ndarray, m: np.ndarray, r: np.ndarray) -> tuple[str, np.ndarray]:
@@ -178,12 +172,7 @@ def _solve(sets, form, method, precision, conv, diagnostics) -> core.Result:
         if axis is not None:
             axis = frames.to_world(R, axis.T).T
     if m is not None:
-        lam = _moments(form_com, I_com)
-        about_com = conv.about != "same"  # otherwise I may be about a pivot: only "too small" is certain
-        slip = units.implausible(lam, m)
-        if not about_com:
-            with np.errstate(all="ignore"):
-                trace = np.abs(lam).sum(axis=0)
-                slip &= m / (2 * np.sqrt(trace / (2 * m))) ** 3 > status.UNIT_DENSITY_BAND[1]
+        # Without --about, I may be about a distant pivot: only "too dense" is certain then.
+        slip = units.implausible(_trace(form_com, I_com), m, both_sides=conv.about != "same")
         code = status.merge(code, slip, "unit_suspect")
     return dataclasses.replace(res, w=w, null_axis=axis, status_code=code)

@@ -88,19 +88,19 @@ def omega_factor(unit: str) -> float:
     return 1.0 / factor("w", unit, "--omega-unit")
 
 
-def implausible(lam: np.ndarray, m: np.ndarray) -> np.ndarray:
+def implausible(trace: np.ndarray, m: np.ndarray, both_sides: bool = True) -> np.ndarray:
     """Rows whose inertia no solid of mass ``m`` could have: a unit slip, most likely.
 
-    ``lam``: principal moments ``(3, N)`` about the centre of mass [kg·m²]; ``m``: ``(N,)`` [kg].
-    The radius of gyration ρ_g = √(Σλ / 2m) is the root-mean-square distance of the mass from the
-    centre; a uniform cube with the same mass and ρ_g has side 2ρ_g. A row is implausible when
-    that cube's density m / (2ρ_g)³ lies outside :data:`hconv.status.UNIT_DENSITY_BAND`.
-    Rows without a positive mass or trace are not judged (False).
+    ``trace``: Σ of the principal moments about the centre of mass ``(N,)`` [kg·m²]; ``m``:
+    ``(N,)`` [kg]. The radius of gyration ρ_g = √(Σλ / 2m) is the root-mean-square distance of the
+    mass from the centre; a uniform cube with the same mass and ρ_g has side 2ρ_g. A row is
+    implausible when that cube's density m / (2ρ_g)³ lies outside
+    :data:`hconv.status.UNIT_DENSITY_BAND` (only above it, with ``both_sides=False``). Rows
+    without a positive mass or trace are not judged (False).
     """
-    trace = np.abs(lam[0]) + np.abs(lam[1]) + np.abs(lam[2])
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         side = 2.0 * np.sqrt(trace / (2.0 * m))
         density = m / side**3
     lo, hi = UNIT_DENSITY_BAND
     judged = (m > 0) & (trace > 0) & np.isfinite(density)
-    return judged & ((density < lo) | (density > hi))
+    return judged & ((density > hi) | ((density < lo) if both_sides else False))
