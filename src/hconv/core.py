@@ -23,7 +23,7 @@ from typing import Optional
 import numpy as np
 
 from hconv import linsolve, methods, status
-from hconv.inertia import Sym3, max_abs, principal_axes, sym_from_array
+from hconv.inertia import Sym3, max_abs, sym_from_array
 from hconv.spectrum import eigenvalues
 
 #: Rows per kernel block: small enough that a block's temporaries stay in cache.
@@ -278,29 +278,23 @@ def _pseudo_inverse(I: Sym3, H: np.ndarray, tol: np.ndarray, diagonal: bool, deg
     ``H`` is ``(3, k)``; writes the dropped axis (when exactly one) and the count into ``deg``
     at ``rows``. Returns ω as ``(3, k)``.
     """
+    # The principal frame: for a diagonal tensor the coordinate axes themselves.
     if diagonal:
-        S = np.stack([I.xx, I.yy, I.zz])
-        R = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, S.shape[1]))
-        Hp = H
+        S, R = np.stack([I.xx, I.yy, I.zz]), np.broadcast_to(np.eye(3), (H.shape[1], 3, 3))
     else:
-        S, Rn = principal_axes(I)  # (k, 3), (k, 3, 3): column j of Rn[n] is the axis of S[n, j]
-        S = np.ascontiguousarray(S.T)
-        R = np.moveaxis(Rn, 0, -1)  # (3, 3, k)
-        Hp = np.einsum("jin,jn->in", R, H)  # Rᵀ·H
+        S, R = methods._principal(I)  # (3, k) moments; (k, 3, 3) axes, column j for moment j
     zero = np.abs(S) <= tol
     with np.errstate(divide="ignore"):
         inv = np.where(zero, 0.0, 1.0 / np.where(zero, 1.0, S))
-    w = np.einsum("ijn,jn->in", R, inv * Hp)
+    w = methods._from_principal(R, inv * methods._to_principal(R, H))
     count = zero.sum(axis=0)
     axis = np.full((3, S.shape[1]), np.nan)
     one = count == 1
     if one.any():
-        k = np.argmax(zero, axis=0)
         cols = np.arange(S.shape[1])
-        picked = R[:, k, cols]  # (3, k): the axis of the dropped moment
+        picked = R[cols, :, np.argmax(zero, axis=0)].T  # (3, k): the axis of the dropped moment
         # A sign is arbitrary for an axis; make its largest component positive, so output is stable.
-        big = np.argmax(np.abs(picked), axis=0)
-        sign = np.sign(picked[big, cols])
+        sign = np.sign(picked[np.argmax(np.abs(picked), axis=0), cols])
         axis[:, one] = (picked * sign)[:, one]
     deg.axis[rows] = axis.T
     deg.dim[rows] = count

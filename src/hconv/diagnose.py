@@ -239,12 +239,12 @@ def diagnose_file(src: str, *, src_format: Optional[str] = None, tol: float = DE
     job = dataclasses.replace(job, conventions=dataclasses.replace(job.conventions, about="same"))
     job = _NeedsObserved(job)
     fin = format_of(src, src_format, "--from")
+    import pyarrow as pa
+
     with open_input(src, fin, job) as inp:
         plan = inp.plan
         d = None
         for batch in inp.batches:
-            import pyarrow as pa
-
             sets = plan.read(pa.Table.from_batches([batch]))
             if d is None:
                 d = Diagnoser(set(sets), plan.form, tol)
@@ -257,7 +257,7 @@ def diagnose_file(src: str, *, src_format: Optional[str] = None, tol: float = DE
 
 
 class _NeedsObserved:
-    """A Job whose plan also requires w_obs and reads v, without changing the Job class."""
+    """A Job whose plan also requires w_obs (and, unlike convert, accepts hconv's own output columns)."""
 
     def __init__(self, job):
         self._job = job
