@@ -44,9 +44,13 @@ def test_eigenvalues_agree_with_lapack_where_statuses_need_it(name, rng):
     M = _bodies(name, rng)
     lam, ref = eigenvalues(_sym(M)).T, np.linalg.eigvalsh(M)
     scale = np.abs(ref).max(axis=1)
-    # cond = |λ|max/|λ|min to LAPACK's own accuracy, about cond·eps relative
+    # cond = |λ|max/|λ|min to LAPACK's own accuracy, about cond·eps relative, or √eps where the
+    # two smaller moments nearly coincide (cylinders): the documented price of the closed form
+    eps = np.finfo(float).eps
     cond, cond_ref = (np.abs(x).max(axis=1) / np.abs(x).min(axis=1) for x in (lam, ref))
-    assert np.all(np.abs(cond / cond_ref - 1) <= 1e-8 + 64 * cond_ref * np.finfo(float).eps)
+    assert np.all(np.abs(cond / cond_ref - 1) <= 4 * np.sqrt(eps) + 64 * cond_ref * eps)
+    if name != "cylinders":
+        assert np.all(np.abs(cond / cond_ref - 1) <= 1e-10 + 64 * cond_ref * eps)
     # the sign of the smallest moment and the triangle decision are identical
     assert np.array_equal(lam[:, 0] < 0, ref[:, 0] < 0)
     tri = lambda x: x[:, 2] - x[:, 1] - x[:, 0] > TRIANGLE_RTOL * np.abs(x).sum(axis=1)  # noqa: E731

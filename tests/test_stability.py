@@ -123,8 +123,8 @@ def test_residual_of_refined_is_measured_against_a_longer_refinement(rng, monkey
     assert np.nanmax(hconv.convert(H, I, method="refined").residual) <= 2 * EPS
     real = linsolve.solve_refined
 
-    def one_step_when_adaptive(I_, h_, steps=None):  # a refined that stops after one step
-        return real(I_, h_, steps=1 if steps is None else steps)
+    def one_step_when_adaptive(I_, h_, steps=None, x0=None):  # a refined that stops after one step
+        return real(I_, h_, steps=1 if steps is None and x0 is None else steps, x0=x0)
 
     monkeypatch.setattr(linsolve, "solve_refined", one_step_when_adaptive)
     res = hconv.convert(H, I, method="refined")

@@ -16,6 +16,7 @@ from typing import List, Optional
 
 import typer
 
+from hconv import allocator
 from hconv.errors import HconvError, UsageError
 from hconv.methods import METHODS
 
@@ -414,6 +415,7 @@ def _sigterm(signum, frame):  # let the atomic writer clean up as for Ctrl-C
 
 def main() -> None:
     signal.signal(signal.SIGTERM, _sigterm)
+    allocator.tune()
     try:
         rv = app(standalone_mode=False)
     except Exception as exc:  # click's usage errors: one line, like every other hconv error

@@ -169,19 +169,22 @@ def _in_safe_range(arrays, dtype) -> bool:
 MAX_REFINE_STEPS = 6
 
 
-def solve_refined(I: Sym3, h: np.ndarray, steps: Optional[int] = None) -> np.ndarray:
+def solve_refined(I: Sym3, h: np.ndarray, steps: Optional[int] = None,
+                  x0: Optional[np.ndarray] = None) -> np.ndarray:
     """ω = I⁻¹H to within about one rounding for cond(I) up to ~1e14; h and ω are ``(3, N)``.
 
-    LDLᵀ (LU where I is not positive definite) gives a first answer x₀; each step computes the
+    LDLᵀ (LU where I is not positive definite) gives a first answer x₀, unless the caller
+    passes one (``x0``, ``(3, N)``, another solver's answer, say); each step computes the
     residual in double the working precision (:func:`residual_dd`) and corrects x by a solve
     with the same factors. ``steps`` fixes the number of steps; by default it is chosen per call:
     the first correction measures x₀'s relative error e₀, each step multiplies the error by about
-    e₀ again, so the steps stop once e₀ to the power (steps + 1) is below eps/16.
+    e₀ again (by cond·eps at most, when x₀ is better than LDLᵀ's), so the steps stop once e₀ to
+    the power (steps + 1) is below eps/16.
 
     Blocks whose magnitudes (I, h or ω) are extreme are solved equilibrated by powers of two.
     """
     if _in_safe_range(list(I) + [h], h.dtype):
-        x = _refine(I, h, steps)
+        x = _refine(I, h, steps, x0)
         if _in_safe_range([np.where(np.isfinite(x), x, 0)], h.dtype):
             return x
     s = pow2_scales(I)
@@ -192,10 +195,12 @@ def solve_refined(I: Sym3, h: np.ndarray, steps: Optional[int] = None) -> np.nda
     emax = np.finfo(h.dtype).maxexp - 24  # t itself must stay finite, even for subnormal rows
     t = np.where((big > 0) & np.isfinite(big), np.ldexp(1.0, np.clip(-np.frexp(big)[1], -emax, emax)), 1.0).astype(h.dtype)
     with np.errstate(over="ignore", invalid="ignore"):
-        return _refine(scale_sym(I, s), hs * t, steps) * s / t
+        # ω of the scaled system S·I·S·y = t·S·h is y = t·S⁻¹·ω (powers of two: exact)
+        y0 = None if x0 is None else x0 / s * t
+        return _refine(scale_sym(I, s), hs * t, steps, y0) * s / t
 
 
-def _refine(I: Sym3, h: np.ndarray, steps: Optional[int]) -> np.ndarray:
+def _refine(I: Sym3, h: np.ndarray, steps: Optional[int], x0: Optional[np.ndarray] = None) -> np.ndarray:
     fac = ldlt_factor(I)
     other = ~fac.positive()
     I_o = I.take(other) if other.any() else None
@@ -206,7 +211,7 @@ def _refine(I: Sym3, h: np.ndarray, steps: Optional[int]) -> np.ndarray:
             y[:, other] = lapack_solve(I_o, rhs[:, other])
         return y
 
-    x = solve(h)
+    x = solve(h) if x0 is None else np.asarray(x0, dtype=h.dtype)
     Isplit = split_sym(I)
     eps = float(np.finfo(x.dtype).eps)
     todo = MAX_REFINE_STEPS if steps is None else steps

@@ -4,11 +4,14 @@ The CLI's ``convert`` is a thin wrapper over :func:`convert_file`.
 """
 from __future__ import annotations
 
+import os
 import queue
 import threading
 import time
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import Callable, Optional
+from typing import Callable, Iterable, Iterator, Optional, TypeVar
 
 import numpy as np
 import pyarrow as pa
@@ -98,21 +101,69 @@ class BackgroundWriter:
             raise self._error
 
 
+T = TypeVar("T")
+R = TypeVar("R")
+
+#: Most compute threads by default: beyond this the single Parquet writer sets the pace.
+MAX_THREADS = 4
+
+
+def default_threads() -> int:
+    """The cores this process may run on, at most :data:`MAX_THREADS`."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cores = os.cpu_count() or 1
+    return max(1, min(MAX_THREADS, cores))
+
+
+def ordered_map(fn: Callable[[T], R], items: Iterable[T], threads: int) -> Iterator[R]:
+    """``map(fn, items)`` on ``threads`` threads, results in the order of ``items``.
+
+    ``items`` is consumed on the caller's thread (reading stays sequential), at most
+    ``threads + 1`` items ahead of the result being yielded, so memory stays bounded. numpy and
+    pyarrow release the GIL inside their loops, so batches convert in parallel. An error in
+    ``fn`` is raised when its result is due; leaving early cancels what has not started and
+    waits for what has (one batch each).
+    """
+    if threads <= 1:
+        yield from map(fn, items)
+        return
+    with ThreadPoolExecutor(threads, thread_name_prefix="hconv-compute") as pool:
+        pending: deque = deque()
+        try:
+            for item in items:
+                pending.append(pool.submit(fn, item))
+                if len(pending) > threads:
+                    yield pending.popleft().result()
+            while pending:
+                yield pending.popleft().result()
+        finally:
+            for f in pending:
+                f.cancel()
+
+
 def convert_file(src: str, dst: str, *, method: str = "exact", precision: int = 64,
                  src_format: Optional[str] = None, dst_format: Optional[str] = None,
                  force: bool = False, diagnostics: bool = True, job: Optional[Job] = None,
-                 strict: bool = False,
+                 strict: bool = False, threads: Optional[int] = None,
                  progress: Optional[Callable[[int, Optional[int]], None]] = None) -> Tally:
     """Convert the table in ``src`` into ``dst`` ("-" for stdin/stdout); returns the tally.
 
     ``job`` (conventions, units, mapping) overrides ``method``, ``precision`` and ``diagnostics``.
     ``strict``: any row whose status is not ok fails the run (StrictError naming the first rows),
     and nothing is written.
+    ``threads``: batches converted at once (default :func:`default_threads`); the output is the
+    same, in the same order, for any number.
     ``progress(done, total)`` is called after each batch with rows or bytes read so far.
     Raises :class:`hconv.errors.HconvError` subclasses with one-line messages.
     """
     job = job or Job(method, precision, diagnostics)
     job.check()
+    if threads is None:
+        threads = default_threads()
+    elif threads < 1:
+        raise UsageError(f"--threads must be 1 or more, got {threads}")
     m = methods.get(job.method)
     fin = format_of(src, src_format, "--from")
     fout = format_of(dst, dst_format, "--to")
@@ -121,8 +172,10 @@ def convert_file(src: str, dst: str, *, method: str = "exact", precision: int = 
     t0 = time.perf_counter()
     with open_input(src, fin, job) as inp, out:
         with BackgroundWriter(out) as writer:
-            for batch in inp.batches:
-                table = convert_table(batch, source=inp.name, job=job, plan=inp.plan)
+            def one(batch):
+                return convert_table(batch, source=inp.name, job=job, plan=inp.plan)
+
+            for table in ordered_map(one, inp.batches, threads):
                 if strict:
                     _check_strict(table, tally.rows, inp.name)
                 writer.write(table)
