@@ -137,7 +137,8 @@ def compiled_loop(I: Sym3, H: np.ndarray) -> Optional[Callable[[], None]]:
 
 _YARDSTICK = """
 import sys, numpy as np
-from hconv import bench
+from hconv import allocator, bench
+allocator.tune()  # as the hconv command does at start-up
 from hconv.inertia import Sym3
 d = np.load(sys.argv[1])
 I, H = Sym3(*(np.ascontiguousarray(d[k]) for k in range(6))), np.ascontiguousarray(d[6:9])
