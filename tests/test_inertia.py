@@ -61,3 +61,11 @@ def test_eigenvalues_agree_with_lapack_where_statuses_need_it(name, rng):
 
 def test_eigenvalues_empty():
     assert eigenvalues(_sym(np.zeros((0, 3, 3)))).shape == (3, 0)
+
+
+def test_cos_series_matches_numpy_on_its_range():
+    from hconv.spectrum import _cos
+
+    x = np.linspace(0.0, np.pi / 3, 200_001)
+    want = np.cos(x)
+    assert np.max(np.abs(_cos(x) - want) / np.spacing(want)) <= 2

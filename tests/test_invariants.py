@@ -1,5 +1,6 @@
-"""Nothing lost: rows in equal rows out, in order, for every method, format and batch size;
-pass-through columns unchanged; a full disk, an interrupt or --strict leave no partial output."""
+"""Nothing lost: rows in equal rows out, in order, for every method, format, batch size and
+number of threads; pass-through columns unchanged; a full disk, an interrupt or --strict leave no
+partial output."""
 from __future__ import annotations
 
 import csv
@@ -48,11 +49,12 @@ def inputs(tmp_path_factory):
 def test_convert_rows_in_equal_rows_out_at_any_batch_size(inputs, tmp_path, capsys, monkeypatch, method, fmt):
     d, t = inputs
     outs = []
-    for rows, block in ((7, 512), (333, 4096), (tableio.PARQUET_BATCH_ROWS, tableio.CSV_BLOCK_BYTES)):
+    for rows, block, threads in ((7, 512, 3), (333, 4096, 2), (tableio.PARQUET_BATCH_ROWS, tableio.CSV_BLOCK_BYTES, 1)):
         monkeypatch.setattr(tableio, "PARQUET_BATCH_ROWS", rows)
         monkeypatch.setattr(tableio, "CSV_BLOCK_BYTES", block)
         dst = tmp_path / f"out-{rows}.{fmt}"
-        code, _, err = run_inprocess("convert", str(d / f"in.{fmt}"), str(dst), "-m", method, "-q", capsys=capsys)
+        code, _, err = run_inprocess("convert", str(d / f"in.{fmt}"), str(dst), "-m", method, "-q",
+                                     "--threads", str(threads), capsys=capsys)
         assert code == 0, err
         outs.append(pq.read_table(dst) if fmt == "parquet" else pacsv.read_csv(dst, convert_options=pacsv.ConvertOptions(
             column_types={"label": pa.string()}, strings_can_be_null=False)))

@@ -19,7 +19,7 @@ import sys
 #: Requests of at least this many bytes get their own mapping (glibc's default: 128 KiB, dynamic).
 MMAP_THRESHOLD = 4 << 20
 #: Free memory at the top of the heap above this is returned to the system (default 128 KiB).
-TRIM_THRESHOLD = 64 << 20
+TRIM_THRESHOLD = 32 << 20
 
 _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3  # mallopt's parameter numbers in glibc's malloc.h
 

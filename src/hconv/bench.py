@@ -235,14 +235,21 @@ def run(rows: int = 2_000_000, repeats: int = 3, seed: int = 0, memory_rows: int
         jobs["roofline"] = lambda: _roofline(src, dst)
         jobs["plain script"] = _command([sys.executable, "-c", _PLAIN_SCRIPT, src, dst])
         jobs["hconv convert"] = _command(hconv_cmd + ["convert", src, dst, "--force", "-q"])
+        tiny, tiny_out = os.path.join(tmp, "tiny.parquet"), os.path.join(tmp, "tiny-out.parquet")
+        pipeline.generate_file(tiny, 10, seed=seed)
+        jobs["hconv start-up"] = _command(hconv_cmd + ["convert", tiny, tiny_out, "--force", "-q"])
         secs = _rounds(jobs, repeats)
         roof, plain_s, hconv_cli_s = rows / secs.pop("roofline"), secs.pop("plain script"), secs.pop("hconv convert")
+        startup_s = secs.pop("hconv start-up")
         res.convert = {k: rows / v for k, v in secs.items()}
         log("start-up")
         starts = _rounds({"one": _command(hconv_cmd + ["one", "--H", "1,2,3", "--I", "2,3,4,0,0,0"]),
                           "numpy": _command([sys.executable, "-c", "import numpy"])}, 10)
         one_s, numpy_s = starts["one"], starts["numpy"]
         res.baselines = {"io_roofline_rows_per_s": roof, "plain_script_s": plain_s, "hconv_convert_cli_s": hconv_cli_s,
+                         "hconv_startup_s": startup_s,
+                         # what the plain-script ratio could be if hconv computed nothing at all
+                         "plain_script_ceiling": plain_s / (startup_s + rows / roof),
                          "compiled_loop_rows_per_s": compiled, "exact_kernel_fresh_process_rows_per_s": exact_fresh,
                          "hconv_one_s": one_s, "import_numpy_s": numpy_s}
         if memory_rows:

@@ -230,6 +230,8 @@ def convert_cmd(
     force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no summary on stderr"),
     strict: bool = typer.Option(False, "--strict", help="fail (exit 5, nothing written) if any row's status is not ok"),
+    threads: Optional[int] = typer.Option(None, "--threads", help="batches converted at once; default: the cores available, "
+                                          "at most 4 (the output is the same for any number)"),
     frame: Frame = FRAME_OPT,
     omega_frame: Optional[Frame] = OMEGA_FRAME_OPT,
     about: About = ABOUT_OPT,
@@ -246,7 +248,8 @@ def convert_cmd(
 
     job = _job(method, precision, frame, omega_frame, about, products, degenerate, degenerate_rtol,
                mapping, unit, omega_unit, quat_order)
-    kwargs = dict(job=job, src_format=from_ and from_.value, dst_format=to and to.value, force=force, strict=strict)
+    kwargs = dict(job=job, src_format=from_ and from_.value, dst_format=to and to.value, force=force, strict=strict,
+                  threads=threads)
     if sys.stderr.isatty() and dst != "-" and not quiet:
         with report.ProgressBar(f"converting {src}") as bar:
             tally = pipeline.convert_file(src, dst, progress=bar, **kwargs)

@@ -158,12 +158,11 @@ def convert_file(src: str, dst: str, *, method: str = "exact", precision: int = 
     ``progress(done, total)`` is called after each batch with rows or bytes read so far.
     Raises :class:`hconv.errors.HconvError` subclasses with one-line messages.
     """
+    if threads is not None and threads < 1:
+        raise UsageError(f"--threads must be 1 or more, got {threads}")
+    threads = threads or default_threads()
     job = job or Job(method, precision, diagnostics)
     job.check()
-    if threads is None:
-        threads = default_threads()
-    elif threads < 1:
-        raise UsageError(f"--threads must be 1 or more, got {threads}")
     m = methods.get(job.method)
     fin = format_of(src, src_format, "--from")
     fout = format_of(dst, dst_format, "--to")

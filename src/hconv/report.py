@@ -122,6 +122,11 @@ def bench_tables(res, console: Optional[Console] = None) -> None:
         g.add_row(name, "skipped" if value is None else f"{value:.2f}", f"≥ {required:g}",
                   "—" if met is None else ("[green]yes[/green]" if met else "[red]no[/red]"))
     console.print(g)
+    b = res.baselines
+    if "plain_script_ceiling" in b:
+        console.print(f"An hconv that computed nothing (start-up {b['hconv_startup_s']:.2f} s plus the I/O roofline "
+                      f"{res.rows / b['io_roofline_rows_per_s']:.2f} s) would be {b['plain_script_ceiling']:.2f}× "
+                      f"faster than the plain script ({b['plain_script_s']:.2f} s).")
 
 
 def _g(x: float) -> str:
