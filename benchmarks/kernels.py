@@ -9,10 +9,11 @@ import sys
 
 import numpy as np
 
-from hconv import bench
+from hconv import allocator, bench
 from hconv.inertia import Sym3
 from hconv.scene import random_rotations, rotate_tensors
 
+allocator.tune()  # as the hconv command does
 n = int(sys.argv[1]) if len(sys.argv) > 1 else 2_000_000
 cond = float(sys.argv[2]) if len(sys.argv) > 2 else 10.0
 rng = np.random.default_rng(0)
