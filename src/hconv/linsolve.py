@@ -60,23 +60,6 @@ def ldlt_factor(I: Sym3) -> LDLt:
     return LDLt(d1, d2, d3, l21, l31, l32)
 
 
-def ldlt_inverse(f: LDLt) -> Sym3:
-    """I⁻¹ from a factorisation (symmetric, so six columns): I⁻¹ = L⁻ᵀ·D⁻¹·L⁻¹."""
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        # L⁻¹ is unit lower triangular with entries m21, m31, m32
-        m21, m32 = -f.l21, -f.l32
-        m31 = f.l21 * f.l32 - f.l31
-        i1, i2, i3 = 1.0 / f.d1, 1.0 / f.d2, 1.0 / f.d3
-        return Sym3(
-            i1 + m21 * m21 * i2 + m31 * m31 * i3,
-            i2 + m32 * m32 * i3,
-            i3,
-            m21 * i2 + m31 * m32 * i3,
-            m31 * i3,
-            m32 * i3,
-        )
-
-
 def ldlt_solve(f: LDLt, h: np.ndarray) -> np.ndarray:
     """Solve with a factorisation from :func:`ldlt_factor`; h and the result have shape ``(3, N)``."""
     x = np.empty_like(h)
