@@ -64,9 +64,10 @@ def _largest_root(I: Sym3) -> tuple[np.ndarray, np.ndarray]:
     the error grows to about p·eps / √(1 − r²), capped at p·√eps.
     """
     # Scaled by a power of two near the largest entry (exact), so that squares and the
-    # determinant neither overflow nor underflow.
+    # determinant neither overflow nor underflow; the exponent is clamped so that s and 1/s stay
+    # finite for entries near 1e308 and for subnormal ones.
     big = max_abs(I)
-    s = np.ldexp(1.0, np.frexp(np.where(big > 0, big, 1.0))[1])
+    s = np.ldexp(1.0, np.clip(np.frexp(np.where(big > 0, big, 1.0))[1], -1000, 1000))
     inv_s = 1.0 / s
     a, b, c, d, e, f = (comp * inv_s for comp in I)
     q = (a + b + c) * (1.0 / 3.0)
