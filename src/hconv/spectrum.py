@@ -23,9 +23,9 @@ def eigenvalues(I: Sym3) -> np.ndarray:
       (trigonometric) root of the characteristic cubic. The other two are the roots of
       x² − s·x + P with s = trace − λ₂ and P = det/λ₂, det being the product of the LDLᵀ pivots;
       the smaller root is taken in the form 2P / (s + √(s² − 4P)), which has no cancellation.
-      The smallest moment so keeps the relative accuracy cond·eps that LAPACK gives it (a
-      closed-form small root would lose up to cond·eps·1e3), except where the two smaller
-      moments nearly coincide, where the square root costs up to √eps (1.5e-8) relative.
+      The smallest moment so keeps the relative accuracy cond·eps that LAPACK gives it, where
+      the cubic's own closed-form small root would lose up to 1e7·eps, except where the two
+      smaller moments nearly coincide: there the square root costs up to √eps (1.5e-8) relative.
     * The closed form loses accuracy (up to √eps of the spread) only when its two largest roots
       nearly coincide. Rows where that uncertainty could move the triangle-inequality decision,
       and rows that are not positive definite, go to ``eigvalsh``.
