@@ -126,16 +126,50 @@ def residual_dd(A: SplitSym, h: np.ndarray, x: np.ndarray) -> np.ndarray:
     exact two_diffs and all the errors in ordinary arithmetic, added once at the end (Ogita–Rump–
     Oishi's Dot2). With x close to the solution the residual is tiny next to h and A·x, which is
     exactly the cancellation this survives.
+
+    The arithmetic is :func:`hconv.eft.two_prod_split` and :func:`hconv.eft.two_diff` written
+    out over a fixed set of scratch rows (every intermediate lands in one of them): the same
+    operations in the same order, so the same bits, ~30 % faster than with a fresh array per
+    operation (measured, 16384 rows).
     """
-    x_hi, x_lo = eft.split(x)
+    n = x.shape[1]
+    buf = np.empty((13, n), dtype=x.dtype)
+    xh, xl = buf[0:3], buf[3:6]
+    p, e, t, bb, q, s_a, s_b = buf[6:13]
+    np.multiply(x, x.dtype.type(eft._splitter(x.dtype)), out=xh)  # eft.split, in place
+    np.subtract(xh, x, out=xl)
+    xh -= xl
+    np.subtract(x, xh, out=xl)
     out = np.empty_like(x)
     for k, row in enumerate(_ROWS):
-        s, err = h[k], None
+        s, err = h[k], out[k]
         for j, c in enumerate(row):
-            p, e = eft.two_prod_split(A.entries[c], A.hi[c], A.lo[c], x[j], x_hi[j], x_lo[j])
-            s, q = eft.two_diff(s, p)
-            err = (q - e) if err is None else err + (q - e)
-        out[k] = s + err
+            a, ah, al = A.entries[c], A.hi[c], A.lo[c]
+            # p + e = a·x_j exactly (Dekker)
+            np.multiply(a, x[j], out=p)
+            np.multiply(ah, xh[j], out=e)
+            e -= p
+            np.multiply(ah, xl[j], out=t)
+            e += t
+            np.multiply(al, xh[j], out=t)
+            e += t
+            np.multiply(al, xl[j], out=t)
+            e += t
+            # s_new + q = s - p exactly (Knuth), into the row s does not occupy
+            s_new = s_b if s is s_a else s_a
+            np.subtract(s, p, out=s_new)
+            np.subtract(s_new, s, out=bb)
+            np.subtract(s_new, bb, out=q)
+            np.subtract(s, q, out=q)
+            bb += p
+            q -= bb
+            if j == 0:
+                np.subtract(q, e, out=err)
+            else:
+                q -= e
+                err += q
+            s = s_new
+        err += s
     return out
 
 
@@ -166,13 +200,21 @@ def _in_safe_range(arrays, dtype) -> bool:
     lim = float(2.0 ** (np.finfo(dtype).maxexp // 2.5))
     for a in arrays:
         m = np.abs(a)
-        if not (m.max(initial=0) < lim and np.where(m > 0, m, lim).min(initial=lim) > 1 / lim):
+        if not m.max(initial=0) < lim:  # NaN fails too
+            return False
+        # zeros are safe: only when the plain minimum is small, look for a small nonzero one
+        if not m.min(initial=lim) > 1 / lim and not np.minimum.reduce(m, axis=None, where=m > 0, initial=lim) > 1 / lim:
             return False
     return True
 
 
 #: Most refinement steps; with an exact residual each step multiplies the error by ~cond·eps.
 MAX_REFINE_STEPS = 6
+#: Refinement stops once no row's next correction is predicted above STOP_TOL·eps (relative).
+#: Measured margin: with 16 instead of 1, 512k rows at each of cond 1e8 and 1e12 (middle
+#: moment spread or next to the smallest) still all came out within one rounding of a ten-step
+#: refinement; tests/test_linsolve.py checks the value in use.
+STOP_TOL = 1.0
 
 
 def solve_refined(I: Sym3, h: np.ndarray, steps: Optional[int] = None,
@@ -182,10 +224,13 @@ def solve_refined(I: Sym3, h: np.ndarray, steps: Optional[int] = None,
     LDLᵀ (LU where I is not positive definite) gives a first answer x₀, unless the caller
     passes one (``x0``, ``(3, N)``, another solver's answer, say); each step computes the
     residual in double the working precision (:func:`residual_dd`) and corrects x by a solve
-    with the same factors. ``steps`` fixes the number of steps; by default it is chosen per call:
-    the first correction measures x₀'s relative error e₀, each step multiplies the error by about
-    e₀ again (by cond·eps at most, when x₀ is better than LDLᵀ's), so the steps stop once e₀ to
-    the power (steps + 1) is below eps/16.
+    with the same factors. ``steps`` fixes the number of steps; by default they stop when no row
+    of the block is predicted to move by more than ``STOP_TOL``·eps (relative) in the next step.
+    The prediction is Wilkinson's: each step multiplies the error by about the ratio of the last
+    two corrections; after the first step, with no ratio yet, by the block's largest first
+    correction (x₀'s worst relative error, about cond·eps for LDLᵀ's answer). Measured on
+    16384-row blocks of rotated bodies: one step to cond ~1e8, two to ~1e10, three (a few
+    blocks four) at 1e12; every answer within one rounding of a ten-step refinement.
 
     Blocks whose magnitudes (I, h or ω) are extreme are solved equilibrated by powers of two.
     """
@@ -217,23 +262,46 @@ def _refine(I: Sym3, h: np.ndarray, steps: Optional[int], x0: Optional[np.ndarra
             y[:, other] = lapack_solve(I_o, rhs[:, other])
         return y
 
-    x = solve(h) if x0 is None else np.asarray(x0, dtype=h.dtype)
+    x = solve(h) if x0 is None else np.array(x0, dtype=h.dtype)  # a copy: x is updated in place
     Isplit = split_sym(I)
-    eps = float(np.finfo(x.dtype).eps)
-    todo = MAX_REFINE_STEPS if steps is None else steps
-    k = 0
-    while k < todo:
-        with np.errstate(invalid="ignore", over="ignore"):
+    tiny = float(np.finfo(x.dtype).eps) ** 2
+    prev = None
+    for k in range(MAX_REFINE_STEPS if steps is None else steps):
+        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
             dx = solve(residual_dd(Isplit, h, x))
-        x = x + dx
-        k += 1
-        if steps is None and k == 1:
-            with np.errstate(invalid="ignore", divide="ignore"):
-                rel2 = (dx[0] * dx[0] + dx[1] * dx[1] + dx[2] * dx[2]) / (x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
-            e0 = float(np.sqrt(np.nanmax(rel2, initial=0.0)))
-            if e0 <= 0:
+            x += dx
+            if steps is not None:
+                continue
+            # c: this step's correction relative to x, squared, per row; it measures the error
+            # x had before the step
+            c = _sum_sq(dx)
+            c /= _sum_sq(x)
+            if prev is None:
+                # A row whose first answer was off by half or more, or whose correction later
+                # fails to halve, is as good as refinement can make it (cond·eps near 1 or
+                # beyond: the caller flags it ill_conditioned or singular); it no longer
+                # decides whether the block goes on.
+                alive = c < 0.25
+                # No ratio yet: each step multiplies the error by about the largest first
+                # correction among the other rows (x₀'s worst relative error there).
+                pred = c * float(np.max(c, where=alive, initial=0.0))
+            else:
+                ratio = c / prev  # the error shrinks by the ratio of the last two corrections
+                pred = c * ratio
+                alive &= ratio < 0.25
+            # stop once no row's remaining error is predicted above STOP_TOL·eps; a correction
+            # already at the rounding level (c <= eps²) has nothing left to find
+            if not np.any((pred > STOP_TOL ** 2 * tiny) & (c > tiny) & alive):
                 break
-            # e_k ≈ e0^(k+1): the steps needed for e0^(steps+1) <= eps/16, at least 1
-            need = MAX_REFINE_STEPS if e0 >= 0.5 else int(np.ceil(np.log(eps / 16) / np.log(e0))) - 1
-            todo = min(MAX_REFINE_STEPS, max(1, need))
+        prev = c
     return x
+
+
+def _sum_sq(v: np.ndarray) -> np.ndarray:
+    """``v[0]² + v[1]² + v[2]²`` for v of shape ``(3, N)``."""
+    out = v[0] * v[0]
+    t = v[1] * v[1]
+    out += t
+    np.multiply(v[2], v[2], out=t)
+    out += t
+    return out
