@@ -28,6 +28,10 @@ from hconv.scene import make_scene
 
 PRECISIONS = (64, 32)
 ACCURACY_CONDS = (1e1, 1e4, 1e8)
+#: refined against lapack on rows of one condition number each: its steps grow with cond
+REFINED_CONDS = (1e4, 1e8, 1e10, 1e12)
+#: rows per condition number there (16 blocks)
+REFINED_ROWS = 16 * core.BLOCK_ROWS
 
 
 @dataclass
@@ -37,6 +41,7 @@ class Result:
     kernel: dict = field(default_factory=dict)  #: "method/64" -> rows/s, the method's arithmetic only
     convert: dict = field(default_factory=dict)  #: "method/64" -> rows/s, Parquet → Parquet end to end
     accuracy: dict = field(default_factory=dict)  #: "method/64" -> {cond: [median, worst]}
+    refined_by_cond: dict = field(default_factory=dict)  #: cond -> refined/64 kernel ÷ lapack/64 kernel
     baselines: dict = field(default_factory=dict)  #: named reference rates and times
     targets: list = field(default_factory=list)  #: [name, measured ratio, required, met]
 
@@ -74,18 +79,42 @@ def _inputs(rows: int, seed: int):
     return I, H, r
 
 
-def kernel_rates(I: Sym3, H: np.ndarray, r: np.ndarray, repeats: int, only: Optional[str] = None) -> dict:
+def kernel_rates(I: Sym3, H: np.ndarray, r: np.ndarray, repeats: int, only=None) -> dict:
     """Each method's own arithmetic over cache-sized blocks, as `convert` runs it, in rows/s;
-    ``only`` ("exact/64") measures just that one."""
+    ``only`` ("exact/64", or several such keys) measures just those, in the same rounds."""
     n, jobs = H.shape[1], {}
+    only = {only} if isinstance(only, str) else only
     for prec in PRECISIONS:
+        if only is not None and not any(k.endswith(f"/{prec}") for k in only):
+            continue
         dt = core.DTYPES[prec]
         blocks = [(I.take(slice(lo, lo + core.BLOCK_ROWS)).astype(dt), H[:, lo:lo + core.BLOCK_ROWS].astype(dt),
                    r[:, lo:lo + core.BLOCK_ROWS].astype(dt)) for lo in range(0, n, core.BLOCK_ROWS)]
         for name, m in methods.METHODS.items():
-            if only in (None, f"{name}/{prec}"):
+            if only is None or f"{name}/{prec}" in only:
                 jobs[f"{name}/{prec}"] = functools.partial(_each_block, m.kernel, blocks)
     return {k: n / v for k, v in _rounds(jobs, repeats).items()}
+
+
+def cond_bodies(rng: np.random.Generator, n: int, cond: float) -> tuple[Sym3, np.ndarray]:
+    """n randomly turned bodies whose cond(I) is exactly ``cond`` (principal moments 1, a
+    log-uniform middle one, and 1/cond, in kg·m²) and H ~ N(0, 1) of shape ``(3, n)``."""
+    from hconv.scene import random_rotations, rotate_tensors
+
+    moments = np.stack([np.ones(n), 10 ** (-np.log10(cond) * rng.random(n)), np.full(n, 1 / cond)], axis=1)
+    M = rotate_tensors(random_rotations(rng, n), moments)
+    I = Sym3(*(np.ascontiguousarray(M[:, i, j]) for i, j in ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))))
+    return I, np.ascontiguousarray(rng.normal(size=(3, n)))
+
+
+def refined_by_cond(rows: int, repeats: int, seed: int = 0) -> dict:
+    """``refined`` ÷ ``lapack`` kernel throughput on the same rows, at each of REFINED_CONDS."""
+    out = {}
+    for cond in REFINED_CONDS:
+        I, H = cond_bodies(np.random.default_rng(seed), rows, cond)
+        rates = kernel_rates(I, H, np.zeros_like(H), repeats, only=("refined/64", "lapack/64"))
+        out[f"{cond:g}"] = rates["refined/64"] / rates["lapack/64"]
+    return out
 
 
 def _each_block(kernel, blocks) -> None:
@@ -229,6 +258,8 @@ def run(rows: int = 2_000_000, repeats: int = 3, seed: int = 0, memory_rows: int
     I, H, r = _inputs(rows, seed)
     log("kernels")
     res.kernel = kernel_rates(I, H, r, repeats)
+    log("refined by condition number")
+    res.refined_by_cond = refined_by_cond(min(rows, REFINED_ROWS), repeats, seed)
     log("accuracy")
     res.accuracy = accuracy(seed=seed)
     hconv_cmd = [sys.executable, "-m", "hconv"]
@@ -272,6 +303,7 @@ def run(rows: int = 2_000_000, repeats: int = 3, seed: int = 0, memory_rows: int
         ["exact kernel / lapack kernel", k["exact/64"] / k["lapack/64"], 10.0],
         ["exact kernel / compiled loop (fresh processes)", (exact_fresh / compiled) if compiled else None, 0.5],
         ["refined kernel / lapack kernel", k["refined/64"] / k["lapack/64"], 3.0],
+        *[[f"refined / lapack, same rows at cond {c}", v, 3.0] for c, v in res.refined_by_cond.items()],
         ["convert exact / I/O roofline", res.convert["exact/64"] / roof, 0.7],
         ["plain script time / hconv convert time", plain_s / hconv_cli_s, 5.0],
         ["import numpy time / hconv one time", numpy_s / one_s, 0.5],
