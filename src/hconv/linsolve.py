@@ -112,8 +112,16 @@ class SplitSym(NamedTuple):
 
 
 def split_sym(I: Sym3) -> SplitSym:
-    halves = [eft.split(c) for c in I]
-    return SplitSym(I, tuple(h for h, _ in halves), tuple(lo for _, lo in halves))
+    """:func:`hconv.eft.split` of each column, written in place into one ``(2, 6, N)`` buffer."""
+    halves = np.empty((2, 6) + I.xx.shape, dtype=I.xx.dtype)
+    hi, lo = halves
+    sp = I.xx.dtype.type(eft._splitter(I.xx.dtype))
+    for k, a in enumerate(I):
+        np.multiply(a, sp, out=hi[k])  # c = sp·a
+        np.subtract(hi[k], a, out=lo[k])  # c − a
+        hi[k] -= lo[k]  # hi = c − (c − a)
+        np.subtract(a, hi[k], out=lo[k])  # lo = a − hi
+    return SplitSym(I, tuple(hi), tuple(lo))
 
 
 _ROWS = ((0, 3, 4), (3, 1, 5), (4, 5, 2))  # which of (xx, yy, zz, xy, xz, yz) fill each matrix row
@@ -194,13 +202,15 @@ def scale_sym(I: Sym3, s: np.ndarray) -> Sym3:
     return Sym3(I.xx * sx * sx, I.yy * sy * sy, I.zz * sz * sz, I.xy * sx * sy, I.xz * sx * sz, I.yz * sy * sz)
 
 
-def _in_safe_range(arrays, dtype) -> bool:
+def _in_safe_range(arrays, dtype, skip_nan: bool = False) -> bool:
     """True when every nonzero magnitude is within 2^±(maxexp/2.5): Dekker splits and their
-    products can then neither overflow nor underflow, and no equilibration is needed."""
+    products can then neither overflow nor underflow, and no equilibration is needed. A NaN
+    fails, unless ``skip_nan`` (rows without an answer); an infinity always fails."""
     lim = float(2.0 ** (np.finfo(dtype).maxexp // 2.5))
     for a in arrays:
         m = np.abs(a)
-        if not m.max(initial=0) < lim:  # NaN fails too
+        big = np.fmax.reduce(m, axis=None, initial=0) if skip_nan else m.max(initial=0)
+        if not big < lim:
             return False
         # zeros are safe: only when the plain minimum is small, look for a small nonzero one
         if not m.min(initial=lim) > 1 / lim and not np.minimum.reduce(m, axis=None, where=m > 0, initial=lim) > 1 / lim:
@@ -236,7 +246,7 @@ def solve_refined(I: Sym3, h: np.ndarray, steps: Optional[int] = None,
     """
     if _in_safe_range(list(I) + [h], h.dtype):
         x = _refine(I, h, steps, x0)
-        if _in_safe_range([np.where(np.isfinite(x), x, 0)], h.dtype):
+        if _in_safe_range([x], h.dtype, skip_nan=True):
             return x
     s = pow2_scales(I)
     hs = h * s
