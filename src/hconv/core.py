@@ -8,8 +8,8 @@ result comes back unstacked. Conventions are those of :mod:`hconv.inertia`.
 Diagnostics per row:
 
 * ``residual`` = ‖ω - I⁻¹H‖ / ‖I⁻¹H‖, against a reference computed from the float64 inputs:
-  iterative refinement with a residual in double the precision, correctly rounded to
-  cond ≈ 1e13 (tested against mpmath and exact rational solves). For the exact family the
+  iterative refinement with a residual in double the precision, within one rounding
+  (≤ 1·eps, measured) to cond ≈ 1e13 (tested against mpmath and exact rational solves). For the exact family the
   refinement starts from the method's own answer, so its first correction is that answer's
   error (a ``refined`` answer that stopped too early shows as such). For the document methods
   it compares their number (in m²/s) with I⁻¹H (in rad/s).

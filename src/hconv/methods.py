@@ -94,8 +94,9 @@ def _exact(I, H, r):
 
 @register(
     "refined", unit=RAD_S, exact=True,
-    summary="ω = I⁻¹H to the last bit: exact's answer refined with a double-double residual",
-    cost="exact + 1 to 6 refinement steps (each ~200 flops/row), chosen per block",
+    summary="ω = I⁻¹H within one rounding: exact's answer refined with a double-double residual",
+    cost="exact + refinement steps of ~170 flops/row, as many as the block needs: "
+         "1 to cond ~1e8, 2 to ~1e10, 3 at 1e12 (6 at most)",
     fails="singular I (ω = NaN); in float64 the error stays at rounding up to the singular "
           "threshold; in float32 the rounding of the inputs themselves limits it",
     error_k={64: 0.0, 32: 2.5},
