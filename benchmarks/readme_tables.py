@@ -12,7 +12,8 @@ lapack = res["kernel"]["lapack/64"]
 
 def err(x):
     m, w = x
-    return "flagged" if m is None or m != m else ("0 / 0" if w == 0 else f"{m:.0e} / {w:.0e}")
+    one = lambda v: "0" if v == 0 else f"{v:.0e}"
+    return "flagged" if m is None or m != m else f"{one(m)} / {one(w)}"
 
 
 print("| method | prec | kernel Mrows/s | × lapack | convert Mrows/s | " + " | ".join(f"error at cond {float(c):g}, median / worst" for c in conds) + " |")
