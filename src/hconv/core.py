@@ -24,7 +24,7 @@ from typing import Optional
 import numpy as np
 
 from hconv import linsolve, methods, status
-from hconv.inertia import Sym3, max_abs, sym_from_array
+from hconv.inertia import Sym3, max_abs, sum_sq, sym_from_array
 from hconv.spectrum import eigenvalues
 
 #: Rows per kernel block: small enough that a block's temporaries stay in cache.
@@ -279,8 +279,8 @@ def _residual(o: _BlockOptions, I: Sym3, H: np.ndarray, w: np.ndarray, moments: 
     unit = max_abs(ref)
     unit = np.where((unit > 0) & np.isfinite(unit), unit, 1.0)
     d, ref = d / unit, ref / unit
-    num = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-    den = np.sqrt(ref[0] * ref[0] + ref[1] * ref[1] + ref[2] * ref[2])
+    num = np.sqrt(sum_sq(d))
+    den = np.sqrt(sum_sq(ref))
     with np.errstate(divide="ignore", invalid="ignore"):
         # H = 0 gives I⁻¹H = 0: an answer of 0 is exact, anything else infinitely off.
         return np.where(den > 0, num / np.where(den > 0, den, 1.0), np.where(num == 0, 0.0, np.inf))

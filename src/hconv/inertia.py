@@ -82,6 +82,16 @@ def max_abs(columns) -> np.ndarray:
     return m
 
 
+def sum_sq(v: np.ndarray) -> np.ndarray:
+    """``v[0]² + v[1]² + v[2]²``, summed in that order, for v of shape ``(3, N)``."""
+    out = v[0] * v[0]
+    t = v[1] * v[1]
+    out += t
+    np.multiply(v[2], v[2], out=t)
+    out += t
+    return out
+
+
 def principal_axes(I: Sym3) -> tuple[np.ndarray, np.ndarray]:
     """Principal moments ``S`` of shape ``(N, 3)`` (ascending) and axes ``R`` of shape ``(N, 3, 3)``.
 

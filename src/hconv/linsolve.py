@@ -12,7 +12,7 @@ from typing import NamedTuple, Optional
 import numpy as np
 
 from hconv import eft
-from hconv.inertia import Sym3, max_abs
+from hconv.inertia import Sym3, max_abs, sum_sq
 
 
 class LDLt(NamedTuple):
@@ -239,8 +239,8 @@ def solve_refined(I: Sym3, h: np.ndarray, steps: Optional[int] = None,
     The prediction is Wilkinson's: each step multiplies the error by about the ratio of the last
     two corrections; after the first step, with no ratio yet, by the block's largest first
     correction (x₀'s worst relative error, about cond·eps for LDLᵀ's answer). Measured on
-    16384-row blocks of rotated bodies: one step to cond ~1e8, two to ~1e10, three (a few
-    blocks four) at 1e12; every answer within one rounding of a ten-step refinement.
+    16384-row blocks of rotated bodies: one step to cond ~1e8, two to ~1e10, three at 1e12;
+    every answer within one rounding of a ten-step refinement.
 
     Blocks whose magnitudes (I, h or ω) are extreme are solved equilibrated by powers of two.
     """
@@ -276,7 +276,7 @@ def _refine(I: Sym3, h: np.ndarray, steps: Optional[int], x0: Optional[np.ndarra
     Isplit = split_sym(I)
     tiny = float(np.finfo(x.dtype).eps) ** 2
     prev = None
-    for k in range(MAX_REFINE_STEPS if steps is None else steps):
+    for _ in range(MAX_REFINE_STEPS if steps is None else steps):
         with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
             dx = solve(residual_dd(Isplit, h, x))
             x += dx
@@ -284,8 +284,8 @@ def _refine(I: Sym3, h: np.ndarray, steps: Optional[int], x0: Optional[np.ndarra
                 continue
             # c: this step's correction relative to x, squared, per row; it measures the error
             # x had before the step
-            c = _sum_sq(dx)
-            c /= _sum_sq(x)
+            c = sum_sq(dx)
+            c /= sum_sq(x)
             if prev is None:
                 # A row whose first answer was off by half or more, or whose correction later
                 # fails to halve, is as good as refinement can make it (cond·eps near 1 or
@@ -306,12 +306,3 @@ def _refine(I: Sym3, h: np.ndarray, steps: Optional[int], x0: Optional[np.ndarra
         prev = c
     return x
 
-
-def _sum_sq(v: np.ndarray) -> np.ndarray:
-    """``v[0]² + v[1]² + v[2]²`` for v of shape ``(3, N)``."""
-    out = v[0] * v[0]
-    t = v[1] * v[1]
-    out += t
-    np.multiply(v[2], v[2], out=t)
-    out += t
-    return out
