@@ -2,15 +2,16 @@
 
     python benchmarks/kernels.py [rows] [cond]
 
-Only the method's own arithmetic, in blocks as `hconv.convert` runs it (`hconv.bench.kernel_rates`),
-on rotated bodies whose cond(I) is exactly ``cond`` (`hconv.bench.cond_bodies`): the way to see how
+Only the method's own arithmetic, in blocks as `hconv.convert` runs it (`hconv.tools.bench.kernel_rates`),
+on rotated bodies whose cond(I) is exactly ``cond`` (`hconv.tools.bench.cond_bodies`): the way to see how
 `refined` slows with cond. `hconv bench` measures refined against lapack at a few cond itself.
 """
 import sys
 
 import numpy as np
 
-from hconv import allocator, bench
+from hconv.kernels import allocator
+from hconv.tools import bench
 
 allocator.tune()  # as the hconv command does
 n = int(sys.argv[1]) if len(sys.argv) > 1 else 2_000_000

@@ -10,7 +10,7 @@ import time
 import numpy as np
 
 import hconv
-from hconv.scene import make_scene
+from hconv.tools.scene import make_scene
 
 
 def median_seconds(fn, repeats=5):

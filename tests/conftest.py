@@ -9,7 +9,7 @@ import mpmath
 import numpy as np
 import pytest
 
-from hconv.scene import random_rotations, rotate_tensors
+from hconv.tools.scene import random_rotations, rotate_tensors
 
 EPS = np.finfo(np.float64).eps
 

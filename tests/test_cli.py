@@ -369,7 +369,8 @@ def test_convert_file_write_failure_midway_leaves_nothing(tmp_path, monkeypatch,
     """A full disk on the writer thread: the error reaches the caller and no file is left."""
     import errno
 
-    from hconv import pipeline, tableio
+    from hconv.tables import pipeline
+    from hconv.tables import tableio
 
     n = 300_000
     t = pa.table({c: rng.normal(size=n) + (3.0 if c in ("Ixx", "Iyy", "Izz") else 0.0) for c in CONTRACT[:9]})

@@ -13,8 +13,8 @@ import pyarrow.parquet as pq
 import pytest
 
 from conftest import physical_bodies, run_hconv, six
-from hconv import diagnose
-from hconv.stats import Summary
+from hconv.tools import diagnose
+from hconv.tools.stats import Summary
 from test_forms import axis_angle, quats, rodrigues, vec
 
 SIX = ["Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz"]

@@ -11,8 +11,8 @@ import pytest
 
 import hconv
 from conftest import mp_solve, physical_bodies, rel_err, six
-from hconv.arrow import Job
-from hconv.bodies import Conventions
+from hconv.tables.arrow import Job
+from hconv.solve.bodies import Conventions
 from hconv.errors import InputError, UsageError
 
 

@@ -8,7 +8,7 @@ import pytest
 
 import hconv
 from conftest import EPS, rel_err, run_hconv
-from hconv.scene import KINDS, make_scene
+from hconv.tools.scene import KINDS, make_scene
 
 
 def _arrays(cols):

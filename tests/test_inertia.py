@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 
 from conftest import physical_bodies, six, slender_bodies, spd_bodies
-from hconv.inertia import Sym3
-from hconv.spectrum import eigenvalues
-from hconv.scene import cylinder_moments, random_rotations, rotate_tensors
-from hconv.status import TRIANGLE_RTOL
+from hconv.kernels.inertia import Sym3
+from hconv.kernels.spectrum import eigenvalues
+from hconv.tools.scene import cylinder_moments, random_rotations, rotate_tensors
+from hconv.solve.status import TRIANGLE_RTOL
 
 
 def _sym(M):
@@ -64,7 +64,7 @@ def test_eigenvalues_empty():
 
 
 def test_cos_series_matches_numpy_on_its_range():
-    from hconv.spectrum import _cos
+    from hconv.kernels.spectrum import _cos
 
     x = np.linspace(0.0, np.pi / 3, 200_001)
     want = np.cos(x)

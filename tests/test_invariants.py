@@ -18,8 +18,9 @@ import pyarrow.parquet as pq
 import pytest
 
 from conftest import run_inprocess
-from hconv import METHODS, tableio
-from hconv.scene import make_scene
+from hconv import METHODS
+from hconv.tables import tableio
+from hconv.tools.scene import make_scene
 
 TRICKY_TEXT = ["007", "a,b", 'say "hi"', "", "1.50", " padded ", "ünï", "NaN", "-0", "1e400"]
 

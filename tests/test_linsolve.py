@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 from conftest import EPS, mp_solve, rel_err
-from hconv import eft, linsolve
-from hconv.inertia import Sym3
-from hconv.scene import random_rotations, rotate_tensors
+from hconv.kernels import eft
+from hconv.kernels import linsolve
+from hconv.kernels.inertia import Sym3
+from hconv.tools.scene import random_rotations, rotate_tensors
 
 BLOCK = 16384
 
@@ -48,7 +49,7 @@ def test_two_prod_split_is_exact(dtype, rng):
 
 
 def _residual_by_eft(A, h, x):
-    """The residual written with hconv.eft's functions, in the order the docstring describes."""
+    """The residual written with hconv.kernels.eft's functions, in the order the docstring describes."""
     x_hi, x_lo = eft.split(x)
     out = np.empty_like(x)
     for k, row in enumerate(linsolve._ROWS):

@@ -13,8 +13,9 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from hconv import allocator, pipeline
-from hconv.scene import make_scene
+from hconv.kernels import allocator
+from hconv.tables import pipeline
+from hconv.tools.scene import make_scene
 
 
 def _slow_square(k: int) -> int:
@@ -98,7 +99,7 @@ def test_parquet_output_floats_plain_labels_compressed(tmp_path):
 @pytest.mark.skipif(platform.libc_ver()[0] != "glibc", reason="the settings apply to glibc's malloc only")
 def test_allocator_tune_applies_on_glibc():
     # in a fresh process, so that this test process's allocator is left as it was
-    code = "from hconv import allocator; print(allocator.tune())"
+    code = "from hconv.kernels import allocator; print(allocator.tune())"
     out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True).stdout
     assert out.strip() == "True"
 

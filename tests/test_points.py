@@ -8,8 +8,8 @@ import pytest
 
 import hconv
 from conftest import mp_solve, physical_bodies, rel_err, six
-from hconv.arrow import Job
-from hconv.bodies import Conventions
+from hconv.tables.arrow import Job
+from hconv.solve.bodies import Conventions
 from hconv.errors import InputError
 from test_forms import axis_angle, quats, rodrigues, vec, w_of
 

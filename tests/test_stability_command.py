@@ -8,7 +8,7 @@ import pytest
 
 import hconv
 from conftest import EPS, mp_solve, physical_bodies, rel_err, run_hconv, spd_bodies
-from hconv import stability
+from hconv.tools import stability
 
 
 def test_exact_solve_matches_mpmath(rng):

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import hconv
-from hconv.methods import _seed_formula
+from hconv.solve.methods import _seed_formula
 from conftest import mp_solve
 
 GOOD_I = [2.0, 3.0, 4.0, 0.1, 0.0, 0.0]

@@ -41,7 +41,7 @@ def stability_chart(points, sweeps, path: str) -> None:
     """One panel per sweep: worst error against the sweep parameter, log axes, a line per method
     and precision (solid float64, dashed float32); hollow markers where most rows are flagged."""
     plt = _pyplot()
-    from hconv.methods import METHODS
+    from hconv.solve.methods import METHODS
 
     names = list(METHODS)
     colours = {n: plt.get_cmap("tab10")(k) for k, n in enumerate(names)}
@@ -89,7 +89,7 @@ def speed_accuracy_chart(res, path: str, cond: str = "10000") -> None:
     """Accuracy (worst error at ``cond``, log) against kernel speed (rows/s, log): one point per
     method and precision, with the Pareto front (nothing both faster and more accurate)."""
     plt = _pyplot()
-    from hconv.methods import METHODS
+    from hconv.solve.methods import METHODS
 
     colours = {n: plt.get_cmap("tab10")(k) for k, n in enumerate(METHODS)}
     pts = []

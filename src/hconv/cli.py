@@ -16,9 +16,9 @@ from typing import List, Optional
 
 import typer
 
-from hconv import allocator
+from hconv.kernels import allocator
 from hconv.errors import HconvError, UsageError
-from hconv.methods import METHODS
+from hconv.solve.methods import METHODS
 
 app = typer.Typer(
     add_completion=False,
@@ -122,7 +122,7 @@ def _pairs(option: str, items: Optional[List[str]]) -> tuple:
 
 
 def _conventions(frame, omega_frame, about, products, degenerate, degenerate_rtol):
-    from hconv.bodies import Conventions
+    from hconv.solve.bodies import Conventions
 
     if degenerate_rtol is not None and not 0 <= degenerate_rtol < 1:
         raise UsageError(f"--degenerate-rtol must be at least 0 and below 1, got {degenerate_rtol}")
@@ -154,7 +154,9 @@ def one(
     """Convert one body state and print ω with its unit, the residual, cond and the status."""
     import numpy as np
 
-    from hconv import bodies, methods, units
+    from hconv.solve import bodies
+    from hconv.solve import methods
+    from hconv.solve import units
 
     conv = _conventions(frame, omega_frame, about, products, degenerate, degenerate_rtol)
     i = _numbers("--I", I, (1, 3, 6, 9))
@@ -209,7 +211,7 @@ def one(
 
 def _job(method, precision, frame, omega_frame, about, products, degenerate, degenerate_rtol,
          mapping, unit, omega_unit, quat_order, diagnostics: bool = True):
-    from hconv.arrow import Job
+    from hconv.tables.arrow import Job
 
     conv = _conventions(frame, omega_frame, about, products, degenerate, degenerate_rtol)
     job = Job(method.value, precision, diagnostics, conv, _pairs("--map", mapping), _pairs("--unit", unit),
@@ -244,7 +246,8 @@ def convert_cmd(
     quat_order: QuatOrder = QUAT_ORDER_OPT,
 ) -> None:
     """Convert every row of a CSV or Parquet table; OUT gets the input columns, ω and diagnostics."""
-    from hconv import pipeline, report
+    from hconv import report
+    from hconv.tables import pipeline
 
     job = _job(method, precision, frame, omega_frame, about, products, degenerate, degenerate_rtol,
                mapping, unit, omega_unit, quat_order)
@@ -271,8 +274,8 @@ def diagnose_cmd(
     quat_order: QuatOrder = QUAT_ORDER_OPT,
 ) -> None:
     """Find which convention explains the ω your engine produced (columns wx_obs, wy_obs, wz_obs)."""
-    from hconv import diagnose
-    from hconv.arrow import Job
+    from hconv.tools import diagnose
+    from hconv.tables.arrow import Job
 
     job = Job(mapping=_pairs("--map", mapping), unit_options=_pairs("--unit", unit), quat_order=quat_order.value)
     job.check()
@@ -305,7 +308,8 @@ def compare_cmd(
     quat_order: QuatOrder = QUAT_ORDER_OPT,
 ) -> None:
     """Run every method on the same rows: how far each is from exact, and where the shortcuts fail."""
-    from hconv import compare, report
+    from hconv import report
+    from hconv.tools import compare
 
     job = _job(MethodName("exact"), 64, frame, omega_frame, about, products, Degenerate("error"), None,
                mapping, unit, "rad/s", quat_order)
@@ -327,9 +331,9 @@ def generate_cmd(
     force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
 ) -> None:
     """Write a synthetic scene of physically valid bodies with their known ω (w_true_x, ...)."""
-    from hconv import pipeline
+    from hconv.tools import generate
 
-    seconds = pipeline.generate_file(dst, rows, scene=scene, cond_max=cond_max, seed=seed,
+    seconds = generate.generate_file(dst, rows, scene=scene, cond_max=cond_max, seed=seed,
                                      dst_format=to and to.value, force=force)
     rate = f", {rows / seconds:,.0f} rows/s" if seconds > 0 and rows else ""
     print(f"hconv generate: {rows:,} rows to {dst} in {seconds:.2f} s{rate}", file=sys.stderr)
@@ -347,7 +351,8 @@ def bench_cmd(
     seed: int = typer.Option(0, "--seed"),
 ) -> None:
     """Measure speed and accuracy of every method and precision, and the speed targets."""
-    from hconv import bench, report
+    from hconv import report
+    from hconv.tools import bench
 
     from hconv import charts
 
@@ -390,7 +395,7 @@ def stability_cmd(
     as_json: bool = typer.Option(False, "--json", help="print every sweep point as JSON instead of tables"),
 ) -> None:
     """Sweep every method over hard inputs and show where each stops being trustworthy."""
-    from hconv import stability
+    from hconv.tools import stability
 
     from hconv import charts
 

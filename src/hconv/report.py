@@ -11,7 +11,7 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-from hconv.methods import METHODS
+from hconv.solve.methods import METHODS
 
 
 def summary(tally, console: Optional[Console] = None) -> None:
@@ -163,7 +163,7 @@ def diagnosis_tables(d, console: Optional[Console] = None) -> None:
 
 def comparison_tables(c, console: Optional[Console] = None) -> None:
     """Print ``hconv compare``: each method against exact, and where the shortcuts fail."""
-    from hconv.compare import OFFDIAG_BINS, R_AXIS_BINS, SHORTCUTS
+    from hconv.tools.compare import OFFDIAG_BINS, R_AXIS_BINS, SHORTCUTS
 
     console = console or Console()
     console.print(f"[bold]hconv compare[/bold] · {c.rows:,} rows · difference from the exact ω, "

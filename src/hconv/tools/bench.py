@@ -22,9 +22,11 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from hconv import core, methods, stability
-from hconv.inertia import Sym3
-from hconv.scene import make_scene
+from hconv.solve import convert as core
+from hconv.solve import methods
+from hconv.tools import stability
+from hconv.kernels.inertia import Sym3
+from hconv.tools.scene import make_scene
 
 PRECISIONS = (64, 32)
 ACCURACY_CONDS = (1e1, 1e4, 1e8)
@@ -99,7 +101,7 @@ def kernel_rates(I: Sym3, H: np.ndarray, r: np.ndarray, repeats: int, only=None)
 def cond_bodies(rng: np.random.Generator, n: int, cond: float) -> tuple[Sym3, np.ndarray]:
     """n randomly turned bodies whose cond(I) is exactly ``cond`` (principal moments 1, a
     log-uniform middle one, and 1/cond, in kg·m²) and H ~ N(0, 1) of shape ``(3, n)``."""
-    from hconv.scene import random_rotations, rotate_tensors
+    from hconv.tools.scene import random_rotations, rotate_tensors
 
     moments = np.stack([np.ones(n), 10 ** (-np.log10(cond) * rng.random(n)), np.full(n, 1 / cond)], axis=1)
     M = rotate_tensors(random_rotations(rng, n), moments)
@@ -175,9 +177,10 @@ def compiled_loop(I: Sym3, H: np.ndarray) -> Optional[Callable[[], None]]:
 
 _YARDSTICK = """
 import sys, numpy as np
-from hconv import allocator, bench
+from hconv.kernels import allocator
+from hconv.tools import bench
 allocator.tune()  # as the hconv command does at start-up
-from hconv.inertia import Sym3
+from hconv.kernels.inertia import Sym3
 d = np.load(sys.argv[1])
 I, H = Sym3(*(np.ascontiguousarray(d[k]) for k in range(6))), np.ascontiguousarray(d[6:9])
 if sys.argv[2] == "compiled":
@@ -235,9 +238,9 @@ def _roofline(src: str, dst: str) -> None:
     """hconv's own reading and writing of the same columns, with no computation at all."""
     import pyarrow as pa
 
-    from hconv.arrow import output_fields
-    from hconv.pipeline import BackgroundWriter
-    from hconv.tableio import Output, open_input
+    from hconv.tables.arrow import output_fields
+    from hconv.tables.pipeline import BackgroundWriter
+    from hconv.tables.tableio import Output, open_input
 
     fields = output_fields("exact", 64)
     with open_input(src, "parquet", "exact") as inp, Output(dst, "parquet", force=True) as out, BackgroundWriter(out) as wr:
@@ -251,7 +254,8 @@ def _roofline(src: str, dst: str) -> None:
 def run(rows: int = 2_000_000, repeats: int = 3, seed: int = 0, memory_rows: int = 0,
         log: Callable[[str], None] = lambda s: None) -> Result:
     """Measure everything; ``memory_rows`` > 0 also measures peak RSS converting that many rows."""
-    from hconv import pipeline
+    from hconv.tables import pipeline
+    from hconv.tools import generate
 
     res = Result(rows=rows, machine=describe_machine())
     log("generating inputs")
@@ -267,7 +271,7 @@ def run(rows: int = 2_000_000, repeats: int = 3, seed: int = 0, memory_rows: int
         log("compiled-loop yardstick")
         compiled, exact_fresh = yardstick(I, H, tmp, repeats)
         src, dst = os.path.join(tmp, "in.parquet"), os.path.join(tmp, "out.parquet")
-        pipeline.generate_file(src, rows, seed=seed)
+        generate.generate_file(src, rows, seed=seed)
         log("end-to-end conversions")
         pipeline.convert_file(src, dst, force=True)  # warm-up: page cache and first-call costs
         jobs = {f"{name}/{prec}": (lambda name=name, prec=prec: pipeline.convert_file(
@@ -276,7 +280,7 @@ def run(rows: int = 2_000_000, repeats: int = 3, seed: int = 0, memory_rows: int
         jobs["plain script"] = _command([sys.executable, "-c", _PLAIN_SCRIPT, src, dst])
         jobs["hconv convert"] = _command(hconv_cmd + ["convert", src, dst, "--force", "-q"])
         tiny, tiny_out = os.path.join(tmp, "tiny.parquet"), os.path.join(tmp, "tiny-out.parquet")
-        pipeline.generate_file(tiny, 10, seed=seed)
+        generate.generate_file(tiny, 10, seed=seed)
         jobs["hconv start-up"] = _command(hconv_cmd + ["convert", tiny, tiny_out, "--force", "-q"])
         secs = _rounds(jobs, repeats)
         roof, plain_s, hconv_cli_s = rows / secs.pop("roofline"), secs.pop("plain script"), secs.pop("hconv convert")
@@ -295,7 +299,7 @@ def run(rows: int = 2_000_000, repeats: int = 3, seed: int = 0, memory_rows: int
         if memory_rows:
             log(f"peak memory on {memory_rows:,} rows")
             big = os.path.join(tmp, "big.parquet")
-            pipeline.generate_file(big, memory_rows, seed=seed)
+            generate.generate_file(big, memory_rows, seed=seed)
             res.baselines["memory_rows"] = memory_rows
             res.baselines["peak_rss_mb"] = _peak_rss_mb(hconv_cmd + ["convert", big, dst, "--force", "-q"])
     k = res.kernel

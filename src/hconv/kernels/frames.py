@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hconv.inertia import Sym3
+from hconv.kernels.inertia import Sym3
 
 
 def quaternion_matrix(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

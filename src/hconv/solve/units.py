@@ -14,7 +14,7 @@ import re
 import numpy as np
 
 from hconv.errors import UsageError
-from hconv.status import UNIT_DENSITY_BAND
+from hconv.solve.status import UNIT_DENSITY_BAND
 
 #: The SI unit of each quantity, written as pint parses it.
 SI = {
@@ -95,7 +95,7 @@ def implausible(trace: np.ndarray, m: np.ndarray, both_sides: bool = True) -> np
     ``(N,)`` [kg]. The radius of gyration ρ_g = √(Σλ / 2m) is the root-mean-square distance of the
     mass from the centre; a uniform cube with the same mass and ρ_g has side 2ρ_g. A row is
     implausible when that cube's density m / (2ρ_g)³ lies outside
-    :data:`hconv.status.UNIT_DENSITY_BAND` (only above it, with ``both_sides=False``). Rows
+    :data:`hconv.solve.status.UNIT_DENSITY_BAND` (only above it, with ``both_sides=False``). Rows
     without a positive mass or trace are not judged (False).
     """
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):

@@ -34,9 +34,9 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from hconv import bodies
-from hconv.bodies import Conventions
-from hconv.stats import Summary
+from hconv.solve import bodies
+from hconv.solve.bodies import Conventions
+from hconv.tools.stats import Summary
 
 #: The six-number orders, as positions in hconv's (xx, yy, zz, xy, xz, yz).
 _HCONV = ("xx", "yy", "zz", "xy", "xz", "yz")
@@ -229,9 +229,9 @@ class Diagnoser:
 def diagnose_file(src: str, *, src_format: Optional[str] = None, tol: float = DEFAULT_TOL, job=None,
                   progress=None) -> Diagnosis:
     """Score every hypothesis on the rows of ``src`` (CSV or Parquet, "-" for stdin)."""
-    from hconv.arrow import Job
+    from hconv.tables.arrow import Job
     from hconv.errors import UsageError
-    from hconv.tableio import format_of, open_input
+    from hconv.tables.tableio import format_of, open_input
 
     if not tol > 0:
         raise UsageError(f"--tol must be positive, got {tol}")
@@ -263,7 +263,7 @@ class _NeedsObserved:
         self._job = job
 
     def plan(self, schema, source="input"):
-        from hconv import layout
+        from hconv.tables import layout
 
         spec = self._job.spec()
         spec = dataclasses.replace(spec, need=spec.need + (("w_obs", "diagnose compares with the ω your engine produced"),))

@@ -3,7 +3,7 @@
 Shapes: ``H`` is ``(N, 3)`` [kg·m²/s]; ``I`` is ``(N, 6)`` as (Ixx, Iyy, Izz, Ixy, Ixz, Iyz),
 ``(N, 3, 3)`` or ``(N, 3)`` principal/diagonal moments [kg·m²]; ``r`` is ``(N, 3)`` [m]. One body
 may be given as ``H`` of shape ``(3,)`` with ``I`` of shape ``(6,)``, ``(3, 3)`` or ``(3,)``; its
-result comes back unstacked. Conventions are those of :mod:`hconv.inertia`.
+result comes back unstacked. Conventions are those of :mod:`hconv.kernels.inertia`.
 
 Diagnostics per row:
 
@@ -14,7 +14,7 @@ Diagnostics per row:
   error (a ``refined`` answer that stopped too early shows as such). For the document methods
   it compares their number (in m²/s) with I⁻¹H (in rad/s).
 * ``cond``: the 2-norm condition number of I, |moment|max / |moment|min.
-* ``status``: see :mod:`hconv.status`.
+* ``status``: see :mod:`hconv.solve.status`.
 """
 from __future__ import annotations
 
@@ -23,9 +23,11 @@ from typing import Optional
 
 import numpy as np
 
-from hconv import linsolve, methods, status
-from hconv.inertia import Sym3, max_abs, sum_sq, sym_from_array
-from hconv.spectrum import eigenvalues
+from hconv.kernels import linsolve
+from hconv.solve import methods
+from hconv.solve import status
+from hconv.kernels.inertia import Sym3, max_abs, sum_sq, sym_from_array
+from hconv.kernels.spectrum import eigenvalues
 
 #: Rows per kernel block: small enough that a block's temporaries stay in cache.
 BLOCK_ROWS = 16384
@@ -40,7 +42,7 @@ class Result:
     w: np.ndarray  #: (N, 3) or (3,), in ``unit``
     residual: Optional[np.ndarray]  #: (N,) or scalar; None when diagnostics were off
     cond: np.ndarray  #: (N,) or scalar
-    status_code: np.ndarray  #: (N,) uint8, or scalar; names in hconv.status.STATUSES
+    status_code: np.ndarray  #: (N,) uint8, or scalar; names in hconv.solve.status.STATUSES
     unit: str  #: unit of w: "rad/s" or "m^2/s"
     method: str
     #: with degenerate="pinv"/"lock": the dropped axis, (N, 3) unit vectors, NaN where none or

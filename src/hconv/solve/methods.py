@@ -1,6 +1,6 @@
 """The conversion methods, each a small vectorised function registered with its metadata.
 
-Every method maps tensors ``I`` (:class:`~hconv.inertia.Sym3` of ``(N,)`` columns, kg·m²),
+Every method maps tensors ``I`` (:class:`~hconv.kernels.inertia.Sym3` of ``(N,)`` columns, kg·m²),
 momenta ``H`` of shape ``(3, N)`` [kg·m²/s] and, where it needs one, the offset ``r`` of shape
 ``(3, N)`` [m] to ``(w, flags)``: ``w`` of shape ``(3, N)`` in the method's unit, and a dict of
 boolean ``(N,)`` masks for the statuses that only the method itself can see. (Vectors are held
@@ -14,9 +14,9 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from hconv import linsolve
-from hconv.inertia import Sym3, principal_axes
-from hconv.status import ILL_CONDITIONED_TOL, REPEATED_RTOL, R_AXIS_RTOL, singular_rtol
+from hconv.kernels import linsolve
+from hconv.kernels.inertia import Sym3, principal_axes
+from hconv.solve.status import ILL_CONDITIONED_TOL, REPEATED_RTOL, R_AXIS_RTOL, singular_rtol
 
 Kernel = Callable[[Sym3, np.ndarray, Optional[np.ndarray]], "tuple[np.ndarray, dict[str, np.ndarray]]"]
 

@@ -7,7 +7,7 @@ of two halves is exact (Dekker). ``two_prod_split`` then gives ``a·b = p + e`` 
 the arguments are well inside the dtype's range (callers equilibrate first). All arrays of one
 shape and one dtype, float64 or float32.
 
-These are the readable statement of the arithmetic. :func:`hconv.linsolve.residual_dd` and
+These are the readable statement of the arithmetic. :func:`hconv.kernels.linsolve.residual_dd` and
 ``split_sym`` write the same operations out in place over scratch buffers (a third faster), and
 ``tests/test_linsolve.py`` holds the two to the same bits and these to exactness.
 """

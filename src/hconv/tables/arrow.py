@@ -1,6 +1,6 @@
 """hconv on Arrow data: a :class:`Job` (method, conventions, units), and ``convert_table``.
 
-Input columns are found by name (see :mod:`hconv.layout` for every set and inertia form); any
+Input columns are found by name (see :mod:`hconv.tables.layout` for every set and inertia form); any
 other column passes through unchanged and in order. Output: the input columns, then ``wx, wy, wz``
 (field metadata ``unit``), ``residual``, ``cond``, ``status`` and, with ``--degenerate pinv|lock``,
 ``null_x, null_y, null_z, null_dim``. In Parquet, every column hconv read also records the unit
@@ -14,7 +14,12 @@ from typing import Optional
 import numpy as np
 import pyarrow as pa
 
-from hconv import __version__, bodies, layout, methods, status, units
+from hconv import __version__
+from hconv.solve import bodies
+from hconv.tables import layout
+from hconv.solve import methods
+from hconv.solve import status
+from hconv.solve import units
 from hconv.errors import InputError, UsageError
 
 W_COLUMNS = ("wx", "wy", "wz")

@@ -35,7 +35,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 
-from hconv import units
+from hconv.solve import units
 from hconv.errors import InputError, UsageError
 
 VECTOR_SETS = {

@@ -16,10 +16,11 @@ from typing import Callable, Iterable, Iterator, Optional, TypeVar
 import numpy as np
 import pyarrow as pa
 
-from hconv import methods, status
-from hconv.arrow import Job, convert_table
+from hconv.solve import methods
+from hconv.solve import status
+from hconv.tables.arrow import Job, convert_table
 from hconv.errors import StrictError, UsageError
-from hconv.tableio import Output, format_of, open_input
+from hconv.tables.tableio import Output, format_of, open_input
 
 
 @dataclass
@@ -50,7 +51,7 @@ class Tally:
 
 
 class BackgroundWriter:
-    """Writes tables to an :class:`~hconv.tableio.Output` on a second thread, so that encoding
+    """Writes tables to an :class:`~hconv.tables.tableio.Output` on a second thread, so that encoding
     and compressing one batch (pyarrow releases the GIL) overlaps converting the next.
 
     At most ``depth`` tables wait in the queue, so memory stays bounded. Leaving the ``with``
@@ -198,25 +199,3 @@ def _check_strict(table: pa.Table, first_row: int, source: str) -> None:
         more = f" and {bad.size - STRICT_ROWS_NAMED} more in this batch" if bad.size > STRICT_ROWS_NAMED else ""
         raise StrictError(f"{source}: --strict, and {named}{more} are not ok; nothing was written "
                           "(drop --strict to keep every row with its status)")
-
-
-def generate_file(dst: str, rows: int, *, scene: str = "mix", cond_max: float = 1e3, seed: int = 0,
-                  dst_format: Optional[str] = None, force: bool = False) -> float:
-    """Write a synthetic scene of ``rows`` bodies (see :mod:`hconv.scene`) to ``dst``, atomically,
-    chunk by chunk; returns the seconds taken."""
-    from hconv.scene import SCENES, iter_scene, make_scene
-
-    if rows < 0:
-        raise UsageError(f"--rows must be 0 or more, got {rows}")
-    if scene not in SCENES:
-        raise UsageError(f"unknown scene {scene!r}; choose one of: {', '.join(SCENES)}")
-    if not cond_max >= 1:
-        raise UsageError(f"--cond-max must be at least 1, got {cond_max}")
-    fout = format_of(dst, dst_format, "--to")
-    t0 = time.perf_counter()
-    with Output(dst, fout, force=force) as out, BackgroundWriter(out) as writer:
-        for cols in iter_scene(rows, seed=seed, scene=scene, cond_max=cond_max):
-            writer.write(pa.table(cols))
-        if rows == 0:  # still a valid file, with the scene's columns
-            writer.write(pa.table(make_scene(0, scene=scene)))
-    return time.perf_counter() - t0

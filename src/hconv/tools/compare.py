@@ -19,10 +19,11 @@ from typing import Optional
 
 import numpy as np
 
-from hconv import bodies, methods
-from hconv.bodies import Conventions
-from hconv.diagnose import residual_and_angle
-from hconv.stats import Summary
+from hconv.solve import bodies
+from hconv.solve import methods
+from hconv.solve.bodies import Conventions
+from hconv.tools.diagnose import residual_and_angle
+from hconv.tools.stats import Summary
 
 OFFDIAG_BINS = (0.0, 1e-3, 1e-2, 0.1, 0.3, 1.0)
 R_AXIS_BINS = (0.0, 1e-6, 1e-3, 1e-2, 0.1, 1.0)
@@ -130,9 +131,9 @@ def compare_file(src: str, dst: Optional[str] = None, *, src_format: Optional[st
 
     import pyarrow as pa
 
-    from hconv.arrow import Job
-    from hconv.pipeline import BackgroundWriter
-    from hconv.tableio import Output, format_of, open_input
+    from hconv.tables.arrow import Job
+    from hconv.tables.pipeline import BackgroundWriter
+    from hconv.tables.tableio import Output, format_of, open_input
 
     job = job or Job()
     job.check()

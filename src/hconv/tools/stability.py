@@ -15,8 +15,9 @@ from typing import Callable
 
 import numpy as np
 
-from hconv import core, methods
-from hconv.scene import random_rotations, rotate_tensors
+from hconv.solve import convert as core
+from hconv.solve import methods
+from hconv.tools.scene import random_rotations, rotate_tensors
 
 
 @dataclass(frozen=True)

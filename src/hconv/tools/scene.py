@@ -2,7 +2,7 @@
 
 Principal moments are textbook formulas about the centre of mass [kg·m²], for mass m [kg] and
 sizes [m]. A scene row holds a body turned by a random rotation R: I = R·diag(moments)·Rᵀ (tensor
-entries, products negative-∫ convention of :mod:`hconv.inertia`), a random ω [rad/s], H = I·ω
+entries, products negative-∫ convention of :mod:`hconv.kernels.inertia`), a random ω [rad/s], H = I·ω
 [kg·m²/s] and a random offset r [m]. The known ω differs from the exact I⁻¹H of the stored,
 rounded H by about cond(I)·eps.
 

@@ -1,14 +1,14 @@
 """Scenes as they come: body states in any inertia form, frame and reference point, to ω.
 
-:func:`solve` takes the column sets that :meth:`hconv.layout.Layout.read` returns (SI units,
+:func:`solve` takes the column sets that :meth:`hconv.tables.layout.Layout.read` returns (SI units,
 component-major ``(k, N)`` arrays) and the :class:`Conventions` of the scene. It
 
 1. negates the products of inertia if they were given as positive integrals (``products``);
 2. re-expresses H (and r, v) in the body frame when an orientation q is given and H is in the
-   world frame (``frame``); with q, the tensor is in the body frame (see :mod:`hconv.layout`);
+   world frame (``frame``); with q, the tensor is in the body frame (see :mod:`hconv.tables.layout`);
 3. moves the reference point (``about``): ``pivot`` shifts I from the centre of mass to the pivot;
-   ``free`` takes the centre of mass's orbital momentum out of H (see :mod:`hconv.frames`);
-4. solves with :func:`hconv.core.convert` on the cheapest form the inertia allows: a scalar or
+   ``free`` takes the centre of mass's orbital momentum out of H (see :mod:`hconv.kernels.frames`);
+4. solves with :func:`hconv.solve.convert.convert` on the cheapest form the inertia allows: a scalar or
    principal moments go straight to the division ``H_i / I_i``; a tensor is built only for a
    pivot shift, and otherwise the six or nine numbers go to the chosen method;
 5. re-expresses ω (and a dropped axis) in ``omega_frame`` (default: the frame of H);
@@ -25,8 +25,12 @@ from typing import Optional
 
 import numpy as np
 
-from hconv import core, frames, methods, status, units
-from hconv.inertia import Sym3
+from hconv.solve import convert as core
+from hconv.kernels import frames
+from hconv.solve import methods
+from hconv.solve import status
+from hconv.solve import units
+from hconv.kernels.inertia import Sym3
 
 FRAMES = ("world", "body")
 ABOUT = ("same", "pivot", "free")

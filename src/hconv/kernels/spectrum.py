@@ -1,6 +1,6 @@
 """Principal moments of inertia tensors, fast and as accurate as the statuses and cond need.
 
-Shapes: tensors are :class:`hconv.inertia.Sym3` of ``(N,)`` columns [kg·m²]; results ``(3, N)``.
+Shapes: tensors are :class:`hconv.kernels.inertia.Sym3` of ``(N,)`` columns [kg·m²]; results ``(3, N)``.
 """
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import math
 
 import numpy as np
 
-from hconv.inertia import Sym3, max_abs
-from hconv.linsolve import ldlt_factor
+from hconv.kernels.inertia import Sym3, max_abs
+from hconv.kernels.linsolve import ldlt_factor
 
 
 def eigenvalues(I: Sym3) -> np.ndarray:

@@ -25,7 +25,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
-from hconv.arrow import H_COLUMNS, I_COLUMNS, Job
+from hconv.tables.arrow import H_COLUMNS, I_COLUMNS, Job
 from hconv.errors import InputError, OutputError, UsageError
 
 EXTENSIONS = {".csv": "csv", ".parquet": "parquet", ".pq": "parquet"}
@@ -58,7 +58,7 @@ class Input:
     batches: Iterator[pa.RecordBatch]
     total: Optional[int]  #: rows (Parquet) or bytes (CSV); None if unknown
     position: Callable[[], int]  #: rows or bytes read so far
-    plan: object = None  #: the input's column sets (hconv.layout.Layout)
+    plan: object = None  #: the input's column sets (hconv.tables.layout.Layout)
     _closers: list = field(default_factory=list)
 
     def close(self) -> None:
@@ -74,7 +74,7 @@ class Input:
 
 
 def open_input(path: str, fmt: str, job) -> Input:
-    """Open ``path`` ("-" for stdin) as ``fmt`` for ``job`` (an :class:`hconv.arrow.Job`, or a
+    """Open ``path`` ("-" for stdin) as ``fmt`` for ``job`` (an :class:`hconv.tables.arrow.Job`, or a
     method name); InputError with a fix if it can't be."""
     if isinstance(job, str):
         job = Job(job)
@@ -142,7 +142,7 @@ def _sniff_csv(path: str, name: str) -> None:
 
 def _header_hint(names: list) -> str:
     """Why a header may not have matched: spaces around names, or a first line that is no header."""
-    from hconv.layout import ALL_NAMES
+    from hconv.tables.layout import ALL_NAMES
 
     spaced = [n for n in names if n != n.strip() and n.strip() in ALL_NAMES]
     if spaced:

@@ -1,6 +1,6 @@
 """Solvers for ``I·ω = H`` on column arrays: unrolled LDLᵀ, LAPACK on stacks, and refinement.
 
-Shapes: tensors are :class:`hconv.inertia.Sym3` of ``(N,)`` columns; vectors are ``(3, N)``
+Shapes: tensors are :class:`hconv.kernels.inertia.Sym3` of ``(N,)`` columns; vectors are ``(3, N)``
 (one contiguous row per component: the kernels are elementwise over rows, and contiguous columns
 run about twice as fast as strided ones). Units pass straight through: with I in kg·m² and H in
 kg·m²/s, ω comes out in rad/s. Rows that cannot be solved come back as NaN; callers set statuses.
@@ -11,8 +11,8 @@ from typing import NamedTuple, Optional
 
 import numpy as np
 
-from hconv import eft
-from hconv.inertia import Sym3, max_abs, sum_sq
+from hconv.kernels import eft
+from hconv.kernels.inertia import Sym3, max_abs, sum_sq
 
 
 class LDLt(NamedTuple):
@@ -112,7 +112,7 @@ class SplitSym(NamedTuple):
 
 
 def split_sym(I: Sym3) -> SplitSym:
-    """:func:`hconv.eft.split` of each column, written in place into one ``(2, 6, N)`` buffer."""
+    """:func:`hconv.kernels.eft.split` of each column, written in place into one ``(2, 6, N)`` buffer."""
     halves = np.empty((2, 6) + I.xx.shape, dtype=I.xx.dtype)
     hi, lo = halves
     sp = I.xx.dtype.type(eft._splitter(I.xx.dtype))
@@ -135,7 +135,7 @@ def residual_dd(A: SplitSym, h: np.ndarray, x: np.ndarray) -> np.ndarray:
     Oishi's Dot2). With x close to the solution the residual is tiny next to h and A·x, which is
     exactly the cancellation this survives.
 
-    The arithmetic is :func:`hconv.eft.two_prod_split` and :func:`hconv.eft.two_diff` written
+    The arithmetic is :func:`hconv.kernels.eft.two_prod_split` and :func:`hconv.kernels.eft.two_diff` written
     out over a fixed set of scratch rows (every intermediate lands in one of them): the same
     operations in the same order, so the same bits, ~30 % faster than with a fresh array per
     operation (measured, 16384 rows).
@@ -185,7 +185,7 @@ def pow2_scales(I: Sym3) -> np.ndarray:
     """Powers of two ``s`` of shape ``(3, N)``, in I's dtype, with ``s_i² · |I_ii| ≈ 1``.
 
     Scaling ``S·I·S`` by powers of two is exact, so it changes no rounding; it only keeps every
-    intermediate (determinants, the Dekker splits of :mod:`hconv.eft`) far from overflow and
+    intermediate (determinants, the Dekker splits of :mod:`hconv.kernels.eft`) far from overflow and
     underflow. A zero diagonal entry borrows the row's largest entry.
     """
     diag = np.abs(np.stack([I.xx, I.yy, I.zz]))
