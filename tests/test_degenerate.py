@@ -7,8 +7,8 @@ import pytest
 
 import hconv
 from conftest import rel_err
-from hconv.tables.arrow import Job
-from hconv.solve.bodies import Conventions
+from hconv.solve.options import Conventions
+from hconv.tables.job import Job
 from test_forms import axis_angle, rodrigues, vec, w_of
 
 SIX = ["Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz"]

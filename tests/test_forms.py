@@ -11,9 +11,9 @@ import pytest
 
 import hconv
 from conftest import mp_solve, physical_bodies, rel_err, six
-from hconv.tables.arrow import Job
-from hconv.solve.bodies import Conventions
 from hconv.errors import InputError, UsageError
+from hconv.solve.options import Conventions
+from hconv.tables.job import Job
 
 
 def axis_angle(rng, n):

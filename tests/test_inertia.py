@@ -7,8 +7,8 @@ import pytest
 from conftest import physical_bodies, six, slender_bodies, spd_bodies
 from hconv.kernels.inertia import Sym3
 from hconv.kernels.spectrum import eigenvalues
-from hconv.tools.scene import cylinder_moments, random_rotations, rotate_tensors
 from hconv.solve.status import TRIANGLE_RTOL
+from hconv.tools.scene import cylinder_moments, random_rotations, rotate_tensors
 
 
 def _sym(M):

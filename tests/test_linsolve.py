@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 
 from conftest import EPS, mp_solve, rel_err
-from hconv.kernels import eft
-from hconv.kernels import linsolve
+from hconv.kernels import eft, linsolve
 from hconv.kernels.inertia import Sym3
 from hconv.tools.scene import random_rotations, rotate_tensors
 

@@ -8,9 +8,9 @@ import pytest
 
 import hconv
 from conftest import mp_solve, physical_bodies, rel_err, six
-from hconv.tables.arrow import Job
-from hconv.solve.bodies import Conventions
 from hconv.errors import InputError
+from hconv.solve.options import Conventions
+from hconv.tables.job import Job
 from test_forms import axis_angle, quats, rodrigues, vec, w_of
 
 PIVOT = Job(conventions=Conventions(about="pivot"))

@@ -10,9 +10,9 @@ import pytest
 
 import hconv
 from conftest import mp_solve, physical_bodies, rel_err, run_hconv, six
-from hconv.solve import units
-from hconv.tables.arrow import Job
 from hconv.errors import UsageError
+from hconv.solve import units
+from hconv.tables.job import Job
 from test_forms import vec, w_of
 
 SIX = ["Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz"]
@@ -81,7 +81,7 @@ def test_status_unit_suspect_catches_gram_centimetre_slip():
     # "too dense" rows are certain; about the centre of mass every slip is caught.
     assert got == ["ok", "ok", "unit_suspect", "unit_suspect"]
     t2 = t.append_column("rx", pa.array([0.0] * 4)).append_column("ry", pa.array([0.0] * 4)).append_column("rz", pa.array([0.0] * 4))
-    from hconv.solve.bodies import Conventions
+    from hconv.solve.options import Conventions
 
     got = hconv.convert_table(t2, job=Job(conventions=Conventions(about="pivot"))).column("status").to_pylist()
     assert got == ["ok", "unit_suspect", "unit_suspect", "unit_suspect"]

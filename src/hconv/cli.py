@@ -16,9 +16,11 @@ from typing import List, Optional
 
 import typer
 
-from hconv.kernels import allocator
 from hconv.errors import HconvError, UsageError
+from hconv.kernels import allocator
+from hconv.solve import forms, options
 from hconv.solve.methods import METHODS
+from hconv.tables.formats import FORMATS
 
 app = typer.Typer(
     add_completion=False,
@@ -27,13 +29,20 @@ app = typer.Typer(
     help="Angular momentum H (kg·m²/s) to angular velocity ω (rad/s), with the residual against I⁻¹H for every row.",
 )
 
-MethodName = Enum("MethodName", {name: name for name in METHODS}, type=str)
-Fmt = Enum("Fmt", {"csv": "csv", "parquet": "parquet"}, type=str)
-Frame = Enum("Frame", {"world": "world", "body": "body"}, type=str)
-About = Enum("About", {"same": "same", "pivot": "pivot", "free": "free"}, type=str)
-Products = Enum("Products", {"tensor": "tensor", "positive": "positive"}, type=str)
-Degenerate = Enum("Degenerate", {"error": "error", "pinv": "pinv", "lock": "lock"}, type=str)
-QuatOrder = Enum("QuatOrder", {"wxyz": "wxyz", "xyzw": "xyzw"}, type=str)
+
+
+def _choices(name: str, values) -> type:
+    """A typer choice type whose values are the library's own tuple."""
+    return Enum(name, {str(v): str(v) for v in values}, type=str)
+
+
+MethodName = _choices("MethodName", METHODS)
+Fmt = _choices("Fmt", FORMATS)
+Frame = _choices("Frame", options.FRAMES)
+About = _choices("About", options.ABOUT)
+Products = _choices("Products", options.PRODUCTS)
+Degenerate = _choices("Degenerate", options.DEGENERATE_MODES)
+QuatOrder = _choices("QuatOrder", options.QUAT_ORDERS)
 
 # Options shared by every command that reads scenes (convert, diagnose, compare, one).
 FRAME_OPT = typer.Option("world", "--frame", help="the frame of H (and r, v): world, or body (the frame of q's body)")
@@ -103,12 +112,6 @@ def _json_number(x: float):
     return x if math.isfinite(x) else None
 
 
-def _precision(value: int) -> int:
-    if value not in (64, 32):
-        raise typer.BadParameter("must be 64 or 32")
-    return value
-
-
 def _pairs(option: str, items: Optional[List[str]]) -> tuple:
     """``NAME=VALUE`` items (repeatable, each possibly comma-separated) as a tuple of pairs."""
     pairs = []
@@ -121,26 +124,27 @@ def _pairs(option: str, items: Optional[List[str]]) -> tuple:
     return tuple(pairs)
 
 
-def _conventions(frame, omega_frame, about, products, degenerate, degenerate_rtol):
-    from hconv.solve.bodies import Conventions
+def _conventions(frame, omega_frame, about, products, degenerate, degenerate_rtol) -> options.Conventions:
+    return options.Conventions(frame.value, omega_frame and omega_frame.value, about.value, products.value,
+                               degenerate.value, degenerate_rtol)
 
-    if degenerate_rtol is not None and not 0 <= degenerate_rtol < 1:
-        raise UsageError(f"--degenerate-rtol must be at least 0 and below 1, got {degenerate_rtol}")
-    return Conventions(frame.value, omega_frame and omega_frame.value, about.value, products.value,
-                       degenerate.value, degenerate_rtol)
+
+#: The sets ``hconv one`` takes, each with what its option holds.
+ONE_VALUES = {"H": "Hx,Hy,Hz", "I": "I", "r": "rx,ry,rz", "m": "MASS", "v": "vx,vy,vz", "q": "qw,qx,qy,qz"}
+ONE_UNIT_SETS = ("H", "I", "r", "m", "v")
 
 
 @app.command()
 @friendly
 def one(
     H: str = typer.Option(..., "--H", help="Hx,Hy,Hz (kg·m²/s)"),
-    I: str = typer.Option(..., "--I", help="1 (isotropic), 3 (principal), 6 (Ixx,Iyy,Izz,Ixy,Ixz,Iyz) or 9 (row-major) values (kg·m²)"),
+    I: str = typer.Option(..., "--I", help=f"{forms.counts_text()} values (kg·m²)"),
     r: Optional[str] = typer.Option(None, "--r", help="rx,ry,rz (m): the document methods' offset; for --about, the centre of mass relative to the point of H"),
     q: Optional[str] = typer.Option(None, "--q", help="qw,qx,qy,qz: the body's orientation (body → world)"),
     mass: Optional[float] = typer.Option(None, "--m", help="mass (kg), for --about pivot|free and the unit check"),
     v: Optional[str] = typer.Option(None, "--v", help="vx,vy,vz (m/s): velocity of the centre of mass, for --about free"),
     method: MethodName = typer.Option("exact", "--method", "-m", help="see `hconv methods`"),
-    precision: int = typer.Option(64, "--precision", callback=_precision, help="64 or 32"),
+    precision: int = typer.Option(64, "--precision", help="64 or 32"),
     frame: Frame = FRAME_OPT,
     omega_frame: Optional[Frame] = OMEGA_FRAME_OPT,
     about: About = ABOUT_OPT,
@@ -154,46 +158,37 @@ def one(
     """Convert one body state and print ω with its unit, the residual, cond and the status."""
     import numpy as np
 
-    from hconv.solve import bodies
-    from hconv.solve import methods
-    from hconv.solve import units
+    from hconv.solve import bodies, methods
+    from hconv.tables.job import Job
 
-    conv = _conventions(frame, omega_frame, about, products, degenerate, degenerate_rtol)
-    i = _numbers("--I", I, (1, 3, 6, 9))
-    form = {1: "scalar", 3: "principal", 6: "sym6", 9: "full9"}[len(i)]
+    job = Job(method.value, precision, True, _conventions(frame, omega_frame, about, products, degenerate, degenerate_rtol),
+              unit_options=_pairs("--unit", unit), omega_unit=omega_unit)
+    i = _numbers("--I", I, tuple(sorted({f.count for f in forms.FORMS.values()})))
+    form = forms.by_count(len(i))
     sets = {"H": _numbers("--H", H, (3,)), "I": i}
     for name, text, k in (("r", r, 3), ("q", q, 4), ("v", v, 3)):
         if text is not None:
             sets[name] = _numbers(f"--{name}", text, (k,))
     if mass is not None:
         sets["m"] = [mass]
-    given = dict(_pairs("--unit", unit))
-    for key, value in given.items():
-        if key not in ("H", "I", "r", "m", "v"):
-            raise UsageError(f"--unit {key}={value}: hconv one takes a unit per set: H, I, r, m or v")
+    for key, value in job.unit_options:
+        if key not in ONE_UNIT_SETS:
+            raise UsageError(f"--unit {key}={value}: hconv one takes a unit per set: {', '.join(ONE_UNIT_SETS)}")
     for name in list(sets):
-        f = units.factor(name, given[name], f"--unit {name}={given[name]}") if name in given else 1.0
-        sets[name] = np.asarray(sets[name], dtype=np.float64)[:, None] * f
-    m = methods.get(method.value)
-    if m.unit != methods.RAD_S and units.factor("w", omega_unit, "--omega-unit") != 1.0:
-        raise UsageError(f"--omega-unit {omega_unit}: method {m.name!r} gives {m.unit}, which cannot be converted")
-    missing = [k for k in conv.needs(m.name) if k not in sets]
+        sets[name] = np.asarray(sets[name], dtype=np.float64)[:, None] * job.set_factor(name)
+    need = job.needs()
+    missing = [k for k in need if k not in sets]
     if missing:
-        why = conv.needs(m.name)[missing[0]]
-        raise UsageError(f"{why}; pass --{missing[0]} " + {"r": "rx,ry,rz", "m": "MASS", "v": "vx,vy,vz", "q": "qw,qx,qy,qz"}[missing[0]])
-    try:
-        res = bodies.solve(sets, form, m.name, precision, conv)
-    except ValueError as exc:
-        raise UsageError(str(exc)) from None
-    unit_out = omega_unit if m.unit == methods.RAD_S else m.unit
-    scale = units.omega_factor(omega_unit) if m.unit == methods.RAD_S else 1.0
+        raise UsageError(f"{need[missing[0]]}; pass --{missing[0]} {ONE_VALUES[missing[0]]}")
+    res = bodies.solve(sets, form.name, job.method, job.precision, job.conventions)
+    unit_out, scale = job.unit, job.omega_scale
     w = [float(x) * scale for x in res.w[0]]
     residual, cond, state = float(res.residual[0]), float(res.cond[0]), str(res.status[0])
     axis = None if res.null_axis is None or not np.isfinite(res.null_axis[0]).all() else [float(x) for x in res.null_axis[0]]
     if as_json:
         clean = _json_number
         out = {"w": [clean(x) for x in w], "unit": unit_out, "residual": clean(residual),
-               "cond": clean(cond), "status": state, "method": m.name}
+               "cond": clean(cond), "status": state, "method": job.method}
         if res.null_dim is not None:
             out.update(null_axis=axis, null_dim=int(res.null_dim[0]))
         print(json.dumps(out))
@@ -202,7 +197,7 @@ def one(
     print(f"residual = {residual:.3g}  (|w - I⁻¹H| / |I⁻¹H|)")
     print(f"cond     = {cond:.3g}")
     print(f"status   = {state}")
-    print(f"method   = {m.name}")
+    print(f"method   = {job.method}")
     if res.null_dim is not None and res.null_dim[0]:
         print(f"dropped  = {int(res.null_dim[0])} axis" + (f" {axis}" if axis else "es"))
     if unit_out == methods.M2_S:
@@ -211,13 +206,11 @@ def one(
 
 def _job(method, precision, frame, omega_frame, about, products, degenerate, degenerate_rtol,
          mapping, unit, omega_unit, quat_order, diagnostics: bool = True):
-    from hconv.tables.arrow import Job
+    from hconv.tables.job import Job
 
     conv = _conventions(frame, omega_frame, about, products, degenerate, degenerate_rtol)
-    job = Job(method.value, precision, diagnostics, conv, _pairs("--map", mapping), _pairs("--unit", unit),
-              quat_order.value, omega_unit)
-    job.check()
-    return job
+    return Job(method.value, precision, diagnostics, conv, _pairs("--map", mapping), _pairs("--unit", unit),
+               quat_order.value, omega_unit)
 
 
 @app.command("convert")
@@ -226,7 +219,7 @@ def convert_cmd(
     src: str = typer.Argument(..., metavar="IN", help="input .csv or .parquet, or - for stdin"),
     dst: str = typer.Argument(..., metavar="OUT", help="output .csv or .parquet, or - for stdout"),
     method: MethodName = typer.Option("exact", "--method", "-m", help="see `hconv methods`"),
-    precision: int = typer.Option(64, "--precision", callback=_precision, help="64 or 32: the dtype the method computes in"),
+    precision: int = typer.Option(64, "--precision", help="64 or 32: the dtype the method computes in"),
     from_: Optional[Fmt] = typer.Option(None, "--from", help="input format; needed when IN is -"),
     to: Optional[Fmt] = typer.Option(None, "--to", help="output format; needed when OUT is -"),
     force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
@@ -275,10 +268,10 @@ def diagnose_cmd(
 ) -> None:
     """Find which convention explains the ω your engine produced (columns wx_obs, wy_obs, wz_obs)."""
     from hconv.tools import diagnose
-    from hconv.tables.arrow import Job
+    from hconv.tables.job import Job
 
-    job = Job(mapping=_pairs("--map", mapping), unit_options=_pairs("--unit", unit), quat_order=quat_order.value)
-    job.check()
+    job = Job(mapping=_pairs("--map", mapping), unit_options=_pairs("--unit", unit), quat_order=quat_order.value,
+              observed=True)
     d = diagnose.diagnose_file(src, src_format=from_ and from_.value, tol=tol, job=job)
     if as_json:
         clean = _json_number

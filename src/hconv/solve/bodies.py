@@ -20,163 +20,90 @@ not include the (few-ulp) rounding of the rotations.
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
-from typing import Optional
 
 import numpy as np
 
-from hconv.solve import convert as core
+from hconv.errors import UsageError
 from hconv.kernels import frames
-from hconv.solve import methods
-from hconv.solve import status
-from hconv.solve import units
 from hconv.kernels.inertia import Sym3
+from hconv.solve import convert as core
+from hconv.solve import forms, status, units
+from hconv.solve.options import Conventions
 
-FRAMES = ("world", "body")
-ABOUT = ("same", "pivot", "free")
-PRODUCTS = ("tensor", "positive")
 #: Rounding a vector through a rotation costs about this many cond(I)·eps in ω.
 ROTATION_K = 2.0
-#: Row-major positions of the off-diagonal entries of a 9-number tensor.
-_OFF9 = (1, 2, 3, 5, 6, 7)
 
 
-@dataclass(frozen=True)
-class Conventions:
-    """How the scene stores its bodies. Defaults: hconv's own conventions (see the README)."""
-
-    frame: str = "world"  #: the frame of H, r and v: world or body (body needs no q)
-    omega_frame: Optional[str] = None  #: the frame of ω; None: the frame of H
-    about: str = "same"  #: same (I and H about one point), pivot or free
-    products: str = "tensor"  #: tensor (Ixy = -∫xy dm) or positive (Pxy = +∫xy dm)
-    degenerate: str = "error"  #: error, pinv or lock
-    degenerate_rtol: Optional[float] = None  #: a moment <= this × trace counts as zero
-
-    def check(self, method: str) -> None:
-        """ValueError naming the option, for a choice that is not allowed or not usable."""
-        for opt, value, allowed in (("frame", self.frame, FRAMES), ("omega_frame", self.omega_frame or self.frame, FRAMES),
-                                    ("about", self.about, ABOUT), ("products", self.products, PRODUCTS),
-                                    ("degenerate", self.degenerate, core.DEGENERATE_MODES)):
-            if value not in allowed:
-                raise ValueError(f"{opt} must be one of {', '.join(allowed)}, got {value!r}")
-        if self.degenerate != "error" and not methods.get(method).exact:
-            raise ValueError(f"--degenerate {self.degenerate} applies to the exact methods, not to {method!r}")
-
-    def needs(self, method: str) -> dict:
-        """The column sets, besides H and I, that this run cannot do without, each with the reason."""
-        need = {}
-        if methods.get(method).needs_r:
-            need["r"] = f"method {method!r} needs the offset r"
-        if self.about == "pivot":
-            need.setdefault("r", "--about pivot needs r, the centre of mass relative to the pivot")
-            need["m"] = "--about pivot needs the mass m"
-        if self.about == "free":
-            need.setdefault("r", "--about free needs r, the centre of mass relative to the origin of H")
-            need["m"] = "--about free needs the mass m"
-            need["v"] = "--about free needs v, the velocity of the centre of mass"
-        if (self.omega_frame or self.frame) != self.frame:
-            need["q"] = "ω in another frame than H needs the orientation q"
-        return need
-
-
-def inertia_array(form: str, I: np.ndarray) -> np.ndarray:
-    """``I`` of shape ``(k, N)`` in ``form`` as core.convert takes it: ``(N, 3)`` diagonal moments
-    (scalar and principal), ``(N, 6)`` or ``(N, 3, 3)``. No copy where a view will do."""
-    if form == "scalar":
-        return np.repeat(I, 3, axis=0).T
-    if form in ("principal", "sym6"):
-        return I.T
-    if form == "full9":
-        return np.moveaxis(I.reshape(3, 3, -1), -1, 0)
-    raise ValueError(f"unknown inertia form {form!r}")
-
-
-def _flip_products(form: str, I: np.ndarray) -> np.ndarray:
-    if form == "sym6":
-        return np.concatenate([I[:3], -I[3:]])
-    if form == "full9":
-        I = I.copy()
-        I[list(_OFF9)] *= -1
-    return I  # scalar and principal forms have no products
-
-
-def _trace(form: str, I: np.ndarray) -> np.ndarray:
-    """|trace(I)| ``(N,)`` in any form: Σ|λ| for a positive semi-definite tensor, which is all the
-    unit check needs (rows that are not are flagged not_positive_definite, which takes precedence)."""
-    if form == "scalar":
-        return np.abs(3.0 * I[0])
-    if form == "principal":
-        return np.abs(I[0] + I[1] + I[2])
-    if form == "full9":
-        return np.abs(I[0] + I[4] + I[8])
-    return np.abs(I[0] + I[1] + I[2])
-
-
-def _pivot(form: str, I: np.ndarray, m: np.ndarray, r: np.ndarray) -> tuple[str, np.ndarray]:
-    """The inertia about the pivot, as sym6 (or full9, to keep an asymmetry visible)."""
-    n = I.shape[1]
+def _pivot_shift(form: forms.Form, I_C: np.ndarray, m: np.ndarray, r_B: np.ndarray) -> tuple[str, np.ndarray]:
+    """The inertia about the pivot P from the inertia about the centre of mass C (``form``'s
+    numbers ``(k, N)``), in the form :attr:`forms.Form.shifted` gives (six, or nine numbers)."""
+    n = I_C.shape[1]
     zero = np.zeros(n)
-    d = frames.shift_to_pivot(Sym3(zero, zero, zero, zero, zero, zero), m, r)
-    if form in ("scalar", "principal"):
-        diag = np.repeat(I, 3, axis=0) if form == "scalar" else I
-        return "sym6", np.stack([diag[0] + d.xx, diag[1] + d.yy, diag[2] + d.zz, d.xy, d.xz, d.yz])
-    if form == "sym6":
-        return "sym6", I + np.stack(list(d))
-    full = np.stack([d.xx, d.xy, d.xz, d.xy, d.yy, d.yz, d.xz, d.yz, d.zz])
-    return "full9", I + full
+    d = frames.shift_to_pivot(Sym3(zero, zero, zero, zero, zero, zero), m, r_B)
+    return form.shifted(I_C, d)
 
 
 def solve(sets: dict, form: str, method: str = "exact", precision: int = 64, conv: Conventions = Conventions(),
           diagnostics: bool = True) -> core.Result:
     """ω for every row of ``sets`` (see the module docstring); a stacked :class:`core.Result`.
 
-    ``sets``: ``H`` ``(3, N)`` [kg·m²/s], ``I`` ``(k, N)`` in ``form`` [kg·m²] and, where given,
-    ``q`` ``(4, N)`` (w, x, y, z), ``r`` ``(3, N)`` [m], ``m`` ``(1, N)`` [kg], ``v`` ``(3, N)`` [m/s].
+    ``sets``: ``H`` ``(3, N)`` [kg·m²/s], ``I`` ``(k, N)`` in ``form`` (a name in
+    :data:`hconv.solve.forms.FORMS`) [kg·m²] and, where given, ``q`` ``(4, N)`` (w, x, y, z),
+    ``r`` ``(3, N)`` [m], ``m`` ``(1, N)`` [kg], ``v`` ``(3, N)`` [m/s]; H, r and v in the frame
+    ``conv.frame``. Raises UsageError for a method or set that cannot be used.
     """
-    conv.check(method)
-    with np.errstate(all="ignore"):  # extreme rows get statuses, never warnings
-        return _solve(sets, form, method, precision, conv, diagnostics)
-
-
-def _solve(sets, form, method, precision, conv, diagnostics) -> core.Result:
-    H, I = sets["H"], sets["I"]
-    q, r, v = sets.get("q"), sets.get("r"), sets.get("v")
-    m = sets["m"][0] if "m" in sets else None
-    n = H.shape[1]
+    spec = forms.get(form)
     for name in conv.needs(method):
         if name not in sets:
-            raise ValueError(f"this conversion needs the set {name!r}")
+            raise UsageError(f"this conversion needs the set {name!r}")
+    with np.errstate(all="ignore"):  # extreme rows get statuses, never warnings
+        return _solve(sets, spec, method, precision, conv, diagnostics)
+
+
+def _solve(sets: dict, form: forms.Form, method, precision, conv: Conventions, diagnostics) -> core.Result:
+    # Names say what a quantity is about and the frame it is in: H_P_F is the momentum about P
+    # (the point of the given I), in F, the frame of the given H (world, or body when q is
+    # absent or --frame body); _B is the body frame; _C about the centre of mass.
+    H_P_F, I_given = sets["H"], sets["I"]
+    q, r_F, v_F = sets.get("q"), sets.get("r"), sets.get("v")
+    m = sets["m"][0] if "m" in sets else None
+    n = H_P_F.shape[1]
     bad = np.zeros(n, dtype=bool)  # rows with no usable orientation or mass
     if conv.products == "positive":
-        I = _flip_products(form, I)
-    R = None
+        I_given = form.flip_products(I_given)
+    R_WB = None
     if q is not None:
-        R, bad_q = frames.quaternion_matrix(q)
+        R_WB, bad_q = frames.quaternion_matrix(q)
         bad |= bad_q
-    rotate_in = R is not None and conv.frame == "world"
-    if rotate_in:
-        H = frames.to_body(R, H)
-        r = None if r is None else frames.to_body(R, r)
-        v = None if v is None else frames.to_body(R, v)
-    I_com, form_com = I, form
+    rotate_in = R_WB is not None and conv.frame == "world"
+    if rotate_in:  # with q, the tensor is in the body frame: bring H (and r, v) there
+        H_P_B = frames.to_body(R_WB, H_P_F)
+        r_B = None if r_F is None else frames.to_body(R_WB, r_F)
+        v_B = None if v_F is None else frames.to_body(R_WB, v_F)
+    else:
+        H_P_B, r_B, v_B = H_P_F, r_F, v_F
+    # the tensor and momentum that are solved: about one point, in one frame
+    solved_form, I_solved, H_solved = form, I_given, H_P_B
     if conv.about != "same":
         bad |= ~(np.isfinite(m) & (m >= 0))
-        if conv.about == "pivot":
-            form, I = _pivot(form, I, m, r)
-        else:
-            H = frames.momentum_about_com(H, m, r, v)
+        if conv.about == "pivot":  # I is about C, H about the pivot P: shift I to P
+            name, I_solved = _pivot_shift(form, I_given, m, r_B)
+            solved_form = forms.get(name)
+        else:  # H is about an origin P: take out the orbital term, leaving H about C
+            H_solved = frames.momentum_about_com(H_P_B, m, r_B, v_B)
     if bad.any():
-        H = np.where(bad, np.nan, H)  # status invalid_input, through core
-    res = core.convert(H.T, inertia_array(form, I), None if r is None else r.T, method=method, precision=precision,
-                       diagnostics=diagnostics, degenerate=conv.degenerate, degenerate_rtol=conv.degenerate_rtol,
-                       extra_k=ROTATION_K if rotate_in else 0.0)
-    w, axis, code = res.w, res.null_axis, res.status_code
-    if R is not None and (conv.omega_frame or conv.frame) == "world":
-        w = frames.to_world(R, w.T.astype(np.float64)).T.astype(w.dtype)
-        if axis is not None:
-            axis = frames.to_world(R, axis.T).T
+        H_solved = np.where(bad, np.nan, H_solved)  # status invalid_input, through core
+    res = core.convert(H_solved.T, solved_form.as_array(I_solved), None if r_B is None else r_B.T, method=method,
+                       precision=precision, diagnostics=diagnostics, degenerate=conv.degenerate,
+                       degenerate_rtol=conv.degenerate_rtol, extra_k=ROTATION_K if rotate_in else 0.0)
+    w_B, axis_B, code = res.w, res.null_axis, res.status_code
+    w_out, axis_out = w_B, axis_B
+    if R_WB is not None and conv.w_frame == "world":
+        w_out = frames.to_world(R_WB, w_B.T.astype(np.float64)).T.astype(w_B.dtype)
+        if axis_B is not None:
+            axis_out = frames.to_world(R_WB, axis_B.T).T
     if m is not None:
         # Without --about, I may be about a distant pivot: only "too dense" is certain then.
-        slip = units.implausible(_trace(form_com, I_com), m, both_sides=conv.about != "same")
+        slip = units.implausible(form.trace(I_given), m, both_sides=conv.about != "same")
         code = status.merge(code, slip, "unit_suspect")
-    return dataclasses.replace(res, w=w, null_axis=axis, status_code=code)
+    return dataclasses.replace(res, w=w_out, null_axis=axis_out, status_code=code)

@@ -24,15 +24,12 @@ from typing import Optional
 import numpy as np
 
 from hconv.kernels import linsolve
-from hconv.solve import methods
-from hconv.solve import status
 from hconv.kernels.inertia import Sym3, max_abs, sum_sq, sym_from_array
 from hconv.kernels.spectrum import eigenvalues
+from hconv.solve import methods, options, status
 
 #: Rows per kernel block: small enough that a block's temporaries stay in cache.
 BLOCK_ROWS = 16384
-DTYPES = {64: np.float64, 32: np.float32}
-DEGENERATE_MODES = ("error", "pinv", "lock")
 
 
 @dataclass(frozen=True)
@@ -88,14 +85,8 @@ def convert(H, I, r=None, *, method: str = "exact", precision: int = 64,
     caller that has already rounded H in a way that grows with cond (a frame rotation: 2).
     """
     m = methods.get(method)
-    if precision not in DTYPES:
-        raise ValueError(f"precision must be 64 or 32, got {precision!r}")
-    if degenerate not in DEGENERATE_MODES:
-        raise ValueError(f"degenerate must be one of {', '.join(DEGENERATE_MODES)}, got {degenerate!r}")
-    if degenerate != "error" and not m.exact:
-        raise ValueError(f"degenerate={degenerate!r} applies to the exact methods, not to {method!r}")
-    if degenerate_rtol is not None and not 0 <= degenerate_rtol < 1:
-        raise ValueError(f"degenerate_rtol must be in [0, 1), got {degenerate_rtol!r}")
+    options.check_precision(precision)
+    options.check_degenerate(degenerate, degenerate_rtol, method)
     H = _as_float("H", H)
     I = _as_float("I", I)
     single = H.ndim == 1
@@ -116,7 +107,7 @@ def convert(H, I, r=None, *, method: str = "exact", precision: int = 64,
     Isym, asym = sym_from_array(I)
     diagonal = I.ndim == 2 and I.shape[1] == 3
 
-    dtype = DTYPES[precision]
+    dtype = options.DTYPES[precision]
     w = np.empty((n, 3), dtype=dtype)
     cond = np.empty(n)
     code = np.empty(n, dtype=np.uint8)

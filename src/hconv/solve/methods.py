@@ -14,6 +14,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
+from hconv.errors import UsageError
 from hconv.kernels import linsolve
 from hconv.kernels.inertia import Sym3, principal_axes
 from hconv.solve.status import ILL_CONDITIONED_TOL, REPEATED_RTOL, R_AXIS_RTOL, singular_rtol
@@ -68,11 +69,11 @@ def register(name: str, *, unit: str, exact: bool, summary: str, cost: str, fail
 
 
 def get(name: str) -> Method:
-    """The method called ``name``; ValueError naming the choices otherwise."""
+    """The method called ``name``; UsageError (a ValueError) naming the choices otherwise."""
     try:
         return METHODS[name]
     except KeyError:
-        raise ValueError(f"unknown method {name!r}; choose one of: {', '.join(METHODS)}") from None
+        raise UsageError(f"unknown method {name!r}; choose one of: {', '.join(METHODS)}") from None
 
 
 @register(

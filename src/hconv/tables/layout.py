@@ -14,29 +14,27 @@ v          vx, vy, vz  [m/s]                                v: 3 values
 w_obs      wx_obs, wy_obs, wz_obs  [rad/s]                  w_obs: 3 values
 =========  ===============================================  ==================================
 
-The inertia forms, cheapest first:
-
-* ``scalar``: one number ``I`` per row, for spheres and other isotropic bodies;
-* ``principal``: ``I1, I2, I3`` (or a 3-value list ``I``), the principal moments; with q, in the
-  body frame whose axes are the principal axes;
-* ``sym6``: ``Ixx, Iyy, Izz, Ixy, Ixz, Iyz`` (or a 6-value list in that order);
-* ``full9``: ``sym6`` plus ``Iyx, Izx, Izy`` (or a 9-value list, row-major).
-
-A file uses one form, chosen by its columns, for every row; two forms at once (``I1`` and
+The inertia forms and their columns are :mod:`hconv.solve.forms`' registry. A file uses one form, chosen by its columns, for every row; two forms at once (``I1`` and
 ``Ixx``, say) is an error, as is a set with some of its columns missing. With q present the tensor
 is taken to be in the body frame (as engines store it); without q, in the frame of H.
+
+Planning is a pure function of the input's schema and the :class:`~hconv.tables.job.Job`
+(:func:`plan`); the :class:`Layout` it returns is immutable, so batches may be read on several
+threads at once. The one thing a schema cannot tell, the length of a variable-length list column,
+is fixed by :meth:`Layout.resolve` from the first batch, before any batch is converted.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
 from typing import Optional
 
 import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 
-from hconv.solve import units
 from hconv.errors import InputError, UsageError
+from hconv.solve import forms, units
+from hconv.tables.job import Job
 
 VECTOR_SETS = {
     "H": ("Hx", "Hy", "Hz"),
@@ -46,33 +44,19 @@ VECTOR_SETS = {
     "v": ("vx", "vy", "vz"),
     "w_obs": ("wx_obs", "wy_obs", "wz_obs"),
 }
-SIX = ("Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz")
-FORMS = {
-    "scalar": ("I",),
-    "principal": ("I1", "I2", "I3"),
-    "sym6": SIX,
-    "full9": SIX + ("Iyx", "Izx", "Izy"),
-}
-LIST_FORMS = {3: "principal", 6: "sym6", 9: "full9"}
-#: From the named nine (the six, then Iyx, Izx, Izy) to row-major order.
-_NAMED9_TO_ROW_MAJOR = (0, 3, 4, 6, 1, 5, 7, 8, 2)
 #: The unit quantity (a key of units.SI) of each set.
 QUANTITY = {"H": "H", "I": "I", "q": "q", "r": "r", "m": "m", "v": "v", "w_obs": "w"}
-QUAT_ORDERS = ("wxyz", "xyzw")
 #: Sets read whenever present (they change the answer or its status); v and w_obs only when needed.
 OPTIONAL_SETS = ("q", "r", "m")
-ALL_NAMES = tuple(sorted({n for names in VECTOR_SETS.values() for n in names} | set(FORMS["full9"])
-                         | set(FORMS["principal"]) | set(QUANTITY), key=str.lower))
+#: Every name --map takes: the sets' columns, every inertia form's, and the list columns' sets.
+ALL_NAMES = tuple(sorted({n for names in VECTOR_SETS.values() for n in names} | set(forms.column_names())
+                         | set(QUANTITY), key=str.lower))
 
-
-@dataclass(frozen=True)
-class Spec:
-    """What the run asks of its input: the sets it needs and how to find and read them."""
-
-    need: tuple = ()  #: (set, reason) pairs: sets needed besides H and I, e.g. ("r", "method ... needs r")
-    mapping: tuple = ()  #: (hconv name, column) pairs from --map
-    unit_options: tuple = ()  #: (key, unit) pairs from --unit; key: a set, an hconv name or a column
-    quat_order: str = "wxyz"  #: order of a 4-value list column q
+#: The columns hconv writes after the input's.
+W_COLUMNS = ("wx", "wy", "wz")
+NULL_COLUMNS = ("null_x", "null_y", "null_z", "null_dim")
+OUTPUT_COLUMNS = W_COLUMNS + ("residual", "cond", "status")
+RESERVED = OUTPUT_COLUMNS + NULL_COLUMNS
 
 
 @dataclass(frozen=True)
@@ -87,78 +71,112 @@ class Group:
     factors: tuple = ()  #: to SI, one per value
 
 
-@dataclass
+@dataclass(frozen=True)
 class Layout:
-    """The input's sets and the inertia form; ``read`` turns a batch into SI arrays."""
+    """The input's sets and the inertia form; :meth:`read` turns a batch into SI arrays.
+
+    ``form`` is a name in :data:`hconv.solve.forms.FORMS`, or None for a list column ``I`` whose
+    length no row has shown yet.
+    """
 
     groups: dict
-    form: str
+    form: Optional[str]
     source: str
     quat_order: str = "wxyz"
-    _sizes: dict = field(default_factory=dict)
 
     @property
     def numeric(self) -> tuple:
         """The input columns hconv reads as numbers."""
         return tuple(c for g in self.groups.values() for c in g.columns)
 
-    def read(self, data: pa.Table) -> dict:
-        """The sets of ``data`` as float64 arrays of shape ``(k, N)`` in SI units (NaN for nulls).
+    def resolve(self, data: pa.Table) -> "Layout":
+        """This layout with the length of every variable-length list column fixed from ``data``
+        (rows that are null say nothing), so that every later batch is held to it."""
+        groups = dict(self.groups)
+        form = self.form
+        for name, g in self.groups.items():
+            if g.is_list and g.size is None and data.num_rows:
+                k = _list_size(data.column(g.columns[0]).combine_chunks(), g, self.source)
+                if k is not None:
+                    groups[name] = replace(g, size=k)
+                    if name == "I":
+                        form = _list_form(k, g, self.source).name
+        return replace(self, groups=groups, form=form)
 
-        The inertia comes back as ``(1, N)``, ``(3, N)``, ``(6, N)`` or ``(9, N)`` (row-major) for
-        its form; q always in (w, x, y, z) order. Raises InputError for list columns of the wrong length.
+    def read(self, data: pa.Table) -> tuple[dict, str]:
+        """The sets of ``data`` as float64 arrays of shape ``(k, N)`` in SI units (NaN for nulls),
+        and the inertia form's name.
+
+        The inertia comes back in its form's value order (:mod:`hconv.solve.forms`); q always
+        in (w, x, y, z) order. Raises InputError for list columns of the wrong length.
         """
+        layout = self.resolve(data) if any(g.is_list and g.size is None for g in self.groups.values()) else self
+        # A list column still without a length is null in every row seen: its rows are
+        # invalid_input whatever the length, so read them at the set's usual length.
+        form = forms.get(layout.form) if layout.form else next(f for f in forms.FORMS.values() if f.list_size)
         out = {}
         n = data.num_rows
-        for g in self.groups.values():
+        for g in layout.groups.values():
             if g.is_list:
-                a = self._list_values(data, g)
+                if g.size is None:
+                    g = replace(g, size=form.list_size if g.name == "I" else len(VECTOR_SETS[g.name]))
+                a = _list_values(data.column(g.columns[0]).combine_chunks() if n else None, g, n, self.source)
             else:
                 a = np.empty((len(g.columns), n))
                 for k, c in enumerate(g.columns):
                     a[k] = _floats(data.column(c))
+                if g.name == "I":
+                    a = form.values(a)
             if g.factors and any(f != 1.0 for f in g.factors):
                 a = a * np.asarray(g.factors)[:, None] if len(g.factors) == a.shape[0] else a * g.factors[0]
-            if g.name == "I" and self.form == "full9" and not g.is_list:
-                a = a[list(_NAMED9_TO_ROW_MAJOR)]
             if g.name == "q" and g.is_list and self.quat_order == "xyzw":
                 a = a[[3, 0, 1, 2]]
             out[g.name] = a
-        return out
+        return out, form.name
 
-    def _list_values(self, data: pa.Table, g: Group) -> np.ndarray:
-        col = data.column(g.columns[0]).combine_chunks() if data.num_rows else None
-        n = data.num_rows
-        size = g.size or self._sizes.get(g.name)
-        if col is None:
-            return np.empty((size or (3 if g.name != "q" else 4), 0))
-        if pa.types.is_fixed_size_list(col.type):
-            k = col.type.list_size
-        else:
-            lengths = pc.fill_null(pc.list_value_length(col), -1).to_numpy(zero_copy_only=False)
-            given = lengths[lengths >= 0]
-            k = size if size is not None else (int(given[0]) if given.size else None)
-            bad = np.flatnonzero((lengths >= 0) & (lengths != k)) if k is not None else np.array([], int)
-            if bad.size:
-                raise InputError(f"{self.source}: list column {g.columns[0]!r} holds {lengths[bad[0]]} values in "
-                                 f"one row but {k} in others; every row must hold the same number")
-            if k is None:
-                return np.full((size or 3, n), np.nan)
-        if size is not None and k != size:
-            raise InputError(f"{self.source}: list column {g.columns[0]!r} must hold {size} values per row, "
-                             f"but holds {k}")
-        if g.name == "I" and self.form == "list":
-            self.form = LIST_FORMS.get(k, "")
-            if not self.form:
-                raise InputError(f"{self.source}: list column {g.columns[0]!r} holds {k} values per row; "
-                                 "an inertia list holds 3 (principal), 6 (Ixx,Iyy,Izz,Ixy,Ixz,Iyz) or 9 (row-major)")
-        self._sizes[g.name] = k
-        values = np.full((n, k), np.nan)
-        valid = col.is_valid().to_numpy(zero_copy_only=False)
-        if valid.any():
-            flat = col.filter(pa.array(valid)).flatten() if not valid.all() else col.flatten()
-            values[valid] = _floats(flat).reshape(-1, k)
-        return values.T
+
+def _list_size(col, g: Group, source: str) -> Optional[int]:
+    """Values per row of list column ``col`` (all rows must agree; null rows are skipped), or
+    None when every row is null."""
+    if pa.types.is_fixed_size_list(col.type):
+        return col.type.list_size
+    lengths = pc.fill_null(pc.list_value_length(col), -1).to_numpy(zero_copy_only=False)
+    given = lengths[lengths >= 0]
+    if not given.size:
+        return None
+    k = g.size if g.size is not None else int(given[0])
+    bad = np.flatnonzero(given != k)
+    if bad.size:
+        raise InputError(f"{source}: list column {g.columns[0]!r} holds {given[bad[0]]} values in "
+                         f"one row but {k} in others; every row must hold the same number")
+    return k
+
+
+def _list_form(k: int, g: Group, source: str) -> forms.Form:
+    form = forms.by_list_size(k)
+    if form is None:
+        raise InputError(f"{source}: list column {g.columns[0]!r} holds {k} values per row; "
+                         f"an inertia list holds {forms.list_sizes_text()}")
+    return form
+
+
+def _list_values(col, g: Group, n: int, source: str) -> np.ndarray:
+    """The list column's values ``(k, n)``, NaN for null rows; held to the group's size (set)."""
+    size = g.size
+    if col is None:
+        return np.empty((size, 0))
+    k = _list_size(col, g, source)
+    if k is None:
+        return np.full((size, n), np.nan)
+    if size is not None and k != size:
+        raise InputError(f"{source}: list column {g.columns[0]!r} must hold {size} values per row, "
+                         f"but holds {k}")
+    values = np.full((n, k), np.nan)
+    valid = col.is_valid().to_numpy(zero_copy_only=False)
+    if valid.any():
+        flat = col.filter(pa.array(valid)).flatten() if not valid.all() else col.flatten()
+        values[valid] = _floats(flat).reshape(-1, k)
+    return values.T
 
 
 def _floats(col) -> np.ndarray:
@@ -180,10 +198,10 @@ def _plural(items) -> str:
     return "s" if len(items) > 1 else ""
 
 
-def plan(schema: pa.Schema, spec: Spec, source: str = "input", *, reserved: tuple = ()) -> Layout:
-    """Find the column sets of ``spec`` in ``schema``; InputError or UsageError naming the fix.
+def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
+    """Find the column sets ``job`` needs in ``schema``; InputError or UsageError naming the fix.
 
-    ``reserved``: output column names that the input must not already have.
+    A pure function: it reads ``schema`` and ``job`` and returns a new :class:`Layout`.
     """
     names = list(schema.names)
     dupes = sorted({c for c in names if names.count(c) > 1})
@@ -191,13 +209,13 @@ def plan(schema: pa.Schema, spec: Spec, source: str = "input", *, reserved: tupl
         raise InputError(f"{source}: column name{_plural(dupes)} {', '.join(map(repr, dupes))} appear"
                          f"{'' if len(dupes) > 1 else 's'} more than once; rename the copies")
     present = set(names)
-    mapping = _mapping(spec.mapping, present, source)
+    mapping = _mapping(job.mapping, present, source)
     src = lambda n: mapping.get(n, n)  # noqa: E731 - the input's column for an hconv name
     used_elsewhere = set(mapping.values())
     has = lambda n: src(n) in present and (n in mapping or n not in used_elsewhere)  # noqa: E731
 
     groups = {}
-    need = dict(spec.need)
+    need = job.needs()
     for name in VECTOR_SETS:
         if name in OPTIONAL_SETS or name == "H" or name in need:
             why = "H is required" if name == "H" else need.get(name)
@@ -205,10 +223,8 @@ def plan(schema: pa.Schema, spec: Spec, source: str = "input", *, reserved: tupl
             if g is not None:
                 groups[name] = g
     form, groups["I"] = _inertia_group(schema, has, src, source)
-    if spec.quat_order not in QUAT_ORDERS:
-        raise UsageError(f"--quat-order must be wxyz or xyzw, got {spec.quat_order!r}")
 
-    clash = [c for c in reserved if c in present]
+    clash = [] if job.observed else [c for c in RESERVED if c in present]
     if clash:
         raise InputError(f"{source}: already has output column{_plural(clash)} {', '.join(clash)}; "
                          "rename or drop them (is this hconv's own output?)")
@@ -221,9 +237,9 @@ def plan(schema: pa.Schema, spec: Spec, source: str = "input", *, reserved: tupl
             elif not _is_numeric(t):
                 raise InputError(f"{source}: column {c!r} has type {t}, but must be numeric; "
                                  "store it as a number (float64)")
-    groups = {k: _with_units(g, schema, spec.unit_options, mapping) for k, g in groups.items()}
-    _check_unit_keys(spec.unit_options, groups, present)
-    return Layout(groups, form, source, spec.quat_order)
+    groups = {k: _with_units(g, schema, job.unit_options, mapping) for k, g in groups.items()}
+    _check_unit_keys(job.unit_options, groups, present)
+    return Layout(groups, form, source, job.quat_order)
 
 
 def _mapping(pairs, present: set, source: str) -> dict:
@@ -276,43 +292,44 @@ def _vector_group(name: str, schema, has, src, source: str, why: Optional[str]) 
     return None
 
 
-def _inertia_group(schema, has, src, source: str) -> tuple[str, Group]:
+def _inertia_group(schema, has, src, source: str) -> tuple[Optional[str], Group]:
+    """The one inertia form the schema holds, asking :mod:`hconv.solve.forms`' registry."""
     found = {}
-    for form, cols in FORMS.items():
-        got = [c for c in cols if has(c)]
-        if form == "full9":
-            got = [c for c in got if c not in SIX]
-        if form == "scalar" and got and _is_list(schema.field(src("I")).type):
-            found["list"] = got
-        elif got:
-            found[form] = got
-    if "full9" in found and "sym6" not in found:
-        raise InputError(f"{source}: has {', '.join(found['full9'])} but not {', '.join(SIX)}; the 9-number form "
-                         "is the six plus Iyx, Izx, Izy")
-    if "full9" in found:
-        del found["sym6"]
+    list_column = has("I") and _is_list(schema.field(src("I")).type)
+    if list_column:
+        found["list"] = ["I"]
+    for form in forms.FORMS.values():
+        parent = forms.get(form.extends).columns if form.extends else ()
+        got = [c for c in form.columns if has(c) and c not in parent and not (list_column and c == "I")]
+        if got:
+            found[form.name] = got
+    for form in forms.FORMS.values():  # a form that extends another replaces it
+        if form.extends and form.name in found:
+            parent = forms.get(form.extends)
+            if parent.name not in found:
+                raise InputError(f"{source}: has {', '.join(found[form.name])} but not {', '.join(parent.columns)}; "
+                                 f"the {form.count}-number form is the {parent.count} plus "
+                                 f"{', '.join(c for c in form.columns if c not in parent.columns)}")
+            del found[parent.name]
     if len(found) > 1:
         desc = "; ".join(f"{form}: {', '.join(src(c) for c in cols)}" for form, cols in found.items())
         raise InputError(f"{source}: the inertia is given in more than one form ({desc}); keep one form, "
                          "or point --map at the columns to use")
     if not found:
-        raise InputError(f"{source}: missing the inertia; give I (isotropic), I1, I2, I3 (principal), "
-                         f"{', '.join(SIX)} (tensor), these plus Iyx, Izx, Izy, or a list column I")
-    (form, got), = found.items()
-    if form == "list":
+        raise InputError(f"{source}: missing the inertia; give {forms.forms_text()}, or a list column I")
+    (name, got), = found.items()
+    if name == "list":
         t = schema.field(src("I")).type
         size = t.list_size if pa.types.is_fixed_size_list(t) else None
-        if size is not None and size not in LIST_FORMS:
-            raise InputError(f"{source}: list column {src('I')!r} holds {size} values per row; an inertia "
-                             "list holds 3 (principal), 6 (Ixx,Iyy,Izz,Ixy,Ixz,Iyz) or 9 (row-major)")
-        return (LIST_FORMS[size] if size else "list"), Group("I", (src("I"),), True, size)
-    cols = FORMS[form]
-    if len(got) < len(cols) - (len(SIX) if form == "full9" else 0):
-        need = cols[len(SIX):] if form == "full9" else cols
-        lack = [c for c in need if c not in got]
-        raise InputError(f"{source}: has {', '.join(got)} but not {', '.join(lack)}; the {form} form needs "
-                         f"{', '.join(need)}")
-    return form, Group("I", tuple(src(c) for c in cols), False, len(cols))
+        g = Group("I", (src("I"),), True, size)
+        return (_list_form(size, g, source).name if size else None), g
+    form = forms.get(name)
+    own = [c for c in form.columns if c not in (forms.get(form.extends).columns if form.extends else ())]
+    lack = [c for c in form.columns if not has(c)]
+    if lack:
+        raise InputError(f"{source}: has {', '.join(got)} but not {', '.join(lack)}; the {name} form needs "
+                         f"{', '.join(own)}")
+    return name, Group("I", tuple(src(c) for c in form.columns), False, form.count)
 
 
 def _with_units(g: Group, schema: pa.Schema, options, mapping: dict) -> Group:
@@ -340,8 +357,7 @@ def _check_unit_keys(options, groups: dict, present: set) -> None:
     known = set(groups) | {c for g in groups.values() for c in g.columns}
     for g in groups.values():
         if not g.is_list:
-            known |= set(VECTOR_SETS.get(g.name, ())) | (set(FORMS["full9"]) | set(FORMS["principal"]) | {"I"}
-                                                         if g.name == "I" else set())
+            known |= set(VECTOR_SETS.get(g.name, ())) | (set(forms.column_names()) | {"I"} if g.name == "I" else set())
     for key, unit in options:
         if key not in known:
             hint = "" if key in present else f"; it is not a column of the input"

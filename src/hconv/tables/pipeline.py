@@ -16,10 +16,10 @@ from typing import Callable, Iterable, Iterator, Optional, TypeVar
 import numpy as np
 import pyarrow as pa
 
-from hconv.solve import methods
-from hconv.solve import status
-from hconv.tables.arrow import Job, convert_table
 from hconv.errors import StrictError, UsageError
+from hconv.solve import methods, status
+from hconv.tables.arrow import convert_table
+from hconv.tables.job import Job
 from hconv.tables.tableio import Output, format_of, open_input
 
 
@@ -163,7 +163,6 @@ def convert_file(src: str, dst: str, *, method: str = "exact", precision: int = 
         raise UsageError(f"--threads must be 1 or more, got {threads}")
     threads = threads or default_threads()
     job = job or Job(method, precision, diagnostics)
-    job.check()
     m = methods.get(job.method)
     fin = format_of(src, src_format, "--from")
     fout = format_of(dst, dst_format, "--to")

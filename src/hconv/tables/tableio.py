@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import csv
 import io
+import itertools
 import os
 import re
 import shutil
@@ -25,10 +26,12 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
-from hconv.tables.arrow import H_COLUMNS, I_COLUMNS, Job
 from hconv.errors import InputError, OutputError, UsageError
+from hconv.solve.forms import SIX
+from hconv.tables import layout
+from hconv.tables.formats import EXTENSIONS, FORMATS
+from hconv.tables.job import Job
 
-EXTENSIONS = {".csv": "csv", ".parquet": "parquet", ".pq": "parquet"}
 CSV_BLOCK_BYTES = 4 << 20
 PARQUET_BATCH_ROWS = 65536
 UNIT_COLUMN = "w_unit"
@@ -37,12 +40,13 @@ UNIT_COLUMN = "w_unit"
 def format_of(path: str, given: Optional[str], flag: str) -> str:
     """``given`` if set, else the format named by ``path``'s extension; UsageError otherwise."""
     if given:
-        if given not in ("csv", "parquet"):
-            raise UsageError(f"{flag} must be csv or parquet, got {given!r}")
+        if given not in FORMATS:
+            raise UsageError(f"{flag} must be {' or '.join(FORMATS)}, got {given!r}")
         return given
     if path == "-":
         raise UsageError(f"'-' has no extension to tell the format; pass {flag} csv or {flag} parquet")
-    fmt = EXTENSIONS.get(Path(path).suffix.lower())
+    suffix = Path(path).suffix.lower()
+    fmt = next((f for f, exts in EXTENSIONS.items() if suffix in exts), None)
     if fmt is None:
         raise UsageError(f"cannot tell the format of {path!r} from its extension; "
                          f"name it .csv or .parquet, or pass {flag} csv|parquet")
@@ -58,7 +62,7 @@ class Input:
     batches: Iterator[pa.RecordBatch]
     total: Optional[int]  #: rows (Parquet) or bytes (CSV); None if unknown
     position: Callable[[], int]  #: rows or bytes read so far
-    plan: object = None  #: the input's column sets (hconv.tables.layout.Layout)
+    plan: Optional[layout.Layout] = None  #: the input's column sets
     _closers: list = field(default_factory=list)
 
     def close(self) -> None:
@@ -73,11 +77,9 @@ class Input:
         self.close()
 
 
-def open_input(path: str, fmt: str, job) -> Input:
-    """Open ``path`` ("-" for stdin) as ``fmt`` for ``job`` (an :class:`hconv.tables.arrow.Job`, or a
-    method name); InputError with a fix if it can't be."""
-    if isinstance(job, str):
-        job = Job(job)
+def open_input(path: str, fmt: str, job: Job) -> Input:
+    """Open ``path`` ("-" for stdin) as ``fmt``, planned for ``job`` (:func:`hconv.tables.layout.plan`);
+    InputError with a fix if it can't be."""
     closers = []
     name = path
     if path == "-":
@@ -142,12 +144,10 @@ def _sniff_csv(path: str, name: str) -> None:
 
 def _header_hint(names: list) -> str:
     """Why a header may not have matched: spaces around names, or a first line that is no header."""
-    from hconv.tables.layout import ALL_NAMES
-
-    spaced = [n for n in names if n != n.strip() and n.strip() in ALL_NAMES]
+    spaced = [n for n in names if n != n.strip() and n.strip() in layout.ALL_NAMES]
     if spaced:
         return f" (the header has spaces around {', '.join(repr(n) for n in spaced[:3])}; remove them)"
-    if not any(n.strip() in ALL_NAMES for n in names):
+    if not any(n.strip() in layout.ALL_NAMES for n in names):
         return f" (the first line, {','.join(names)[:50]!r}, names none of hconv's columns: is it a CSV header?)"
     return ""
 
@@ -163,12 +163,12 @@ def _open_csv(path: str, name: str, job) -> Input:
     except pa.ArrowInvalid as exc:
         if "Empty CSV file" in str(exc):
             raise InputError(f"{name}: the file is empty; a CSV needs a header line naming the columns "
-                             f"{', '.join(H_COLUMNS + I_COLUMNS)}") from None
+                             f"{', '.join(layout.VECTOR_SETS['H'] + SIX)}") from None
         raise _csv_parse_error(path, name, exc) from None
     except OSError as exc:
         raise _oserror(name, exc) from None
     try:
-        plan = job.plan(pa.schema([(n, pa.float64()) for n in names]), name)
+        plan = layout.plan(pa.schema([(n, pa.float64()) for n in names]), job, name)
     except InputError as exc:
         raise InputError(f"{exc}{_header_hint(names)}") from None
     nums = set(plan.numeric)
@@ -272,10 +272,10 @@ def _open_parquet(path: str, name: str, job) -> Input:
                              "check that it is Parquet and was completely written") from None
         raise _oserror(name, exc) from None
     schema = pf.schema_arrow
-    plan = job.plan(schema, name)
+    plan = layout.plan(schema, job, name)
     done = [0]
 
-    def batches():
+    def read_all():
         try:
             for batch in pf.iter_batches(batch_size=PARQUET_BATCH_ROWS):
                 done[0] += batch.num_rows
@@ -284,7 +284,15 @@ def _open_parquet(path: str, name: str, job) -> Input:
             raise InputError(f"{name}: not a readable Parquet file ({_first_line(exc)}); "
                              "check that it was completely written") from None
 
-    return Input(name, schema, batches(), pf.metadata.num_rows, lambda: done[0], plan, [pf.close])
+    batches = read_all()
+    if any(g.is_list and g.size is None for g in plan.groups.values()):
+        # A variable-length list column's length shows only in the data: the first batch fixes
+        # it, here on the reading thread, so every batch is held to the same plan.
+        first = next(batches, None)
+        if first is not None:
+            plan = plan.resolve(pa.Table.from_batches([first]))
+            batches = itertools.chain([first], batches)
+    return Input(name, schema, batches, pf.metadata.num_rows, lambda: done[0], plan, [pf.close])
 
 
 class Output:

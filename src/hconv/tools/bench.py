@@ -22,10 +22,10 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from hconv.solve import convert as core
-from hconv.solve import methods
-from hconv.tools import stability
 from hconv.kernels.inertia import Sym3
+from hconv.solve import convert as core
+from hconv.solve import methods, options
+from hconv.tools import stability
 from hconv.tools.scene import make_scene
 
 PRECISIONS = (64, 32)
@@ -89,7 +89,7 @@ def kernel_rates(I: Sym3, H: np.ndarray, r: np.ndarray, repeats: int, only=None)
     for prec in PRECISIONS:
         if only is not None and not any(k.endswith(f"/{prec}") for k in only):
             continue
-        dt = core.DTYPES[prec]
+        dt = options.DTYPES[prec]
         blocks = [(I.take(slice(lo, lo + core.BLOCK_ROWS)).astype(dt), H[:, lo:lo + core.BLOCK_ROWS].astype(dt),
                    r[:, lo:lo + core.BLOCK_ROWS].astype(dt)) for lo in range(0, n, core.BLOCK_ROWS)]
         for name, m in methods.METHODS.items():
@@ -239,11 +239,13 @@ def _roofline(src: str, dst: str) -> None:
     import pyarrow as pa
 
     from hconv.tables.arrow import output_fields
+    from hconv.tables.job import Job
     from hconv.tables.pipeline import BackgroundWriter
     from hconv.tables.tableio import Output, open_input
 
-    fields = output_fields("exact", 64)
-    with open_input(src, "parquet", "exact") as inp, Output(dst, "parquet", force=True) as out, BackgroundWriter(out) as wr:
+    job = Job()
+    fields = output_fields(job)
+    with open_input(src, "parquet", job) as inp, Output(dst, "parquet", force=True) as out, BackgroundWriter(out) as wr:
         for batch in inp.batches:
             n = batch.num_rows
             cols = [pa.array(np.zeros(n)) for _ in fields[:-1]]

@@ -19,9 +19,9 @@ from typing import Optional
 
 import numpy as np
 
-from hconv.solve import bodies
-from hconv.solve import methods
-from hconv.solve.bodies import Conventions
+from hconv.solve import bodies, forms, methods
+from hconv.solve.options import Conventions
+from hconv.tables.job import Job
 from hconv.tools.diagnose import residual_and_angle
 from hconv.tools.stats import Summary
 
@@ -32,17 +32,8 @@ WORST_ROWS = 5
 
 
 def offdiag_ratio(sets: dict, form: str) -> np.ndarray:
-    """max |Iij| / √(Iii·Ijj) per row, ``(N,)``; 0 for the scalar and principal forms."""
-    I = sets["I"]
-    n = I.shape[1]
-    if form in ("scalar", "principal"):
-        return np.zeros(n)
-    if form == "full9":
-        I = np.stack([I[0], I[4], I[8], 0.5 * (I[1] + I[3]), 0.5 * (I[2] + I[6]), 0.5 * (I[5] + I[7])])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratios = [np.abs(I[3]) / np.sqrt(np.abs(I[0] * I[1])), np.abs(I[4]) / np.sqrt(np.abs(I[0] * I[2])),
-                  np.abs(I[5]) / np.sqrt(np.abs(I[1] * I[2]))]
-    return np.fmax(np.fmax(ratios[0], ratios[1]), ratios[2])
+    """max |Iij| / √(Iii·Ijj) per row, ``(N,)``; 0 for the diagonal forms (:meth:`hconv.solve.forms.Form.offdiag`)."""
+    return forms.get(form).offdiag(sets["I"])
 
 
 def r_axis_ratio(r: np.ndarray) -> np.ndarray:
@@ -131,12 +122,10 @@ def compare_file(src: str, dst: Optional[str] = None, *, src_format: Optional[st
 
     import pyarrow as pa
 
-    from hconv.tables.arrow import Job
     from hconv.tables.pipeline import BackgroundWriter
     from hconv.tables.tableio import Output, format_of, open_input
 
     job = job or Job()
-    job.check()
     fin = format_of(src, src_format, "--from")
     out = Output(dst, format_of(dst, dst_format, "--to"), force=force, input_path=src) if dst else None
     with open_input(src, fin, job) as inp, (out or contextlib.nullcontext()):
@@ -145,10 +134,10 @@ def compare_file(src: str, dst: Optional[str] = None, *, src_format: Optional[st
             comp = None
             for batch in inp.batches:
                 table = pa.Table.from_batches([batch])
-                sets = inp.plan.read(table)
+                sets, form = inp.plan.read(table)
                 if comp is None:
                     comp = Comparer(set(sets), job.conventions)
-                cols = comp.add(sets, inp.plan.form)
+                cols = comp.add(sets, form)
                 if out is not None:
                     clash = [c for c in cols if c in table.column_names]
                     if clash:

@@ -34,8 +34,10 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from hconv.solve import bodies
-from hconv.solve.bodies import Conventions
+from hconv.errors import UsageError
+from hconv.solve import bodies, forms
+from hconv.solve.options import Conventions
+from hconv.tables.job import Job
 from hconv.tools.stats import Summary
 
 #: The six-number orders, as positions in hconv's (xx, yy, zz, xy, xz, yz).
@@ -62,13 +64,10 @@ def _conjugate(q: np.ndarray) -> np.ndarray:
 
 
 def _six(sets: dict, form: str) -> Optional[np.ndarray]:
-    """The inertia as six numbers ``(6, N)``, for the hypotheses that permute them."""
-    I = sets["I"]
-    if form == "sym6":
-        return I
-    if form == "full9":
-        return I[[0, 4, 8, 1, 2, 5]]
-    return None
+    """The inertia as six numbers ``(6, N)``, for the hypotheses that permute them; None for a
+    diagonal form, which has no products to misplace."""
+    f = forms.get(form)
+    return None if f.diagonal else f.as_six(sets["I"])
 
 
 @dataclass(frozen=True)
@@ -93,7 +92,7 @@ def _ignored(sets, form):
 
 
 def _flipped(sets, form):
-    return None if form in ("scalar", "principal") else _solve(sets, form, products="positive")
+    return None if forms.get(form).diagonal else _solve(sets, form, products="positive")
 
 
 def _ordering(order):
@@ -111,7 +110,7 @@ def _pivot(sets, form):
 
 def _method(name):
     def predict(sets, form):
-        if name == "diagonal" and form in ("scalar", "principal"):
+        if name == "diagonal" and forms.get(form).diagonal:
             return None  # the tensor is diagonal in the frame it is solved in: the same as exact
         return _solve(sets, form, name)
     return predict
@@ -229,42 +228,25 @@ class Diagnoser:
 def diagnose_file(src: str, *, src_format: Optional[str] = None, tol: float = DEFAULT_TOL, job=None,
                   progress=None) -> Diagnosis:
     """Score every hypothesis on the rows of ``src`` (CSV or Parquet, "-" for stdin)."""
-    from hconv.tables.arrow import Job
-    from hconv.errors import UsageError
+    import pyarrow as pa
+
     from hconv.tables.tableio import format_of, open_input
 
     if not tol > 0:
         raise UsageError(f"--tol must be positive, got {tol}")
-    job = job or Job()
+    job = dataclasses.replace(job or Job(), observed=True)
     job = dataclasses.replace(job, conventions=dataclasses.replace(job.conventions, about="same"))
-    job = _NeedsObserved(job)
     fin = format_of(src, src_format, "--from")
-    import pyarrow as pa
-
     with open_input(src, fin, job) as inp:
         plan = inp.plan
         d = None
         for batch in inp.batches:
-            sets = plan.read(pa.Table.from_batches([batch]))
+            sets, form = plan.read(pa.Table.from_batches([batch]))
             if d is None:
-                d = Diagnoser(set(sets), plan.form, tol)
+                d = Diagnoser(set(sets), form, tol)
             d.add(sets)
             if progress is not None:
                 progress(inp.position(), inp.total)
         if d is None:
             d = Diagnoser(set(plan.groups), plan.form, tol)
     return d.result()
-
-
-class _NeedsObserved:
-    """A Job whose plan also requires w_obs (and, unlike convert, accepts hconv's own output columns)."""
-
-    def __init__(self, job):
-        self._job = job
-
-    def plan(self, schema, source="input"):
-        from hconv.tables import layout
-
-        spec = self._job.spec()
-        spec = dataclasses.replace(spec, need=spec.need + (("w_obs", "diagnose compares with the ω your engine produced"),))
-        return layout.plan(schema, spec, source)

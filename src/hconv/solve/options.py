@@ -1,0 +1,94 @@
+"""The options of a conversion: their choices, and the one check of each.
+
+Every entry point (``hconv.convert``, :class:`Conventions`, :class:`hconv.tables.job.Job` and so
+the CLI) validates an option by calling the function here, so that a bad value gets the same
+:class:`~hconv.errors.UsageError` (a ``ValueError``) and the same message wherever it comes in.
+The CLI builds its choices from the tuples here. Messages name the option as the command line
+spells it; the Python keyword is the same word with underscores.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+from hconv.errors import UsageError
+from hconv.solve import methods
+
+#: --precision: the dtype the method computes in (diagnostics are always float64).
+DTYPES = {64: np.float64, 32: np.float32}
+PRECISIONS = tuple(DTYPES)
+#: --degenerate: what zero principal moments get (see hconv.solve.convert).
+DEGENERATE_MODES = ("error", "pinv", "lock")
+#: --frame and --omega-frame.
+FRAMES = ("world", "body")
+#: --about: the point H is taken about, relative to the point of I.
+ABOUT = ("same", "pivot", "free")
+#: --products: tensor entries (-∫xy dm) or positive products of inertia (+∫xy dm).
+PRODUCTS = ("tensor", "positive")
+#: --quat-order: the order of a 4-value list column q.
+QUAT_ORDERS = ("wxyz", "xyzw")
+
+
+def check_choice(option: str, value, allowed: tuple) -> None:
+    """UsageError unless ``value`` is one of ``allowed``."""
+    if value not in allowed:
+        raise UsageError(f"{option} must be one of {', '.join(map(str, allowed))}, got {value!r}")
+
+
+def check_precision(precision) -> None:
+    if precision not in PRECISIONS:
+        raise UsageError(f"--precision must be 64 or 32, got {precision!r}")
+
+
+def check_degenerate(mode: str, rtol: Optional[float], method: Optional[str] = None) -> None:
+    """The degenerate mode and threshold and, given a method, that a mode other than error is
+    only asked of the exact family."""
+    check_choice("--degenerate", mode, DEGENERATE_MODES)
+    if rtol is not None and not 0 <= rtol < 1:
+        raise UsageError(f"--degenerate-rtol must be at least 0 and below 1, got {rtol!r}")
+    if method is not None and mode != "error" and not methods.get(method).exact:
+        raise UsageError(f"--degenerate {mode} applies to the exact methods, not to {method!r}")
+
+
+@dataclass(frozen=True)
+class Conventions:
+    """How a scene stores its bodies; checked when made. Defaults: hconv's own conventions (see
+    :mod:`hconv.kernels.inertia` and :mod:`hconv.kernels.frames`)."""
+
+    frame: str = "world"  #: the frame of H, r and v: world or body (body needs no q)
+    omega_frame: Optional[str] = None  #: the frame of ω; None: the frame of H
+    about: str = "same"  #: same (I and H about one point), pivot or free
+    products: str = "tensor"  #: tensor (Ixy = -∫xy dm) or positive (Pxy = +∫xy dm)
+    degenerate: str = "error"  #: error, pinv or lock
+    degenerate_rtol: Optional[float] = None  #: a moment <= this × trace counts as zero
+
+    def __post_init__(self) -> None:
+        check_choice("--frame", self.frame, FRAMES)
+        check_choice("--omega-frame", self.w_frame, FRAMES)
+        check_choice("--about", self.about, ABOUT)
+        check_choice("--products", self.products, PRODUCTS)
+        check_degenerate(self.degenerate, self.degenerate_rtol)
+
+    @property
+    def w_frame(self) -> str:
+        """The frame ω is expressed in."""
+        return self.omega_frame or self.frame
+
+    def needs(self, method: str) -> dict:
+        """The sets, besides H and I, that a run with ``method`` cannot do without, each with
+        the reason."""
+        need = {}
+        if methods.get(method).needs_r:
+            need["r"] = f"method {method!r} needs the offset r"
+        if self.about == "pivot":
+            need.setdefault("r", "--about pivot needs r, the centre of mass relative to the pivot")
+            need["m"] = "--about pivot needs the mass m"
+        if self.about == "free":
+            need.setdefault("r", "--about free needs r, the centre of mass relative to the origin of H")
+            need["m"] = "--about free needs the mass m"
+            need["v"] = "--about free needs v, the velocity of the centre of mass"
+        if self.w_frame != self.frame:
+            need["q"] = "ω in another frame than H needs the orientation q"
+        return need

@@ -1,0 +1,10 @@
+"""The file formats hconv reads and writes, and the extensions that name them.
+
+Kept apart from :mod:`hconv.tables.tableio` (which needs pyarrow) so that the CLI can offer the
+choices without importing pyarrow.
+"""
+from __future__ import annotations
+
+#: Format name -> the extensions that imply it (lower case).
+EXTENSIONS = {"csv": (".csv",), "parquet": (".parquet", ".pq")}
+FORMATS = tuple(EXTENSIONS)

@@ -1,0 +1,88 @@
+"""The run configuration: one :class:`Job` holds everything a conversion needs besides the data.
+
+A Job is made once, from the CLI's options or from Python, and checked when it is made: every
+problem is one :class:`~hconv.errors.UsageError` with one message (the checks themselves are
+:mod:`hconv.solve.options`'). ``hconv convert``, ``compare``, ``diagnose`` and ``one`` all build a
+Job; the file pipeline, the Arrow adapter and the column planner (:func:`hconv.tables.layout.plan`,
+a pure function of the input's schema and the Job) only read it. This module imports neither
+pyarrow nor rich, so that ``hconv one`` stays quick.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from hconv.errors import UsageError
+from hconv.solve import methods, options, units
+from hconv.solve.options import Conventions
+
+
+def _pairs(what: str, value) -> tuple:
+    """``value`` as a tuple of (name, value) string pairs: from a dict, or from pairs."""
+    items = value.items() if isinstance(value, dict) else value
+    try:
+        pairs = tuple((str(a), str(b)) for a, b in items)
+    except (TypeError, ValueError):
+        raise UsageError(f"{what} takes pairs such as {{'Hx': 'Lx'}} or (('Hx', 'Lx'),), got {value!r}") from None
+    return pairs
+
+
+@dataclass(frozen=True)
+class Job:
+    """Everything a conversion needs besides the data; checked when made.
+
+    Defaults are hconv's own conventions. ``mapping`` reads hconv's names from other columns
+    (``--map``; a dict or (name, column) pairs); ``unit_options`` gives units by set, hconv name
+    or column (``--unit``; a dict or pairs). ``observed``: the run compares with an observed ω
+    (``hconv diagnose``): the ``w_obs`` columns are required, and hconv's output columns may be
+    present in the input.
+    """
+
+    method: str = "exact"
+    precision: int = 64
+    diagnostics: bool = True
+    conventions: Conventions = field(default_factory=Conventions)
+    mapping: tuple = ()
+    unit_options: tuple = ()
+    quat_order: str = "wxyz"
+    omega_unit: str = "rad/s"
+    observed: bool = False
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "mapping", _pairs("mapping", self.mapping))
+        object.__setattr__(self, "unit_options", _pairs("unit_options", self.unit_options))
+        m = methods.get(self.method)
+        options.check_precision(self.precision)
+        if not isinstance(self.conventions, Conventions):
+            raise UsageError(f"conventions must be a Conventions, got {type(self.conventions).__name__}")
+        options.check_degenerate(self.conventions.degenerate, self.conventions.degenerate_rtol, self.method)
+        options.check_choice("--quat-order", self.quat_order, options.QUAT_ORDERS)
+        if m.unit != methods.RAD_S and units.factor("w", self.omega_unit, "--omega-unit") != 1.0:
+            raise UsageError(f"--omega-unit {self.omega_unit}: method {self.method!r} gives {m.unit}, "
+                             "which is not an angular velocity and cannot be converted")
+        if m.unit == methods.RAD_S:
+            units.factor("w", self.omega_unit, "--omega-unit")  # an unknown unit fails now, not mid-run
+
+    @property
+    def unit(self) -> str:
+        """The unit of ω in the output."""
+        m = methods.get(self.method)
+        return self.omega_unit if m.unit == methods.RAD_S else m.unit
+
+    @property
+    def omega_scale(self) -> float:
+        """The factor from the method's ω to the output's (1 unless ``omega_unit`` asks otherwise)."""
+        return units.omega_factor(self.omega_unit) if methods.get(self.method).unit == methods.RAD_S else 1.0
+
+    def needs(self) -> dict:
+        """The sets, besides H and I, that this run cannot do without, each with the reason."""
+        need = self.conventions.needs(self.method)
+        if self.observed:
+            need["w_obs"] = "diagnose compares with the ω your engine produced"
+        return need
+
+    def set_factor(self, name: str) -> float:
+        """The factor to SI for a whole set given by ``--unit SET=UNIT`` (1 when none is)."""
+        given = dict(self.unit_options)
+        if name not in given:
+            return 1.0
+        return units.factor(name if name != "w_obs" else "w", given[name], f"--unit {name}={given[name]}")
