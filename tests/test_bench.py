@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import json
 
+from helpers import run_hconv
 import hconv
-from conftest import run_hconv
 
 
 def test_bench_command_small_run_writes_tables_json_and_chart(tmp_path):

@@ -17,8 +17,8 @@ import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 import pytest
 
+from helpers import run_hconv
 import hconv
-from conftest import run_hconv
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples" / "data"
 CONTRACT = ["Hx", "Hy", "Hz", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz", "rx", "ry", "rz"]

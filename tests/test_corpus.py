@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import mp_solve, rel_err, run_inprocess
+from helpers import mp_solve, rel_err, run_inprocess
+
 
 FILES = Path(__file__).resolve().parent / "corpus" / "files"
 

@@ -5,11 +5,10 @@ import numpy as np
 import pyarrow as pa
 import pytest
 
+from helpers import axis_angle, rel_err, rodrigues, vec, w_of
 import hconv
-from conftest import rel_err
 from hconv.solve.options import Conventions
 from hconv.tables.job import Job
-from test_forms import axis_angle, rodrigues, vec, w_of
 
 SIX = ["Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz"]
 
@@ -77,7 +76,7 @@ def test_convert_negative_moment_beyond_threshold_stays_not_positive_definite():
 def test_summary_counts_degenerate_rows(tmp_path):
     import pyarrow.parquet as pq
 
-    from conftest import run_hconv
+    from helpers import run_hconv
 
     pq.write_table(pa.table({"Hx": [1.0, 1.0], "Hy": [0.0, 1.0], "Hz": [0.0, 0.0], "I1": [0.0, 1.0], "I2": [1.0] * 2,
                              "I3": [1.0] * 2}), tmp_path / "rod.parquet")

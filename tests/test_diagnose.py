@@ -12,10 +12,9 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from conftest import physical_bodies, run_hconv, six
+from helpers import axis_angle, physical_bodies, quats, rodrigues, run_hconv, six, vec
 from hconv.tools import diagnose
 from hconv.tools.stats import Summary
-from test_forms import axis_angle, quats, rodrigues, vec
 
 SIX = ["Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz"]
 N = 120

@@ -11,7 +11,8 @@ import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 import pytest
 
-from conftest import rel_err, run_hconv
+from helpers import rel_err, run_hconv
+
 
 DATA = Path(__file__).resolve().parent.parent / "examples" / "data"
 

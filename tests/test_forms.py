@@ -9,32 +9,11 @@ import numpy as np
 import pyarrow as pa
 import pytest
 
+from helpers import axis_angle, mp_solve, physical_bodies, quats, rel_err, rodrigues, six, table, vec, w_of
 import hconv
-from conftest import mp_solve, physical_bodies, rel_err, six
 from hconv.errors import InputError, UsageError
 from hconv.solve.options import Conventions
 from hconv.tables.job import Job
-
-
-def axis_angle(rng, n):
-    """Random unit axes ``(n, 3)`` and angles ``(n,)`` in (-π, π]."""
-    u = rng.normal(size=(n, 3))
-    return u / np.linalg.norm(u, axis=1, keepdims=True), rng.uniform(-np.pi, np.pi, n)
-
-
-def rodrigues(u, theta):
-    """Rotation matrices ``(n, 3, 3)`` from axis and angle: cosθ·E + sinθ·[u]× + (1-cosθ)·u·uᵀ."""
-    n = len(theta)
-    K = np.zeros((n, 3, 3))
-    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -u[:, 2], u[:, 1], -u[:, 0]
-    K -= np.swapaxes(K, 1, 2)
-    c, s = np.cos(theta)[:, None, None], np.sin(theta)[:, None, None]
-    return c * np.eye(3) + s * K + (1 - c) * np.einsum("ni,nj->nij", u, u)
-
-
-def quats(u, theta):
-    """(w, x, y, z) for the same rotations: the half-angle form."""
-    return np.column_stack([np.cos(theta / 2), np.sin(theta / 2)[:, None] * u])
 
 
 def principal_scene(rng, n):
@@ -43,18 +22,6 @@ def principal_scene(rng, n):
     moments = np.stack([c[:, 1] + c[:, 2], c[:, 0] + c[:, 2], c[:, 0] + c[:, 1]], axis=1)
     u, theta = axis_angle(rng, n)
     return moments, rodrigues(u, theta), quats(u, theta), rng.normal(size=(n, 3))
-
-
-def table(**cols) -> pa.Table:
-    return pa.table({k: np.asarray(v) for k, v in cols.items()})
-
-
-def w_of(t: pa.Table) -> np.ndarray:
-    return np.column_stack([t.column(c).to_numpy() for c in ("wx", "wy", "wz")])
-
-
-def vec(prefix, a, names="xyz"):
-    return {f"{prefix}{c}": a[:, k] for k, c in enumerate(names)}
 
 
 # --- every form gives the six-number form's answer ----------------------------------------

@@ -18,7 +18,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from conftest import mp_solve, rel_err, run_inprocess
+from helpers import mp_solve, rel_err, run_inprocess
+
 
 EXAMPLES = int(os.environ.get("HCONV_FUZZ_EXAMPLES", "120"))
 FUZZ = settings(max_examples=EXAMPLES, deadline=None, derandomize=True,

@@ -6,8 +6,8 @@ import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 import pytest
 
+from helpers import EPS, rel_err, run_hconv
 import hconv
-from conftest import EPS, rel_err, run_hconv
 from hconv.tools.scene import KINDS, make_scene
 
 

@@ -4,11 +4,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from conftest import physical_bodies, six, slender_bodies, spd_bodies
+from helpers import physical_bodies, random_rotations, six, slender_bodies, spd_bodies
 from hconv.kernels.inertia import Sym3
 from hconv.kernels.spectrum import eigenvalues
 from hconv.solve.status import TRIANGLE_RTOL
-from hconv.tools.scene import cylinder_moments, random_rotations, rotate_tensors
+from hconv.tools.scene import cylinder_moments, rotate_tensors
 
 
 def _sym(M):

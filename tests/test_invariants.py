@@ -17,7 +17,7 @@ import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 import pytest
 
-from conftest import run_inprocess
+from helpers import run_inprocess
 from hconv import METHODS
 from hconv.tables import tableio
 from hconv.tools.scene import make_scene

@@ -7,10 +7,10 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from conftest import EPS, mp_solve, rel_err
+from helpers import EPS, mp_solve, random_rotations, rel_err
 from hconv.kernels import eft, linsolve
 from hconv.kernels.inertia import Sym3
-from hconv.tools.scene import random_rotations, rotate_tensors
+from hconv.tools.scene import rotate_tensors
 
 BLOCK = 16384
 

@@ -7,9 +7,9 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
+from helpers import EPS, mp_solve, physical_bodies, random_rotations, rel_err, six, spd_bodies
 import hconv
-from conftest import EPS, mp_solve, physical_bodies, rel_err, six, spd_bodies
-from hconv.tools.scene import box_moments, random_rotations, rotate_tensors, sphere_moments
+from hconv.tools.scene import box_moments, rotate_tensors, sphere_moments
 
 EXACT_FAMILY = ["exact", "lapack", "cholesky", "eigen"]
 

@@ -6,12 +6,11 @@ import numpy as np
 import pyarrow as pa
 import pytest
 
+from helpers import axis_angle, mp_solve, physical_bodies, quats, rel_err, rodrigues, six, vec, w_of
 import hconv
-from conftest import mp_solve, physical_bodies, rel_err, six
 from hconv.errors import InputError
 from hconv.solve.options import Conventions
 from hconv.tables.job import Job
-from test_forms import axis_angle, quats, rodrigues, vec, w_of
 
 PIVOT = Job(conventions=Conventions(about="pivot"))
 SIX = ["Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz"]

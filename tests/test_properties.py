@@ -5,8 +5,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from helpers import EPS, rel_err
 import hconv
-from conftest import EPS, rel_err
 
 EXACT_FAMILY = [m.name for m in hconv.METHODS.values() if m.exact]
 positive = st.floats(min_value=1e-3, max_value=1.0)

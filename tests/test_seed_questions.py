@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from helpers import EPS, physical_bodies, rel_err
 import hconv
-from conftest import EPS, physical_bodies, rel_err
 
 
 def test_document_answer_depends_on_length_unit(rng):

@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from helpers import EPS, mp_solve, physical_bodies, rel_err, slender_bodies, spd_bodies
 import hconv
-from conftest import EPS, mp_solve, physical_bodies, rel_err, slender_bodies, spd_bodies
 from hconv.solve.status import ILL_CONDITIONED_TOL
 
 EXACT_FAMILY = [m.name for m in hconv.METHODS.values() if m.exact]

@@ -6,8 +6,8 @@ import json
 import numpy as np
 import pytest
 
+from helpers import EPS, mp_solve, physical_bodies, rel_err, run_hconv, spd_bodies
 import hconv
-from conftest import EPS, mp_solve, physical_bodies, rel_err, run_hconv, spd_bodies
 from hconv.tools import stability
 
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from helpers import mp_solve
 import hconv
 from hconv.solve.methods import _seed_formula
-from conftest import mp_solve
 
 GOOD_I = [2.0, 3.0, 4.0, 0.1, 0.0, 0.0]
 ROD_I = [0.0, 2.0, 2.0, 0.0, 0.0, 0.0]  # a thin rod along x: one zero principal moment
@@ -142,7 +142,7 @@ def test_status_flagged_rows_keep_their_place(rng):
 
 def test_residual_equals_true_error(rng):
     """The residual column is the true forward error, as a 50-digit solve measures it."""
-    from conftest import rel_err, spd_bodies
+    from helpers import rel_err, spd_bodies
 
     I = spd_bodies(rng, 100, 1e8)
     H = rng.normal(size=(100, 3))
@@ -153,7 +153,7 @@ def test_residual_equals_true_error(rng):
 
 
 def test_cond_matches_eigenvalue_ratio(rng):
-    from conftest import spd_bodies
+    from helpers import spd_bodies
 
     I = spd_bodies(rng, 50, 1e6)
     res = hconv.convert(rng.normal(size=(50, 3)), I)

@@ -8,12 +8,11 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
+from helpers import mp_solve, physical_bodies, rel_err, run_hconv, six, vec, w_of
 import hconv
-from conftest import mp_solve, physical_bodies, rel_err, run_hconv, six
 from hconv.errors import UsageError
 from hconv.solve import units
 from hconv.tables.job import Job
-from test_forms import vec, w_of
 
 SIX = ["Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz"]
 

@@ -16,8 +16,9 @@ from __future__ import annotations
 import numpy as np
 
 
-def _splitter(dtype) -> float:
-    # 2**ceil(p/2) + 1 for a p-bit significand: 2**27 + 1 for float64, 2**12 + 1 for float32
+def splitter(dtype) -> float:
+    """Dekker's splitting factor 2**ceil(p/2) + 1 for a p-bit significand: 2**27 + 1 for float64,
+    2**12 + 1 for float32."""
     p = np.finfo(dtype).nmant + 1
     return float(2 ** ((p + 1) // 2) + 1)
 
@@ -30,7 +31,7 @@ def two_diff(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def split(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    c = a.dtype.type(_splitter(a.dtype)) * a
+    c = a.dtype.type(splitter(a.dtype)) * a
     hi = c - (c - a)
     return hi, a - hi
 

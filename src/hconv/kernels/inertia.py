@@ -92,11 +92,23 @@ def sum_sq(v: np.ndarray) -> np.ndarray:
     return out
 
 
-def principal_axes(I: Sym3) -> tuple[np.ndarray, np.ndarray]:
-    """Principal moments ``S`` of shape ``(N, 3)`` (ascending) and axes ``R`` of shape ``(N, 3, 3)``.
+def principal_frame(I: Sym3) -> tuple[np.ndarray, np.ndarray]:
+    """Principal moments ``S`` of shape ``(3, N)`` (ascending) and axes ``R`` of shape ``(3, 3, N)``.
 
-    ``I = R·diag(S)·Rᵀ``; column k of ``R`` is the unit axis of moment ``S[:, k]``. LAPACK's
-    symmetric solver (``numpy.linalg.eigh``), which keeps the axes orthonormal to rounding.
+    ``I = R·diag(S)·Rᵀ``; column k of ``R`` is the unit axis of moment ``S[k]``, so ``R`` turns
+    principal-frame vectors into the frame of I (:func:`hconv.kernels.frames.to_world` with R,
+    and ``to_body`` back). LAPACK's symmetric solver (``numpy.linalg.eigh``), which keeps the axes
+    orthonormal to rounding.
     """
     S, R = np.linalg.eigh(I.matrices())
-    return S, R
+    return np.ascontiguousarray(S.T), np.moveaxis(R, 0, -1)
+
+
+def pinv_moments(S: np.ndarray, tol) -> tuple[np.ndarray, np.ndarray]:
+    """1/S for moments ``S`` ``(3, N)``, with every moment whose magnitude is at or below ``tol``
+    (``(N,)`` or a scalar) set to 0: the pseudo-inverse in the principal frame. Returns the
+    inverses (S's dtype) and the ``(3, N)`` mask of the moments dropped."""
+    zero = np.abs(S) <= tol
+    with np.errstate(divide="ignore"):
+        inv = np.where(zero, S.dtype.type(0), 1 / np.where(zero, S.dtype.type(1), S))
+    return inv, zero

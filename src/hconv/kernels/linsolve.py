@@ -115,7 +115,7 @@ def split_sym(I: Sym3) -> SplitSym:
     """:func:`hconv.kernels.eft.split` of each column, written in place into one ``(2, 6, N)`` buffer."""
     halves = np.empty((2, 6) + I.xx.shape, dtype=I.xx.dtype)
     hi, lo = halves
-    sp = I.xx.dtype.type(eft._splitter(I.xx.dtype))
+    sp = I.xx.dtype.type(eft.splitter(I.xx.dtype))
     for k, a in enumerate(I):
         np.multiply(a, sp, out=hi[k])  # c = sp·a
         np.subtract(hi[k], a, out=lo[k])  # c − a
@@ -144,7 +144,7 @@ def residual_dd(A: SplitSym, h: np.ndarray, x: np.ndarray) -> np.ndarray:
     buf = np.empty((13, n), dtype=x.dtype)
     xh, xl = buf[0:3], buf[3:6]
     p, e, t, bb, q, s_a, s_b = buf[6:13]
-    np.multiply(x, x.dtype.type(eft._splitter(x.dtype)), out=xh)  # eft.split, in place
+    np.multiply(x, x.dtype.type(eft.splitter(x.dtype)), out=xh)  # eft.split, in place
     np.subtract(xh, x, out=xl)
     xh -= xl
     np.subtract(x, xh, out=xl)

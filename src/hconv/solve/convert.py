@@ -23,8 +23,9 @@ from typing import Optional
 
 import numpy as np
 
-from hconv.kernels import linsolve
-from hconv.kernels.inertia import Sym3, max_abs, sum_sq, sym_from_array
+from hconv.kernels import frames, linsolve
+from hconv.kernels.metrics import relative_error
+from hconv.kernels.inertia import Sym3, max_abs, pinv_moments, principal_frame, sym_from_array
 from hconv.kernels.spectrum import eigenvalues
 from hconv.solve import methods, options, status
 
@@ -266,17 +267,8 @@ def _residual(o: _BlockOptions, I: Sym3, H: np.ndarray, w: np.ndarray, moments: 
             ref = H / moments
     else:
         ref = linsolve.solve_refined(I, H, x0=w if o.m.exact else None)
-    d = w - ref
-    # Both norms in units of the reference's largest component, so that neither the squares of
-    # 1e200 nor those of 1e-200 leave the range (the ratio is unchanged).
-    unit = max_abs(ref)
-    unit = np.where((unit > 0) & np.isfinite(unit), unit, 1.0)
-    d, ref = d / unit, ref / unit
-    num = np.sqrt(sum_sq(d))
-    den = np.sqrt(sum_sq(ref))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        # H = 0 gives I⁻¹H = 0: an answer of 0 is exact, anything else infinitely off.
-        return np.where(den > 0, num / np.where(den > 0, den, 1.0), np.where(num == 0, 0.0, np.inf))
+    # H = 0 gives I⁻¹H = 0: an answer of 0 is exact, anything else infinitely off.
+    return relative_error(w, ref)
 
 
 def _pseudo_inverse(I: Sym3, H: np.ndarray, tol: np.ndarray, diagonal: bool, deg: _Degenerate,
@@ -288,19 +280,17 @@ def _pseudo_inverse(I: Sym3, H: np.ndarray, tol: np.ndarray, diagonal: bool, deg
     """
     # The principal frame: for a diagonal tensor the coordinate axes themselves.
     if diagonal:
-        S, R = np.stack([I.xx, I.yy, I.zz]), np.broadcast_to(np.eye(3), (H.shape[1], 3, 3))
+        S, R = np.stack([I.xx, I.yy, I.zz]), np.broadcast_to(np.eye(3)[..., None], (3, 3, H.shape[1]))
     else:
-        S, R = methods._principal(I)  # (3, k) moments; (k, 3, 3) axes, column j for moment j
-    zero = np.abs(S) <= tol
-    with np.errstate(divide="ignore"):
-        inv = np.where(zero, 0.0, 1.0 / np.where(zero, 1.0, S))
-    w = methods._from_principal(R, inv * methods._to_principal(R, H))
+        S, R = principal_frame(I)  # (3, k) moments; (3, 3, k) axes, column j for moment j
+    inv, zero = pinv_moments(S, tol)
+    w = frames.to_world(R, inv * frames.to_body(R, H))
     count = zero.sum(axis=0)
     axis = np.full((3, S.shape[1]), np.nan)
     one = count == 1
     if one.any():
         cols = np.arange(S.shape[1])
-        picked = R[cols, :, np.argmax(zero, axis=0)].T  # (3, k): the axis of the dropped moment
+        picked = R[:, np.argmax(zero, axis=0), cols]  # (3, k): the axis of the dropped moment
         # A sign is arbitrary for an axis; make its largest component positive, so output is stable.
         sign = np.sign(picked[np.argmax(np.abs(picked), axis=0), cols])
         axis[:, one] = (picked * sign)[:, one]

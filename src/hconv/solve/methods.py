@@ -15,8 +15,8 @@ from typing import Callable, Optional
 import numpy as np
 
 from hconv.errors import UsageError
-from hconv.kernels import linsolve
-from hconv.kernels.inertia import Sym3, principal_axes
+from hconv.kernels import frames, linsolve
+from hconv.kernels.inertia import Sym3, pinv_moments, principal_frame
 from hconv.solve.status import ILL_CONDITIONED_TOL, REPEATED_RTOL, R_AXIS_RTOL, singular_rtol
 
 Kernel = Callable[[Sym3, np.ndarray, Optional[np.ndarray]], "tuple[np.ndarray, dict[str, np.ndarray]]"]
@@ -142,32 +142,6 @@ def _cholesky(I, H, r):
     return w, {"not_positive_definite": ~np.isfinite(l33) | (l33 == 0)}
 
 
-def _principal(I: Sym3) -> tuple[np.ndarray, np.ndarray]:
-    """Principal moments as ``(3, N)`` and axes ``R`` as ``(N, 3, 3)`` (column k: axis of moment k)."""
-    S, R = principal_axes(I)
-    return np.ascontiguousarray(S.T), R
-
-
-def _pinv_moments(S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """1/S for ``(3, N)`` moments, those at or below the singular threshold set to 0
-    (pseudo-inverse); and the ``(N,)`` mask of rows that had one."""
-    tol = singular_rtol(S.dtype) * np.max(np.abs(S), axis=0)
-    zero = np.abs(S) <= tol
-    with np.errstate(divide="ignore"):
-        inv = np.where(zero, 0.0, 1.0 / np.where(zero, 1.0, S))
-    return inv.astype(S.dtype), zero.any(axis=0)
-
-
-def _to_principal(R: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rᵀ·v per row: a ``(3, N)`` vector expressed in the principal frame."""
-    return np.einsum("nji,jn->in", R, v)
-
-
-def _from_principal(R: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """R·v per row: back from the principal frame, ``(3, N)``."""
-    return np.einsum("nij,jn->in", R, v)
-
-
 @register(
     "eigen", unit=RAD_S, exact=True,
     summary="ω = R·diag(1/S)·Rᵀ·H through the principal axes (numpy.linalg.eigh)",
@@ -178,9 +152,9 @@ def _from_principal(R: np.ndarray, v: np.ndarray) -> np.ndarray:
     error_k={64: 6.0, 32: 3.0},
 )
 def _eigen(I, H, r):
-    S, R = _principal(I)
-    inv, zeroed = _pinv_moments(S)
-    return _from_principal(R, inv * _to_principal(R, H)), {"singular": zeroed}
+    S, R = principal_frame(I)
+    inv, zero = pinv_moments(S, singular_rtol(S.dtype) * np.max(np.abs(S), axis=0))
+    return frames.to_world(R, inv * frames.to_body(R, H)), {"singular": zero.any(axis=0)}
 
 
 @register(
@@ -231,8 +205,8 @@ def _document(I, H, r):
     nan_on={"invalid_input", "not_symmetric"},
 )
 def _document_principal(I, H, r):
-    S, R = _principal(I)
-    w_p, on_axis = _seed_formula(S, _to_principal(R, H), _to_principal(R, r))
+    S, R = principal_frame(I)
+    w_p, on_axis = _seed_formula(S, frames.to_body(R, H), frames.to_body(R, r))
     gap = np.minimum(S[1] - S[0], S[2] - S[1])
     repeated = gap <= REPEATED_RTOL * np.max(np.abs(S), axis=0)
-    return _from_principal(R, w_p), {"frame_ambiguous": repeated, "r_on_axis": on_axis}
+    return frames.to_world(R, w_p), {"frame_ambiguous": repeated, "r_on_axis": on_axis}

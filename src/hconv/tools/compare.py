@@ -19,10 +19,10 @@ from typing import Optional
 
 import numpy as np
 
+from hconv.kernels.metrics import angle_deg, relative_error
 from hconv.solve import bodies, forms, methods
 from hconv.solve.options import Conventions
 from hconv.tables.job import Job
-from hconv.tools.diagnose import residual_and_angle
 from hconv.tools.stats import Summary
 
 OFFDIAG_BINS = (0.0, 1e-3, 1e-2, 0.1, 0.3, 1.0)
@@ -95,7 +95,8 @@ class Comparer:
         cols = {"offdiag": off, "r_axis": r_axis}
         for s in self.scores:
             w = exact if s.method == "exact" else bodies.solve(sets, form, s.method, 64, self.conv, diagnostics=False).w.T
-            diff, ang = residual_and_angle(w.astype(np.float64), exact)
+            w = w.astype(np.float64)
+            diff, ang = relative_error(w, exact), angle_deg(w, exact)
             s.diff.add(diff, self.rows)
             s.angle.add(ang, self.rows)
             _binned(s.by_offdiag, OFFDIAG_BINS, off, diff, self.rows)

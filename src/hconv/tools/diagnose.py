@@ -3,7 +3,8 @@
 Each hypothesis is a way to get ω from the same row that a real engine or script might have
 used. Every one is computed for every row and compared with the observed ω (``w_obs``):
 
-* ``residual`` = |ω_hyp - ω_obs| / |ω_obs|, and ``angle`` between the two vectors [degrees];
+* ``residual`` = |ω_hyp - ω_obs| / |ω_obs|, and ``angle`` between the two vectors [degrees]
+  (:mod:`hconv.kernels.metrics`);
 * a row is *explained* by a hypothesis when its residual is at most ``tol`` (default 1e-3, loose
   enough for an engine that works in float32 and tight enough to tell the hypotheses apart).
 
@@ -35,6 +36,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from hconv.errors import UsageError
+from hconv.kernels.metrics import angle_deg, relative_error
 from hconv.solve import bodies, forms
 from hconv.solve.options import Conventions
 from hconv.tables.job import Job
@@ -131,26 +133,6 @@ HYPOTHESES = (
 NAMES = tuple(h.name for h in HYPOTHESES)
 
 
-def residual_and_angle(w: np.ndarray, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Relative distance |w - obs| / |obs| and the angle between them [degrees], per row.
-
-    ``w`` and ``obs`` are ``(3, N)``. Rows with obs = 0 give 0 when w = 0 too, else inf; the
-    angle is NaN where either vector is zero.
-    """
-    d = w - obs
-    num = np.sqrt(np.sum(d * d, axis=0))
-    no = np.sqrt(np.sum(obs * obs, axis=0))
-    nw = np.sqrt(np.sum(w * w, axis=0))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        res = np.where(no > 0, num / np.where(no > 0, no, 1.0), np.where(num == 0, 0.0, np.inf))
-        cos = np.sum(w * obs, axis=0) / (nw * no)
-        # atan2 of |w × obs| and w·obs keeps small angles accurate, where acos(cos) loses them.
-        cr = np.cross(w.T, obs.T).T
-        ang = np.degrees(np.arctan2(np.sqrt(np.sum(cr * cr, axis=0)), np.sum(w * obs, axis=0)))
-    ang = np.where(np.isfinite(cos), ang, np.nan)
-    return res, ang
-
-
 @dataclass
 class Score:
     """One hypothesis over the whole input."""
@@ -209,7 +191,8 @@ class Diagnoser:
             if w is None:
                 s.applicable, s.why_not = False, f"same as exact for the {self.form} form"
                 continue
-            res, ang = residual_and_angle(w.astype(np.float64), obs)
+            w = w.astype(np.float64)
+            res, ang = relative_error(w, obs), angle_deg(w, obs)
             s.residual.add(res, self.rows)
             s.angle.add(ang, self.rows)
             better = res < best

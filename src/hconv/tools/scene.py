@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from hconv.kernels.frames import quaternion_matrix
+
 KINDS = ("box", "cylinder", "rod", "sphere", "ellipsoid")
 SCENES = ("mix",) + KINDS
 
@@ -39,15 +41,10 @@ def sphere_moments(m, radius) -> np.ndarray:
 
 
 def random_rotations(rng: np.random.Generator, n: int) -> np.ndarray:
-    """``n`` uniformly random rotation matrices, shape ``(n, 3, 3)`` (from unit quaternions)."""
-    q = rng.normal(size=(n, 4))
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    w, x, y, z = q.T
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], axis=-1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=-1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=-1),
-    ], axis=1)
+    """``n`` uniformly random rotation matrices, shape ``(n, 3, 3)``: isotropic normal 4-vectors
+    are uniform in direction, so their quaternions' rotations are uniform."""
+    R, _ = quaternion_matrix(rng.normal(size=(n, 4)).T)
+    return np.ascontiguousarray(np.moveaxis(R, -1, 0))
 
 
 def rotate_tensors(R: np.ndarray, moments: np.ndarray) -> np.ndarray:

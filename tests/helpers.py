@@ -1,0 +1,133 @@
+"""Shared test helpers: an independent 50-digit reference, random bodies and rotations built
+apart from hconv's own code, table shorthands, and the real CLI."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import mpmath
+import numpy as np
+import pyarrow as pa
+
+from hconv.kernels.metrics import relative_error
+from hconv.tools.scene import rotate_tensors
+
+EPS = np.finfo(np.float64).eps
+
+
+def mp_solve(I: np.ndarray, H: np.ndarray) -> np.ndarray:
+    """I⁻¹H for a stack ``(N, 3, 3)``, ``(N, 3)`` solved in 50-digit arithmetic, rounded to float64."""
+    out = np.empty_like(H, dtype=np.float64)
+    with mpmath.workdps(50):
+        for k in range(len(H)):
+            x = mpmath.lu_solve(mpmath.matrix(I[k].tolist()), mpmath.matrix(H[k].tolist()))
+            out[k] = [float(v) for v in x]
+    return out
+
+
+def rel_err(w: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """Norm-wise relative error per row of ``(N, 3)`` stacks: hconv's own measure
+    (:func:`hconv.kernels.metrics.relative_error`, itself tested against mpmath)."""
+    return relative_error(np.asarray(w, dtype=np.float64).T, np.asarray(ref, dtype=np.float64).T)
+
+
+def random_rotations(rng: np.random.Generator, n: int) -> np.ndarray:
+    """``n`` uniformly random rotations ``(n, 3, 3)``, from normalised Gaussian quaternions.
+
+    Written here on purpose, not taken from hconv (whose scenes use its own quaternion code):
+    the bodies a test checks hconv on are not built by the code under test.
+    """
+    q = rng.normal(size=(n, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    w, x, y, z = q.T
+    rows = ((1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)),
+            (2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)),
+            (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)))
+    return np.stack([np.stack(r, axis=-1) for r in rows], axis=1)
+
+
+def spd_bodies(rng: np.random.Generator, n: int, cond: float) -> np.ndarray:
+    """``n`` rotated SPD tensors with cond(I) = ``cond`` exactly in their moments; ``(n, 3, 3)``."""
+    mid = 10.0 ** (-np.log10(cond) * rng.random(n))
+    moments = np.stack([np.ones(n), mid, np.full(n, 1.0 / cond)], axis=1)
+    return rotate_tensors(random_rotations(rng, n), moments)
+
+
+def slender_bodies(rng: np.random.Generator, n: int, cond: float) -> np.ndarray:
+    """``n`` physical bodies with cond(I) ≈ ``cond``: rods and thin plates, moments (ε, 1, 1 + t·ε)
+    with ε = 1/cond and t in [0, 1] (t = 1 is a plate, on the triangle inequality's boundary)."""
+    eps_m = np.full(n, 1.0 / cond)
+    moments = np.stack([eps_m, np.ones(n), 1.0 + rng.random(n) * eps_m], axis=1)
+    return rotate_tensors(random_rotations(rng, n), moments)
+
+
+def physical_bodies(rng: np.random.Generator, n: int) -> np.ndarray:
+    """``n`` rotated tensors whose moments obey the triangle inequality, cond ≤ ~20; ``(n, 3, 3)``."""
+    # second moments of a random mass distribution along each principal axis
+    c = rng.uniform(0.05, 1.0, (n, 3))
+    moments = np.stack([c[:, 1] + c[:, 2], c[:, 0] + c[:, 2], c[:, 0] + c[:, 1]], axis=1)
+    return rotate_tensors(random_rotations(rng, n), moments)
+
+
+def six(I: np.ndarray) -> np.ndarray:
+    """``(N, 3, 3)`` to the six-number form ``(N, 6)``."""
+    return np.stack([I[:, 0, 0], I[:, 1, 1], I[:, 2, 2], I[:, 0, 1], I[:, 0, 2], I[:, 1, 2]], axis=1)
+
+
+def axis_angle(rng, n):
+    """Random unit axes ``(n, 3)`` and angles ``(n,)`` in (-π, π]."""
+    u = rng.normal(size=(n, 3))
+    return u / np.linalg.norm(u, axis=1, keepdims=True), rng.uniform(-np.pi, np.pi, n)
+
+
+def rodrigues(u, theta):
+    """Rotation matrices ``(n, 3, 3)`` from axis and angle: cosθ·E + sinθ·[u]× + (1-cosθ)·u·uᵀ."""
+    n = len(theta)
+    K = np.zeros((n, 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -u[:, 2], u[:, 1], -u[:, 0]
+    K -= np.swapaxes(K, 1, 2)
+    c, s = np.cos(theta)[:, None, None], np.sin(theta)[:, None, None]
+    return c * np.eye(3) + s * K + (1 - c) * np.einsum("ni,nj->nij", u, u)
+
+
+def quats(u, theta):
+    """(w, x, y, z) for the same rotations: the half-angle form."""
+    return np.column_stack([np.cos(theta / 2), np.sin(theta / 2)[:, None] * u])
+
+
+def table(**cols) -> pa.Table:
+    return pa.table({k: np.asarray(v) for k, v in cols.items()})
+
+
+def w_of(t: pa.Table) -> np.ndarray:
+    return np.column_stack([t.column(c).to_numpy() for c in ("wx", "wy", "wz")])
+
+
+def vec(prefix, a, names="xyz"):
+    return {f"{prefix}{c}": a[:, k] for k, c in enumerate(names)}
+
+
+def run_hconv(*args: str, input: bytes | None = None, cwd=None) -> subprocess.CompletedProcess:
+    """Run the real command (``python -m hconv``) as a user would; bytes in, bytes out."""
+    env = dict(os.environ, COLUMNS="200")
+    return subprocess.run([sys.executable, "-m", "hconv", *args], input=input, capture_output=True,
+                          cwd=cwd, env=env, timeout=120)
+
+
+def run_inprocess(*args: str, capsys) -> tuple[int, str, str]:
+    """``hconv ARGS`` in this process, through the console script's ``cli.main``; returns
+    (exit code, stdout, stderr). For tests that run the command hundreds of times."""
+    from hconv import cli
+
+    old = sys.argv
+    sys.argv = ["hconv", *args]
+    try:
+        cli.main()
+        code = 0
+    except SystemExit as exc:
+        code = exc.code if isinstance(exc.code, int) else 1
+    finally:
+        sys.argv = old
+    out, err = capsys.readouterr()
+    return code, out, err
