@@ -1,5 +1,6 @@
-"""The refinement's building blocks: exact transformations, the double-double residual, and when
-the adaptive refinement stops. References are exact rational arithmetic (fractions) and 50 digits."""
+"""The solvers' building blocks: the double-double residual (held to the same bits as
+:mod:`hconv.kernels.eft`'s functions, tested in test_eft.py) and when the adaptive refinement
+stops. References are exact rational arithmetic (fractions) and 50 digits."""
 from __future__ import annotations
 
 from fractions import Fraction
@@ -24,27 +25,6 @@ def _bodies(rng, n, cond, middle="log"):
         m2 = (1 + 1e-3 * rng.random(n)) / cond
     M = rotate_tensors(random_rotations(rng, n), np.stack([np.ones(n), m2, np.full(n, 1 / cond)], axis=1))
     return M, Sym3(*(np.ascontiguousarray(M[:, i, j]) for i, j in ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))))
-
-
-def _wide(rng, n, spread=60):
-    """Floats spread over 2^±spread, both signs."""
-    return rng.normal(size=n) * np.ldexp(1.0, rng.integers(-spread, spread, n))
-
-
-def test_two_diff_is_exact(rng):
-    a, b = _wide(rng, 2000), _wide(rng, 2000)
-    s, e = eft.two_diff(a, b)
-    assert all(Fraction(x) - Fraction(y) == Fraction(p) + Fraction(q) for x, y, p, q in zip(a, b, s, e))
-
-
-@pytest.mark.parametrize("dtype", [np.float64, np.float32])
-def test_two_prod_split_is_exact(dtype, rng):
-    spread = 60 if dtype == np.float64 else 20  # products and their errors stay normal numbers
-    a, b = _wide(rng, 2000, spread).astype(dtype), _wide(rng, 2000, spread).astype(dtype)
-    (ah, al), (bh, bl) = eft.split(a), eft.split(b)
-    p, e = eft.two_prod_split(a, ah, al, b, bh, bl)
-    assert all(Fraction(float(x)) * Fraction(float(y)) == Fraction(float(u)) + Fraction(float(v))
-               for x, y, u, v in zip(a, b, p, e))
 
 
 def _residual_by_eft(A, h, x):

@@ -1,10 +1,7 @@
-"""The machinery under `hconv convert`'s speed: ordered parallel batches, the Parquet writer's
-encodings, and the allocator settings of the hconv process."""
+"""The machinery under `hconv convert`'s speed: ordered parallel batches and the Parquet writer's
+encodings (the allocator settings are in test_allocator.py)."""
 from __future__ import annotations
 
-import platform
-import subprocess
-import sys
 import threading
 import time
 
@@ -13,7 +10,6 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from hconv.kernels import allocator
 from hconv.tables import pipeline
 from hconv.tools.scene import make_scene
 
@@ -94,16 +90,3 @@ def test_parquet_output_floats_plain_labels_compressed(tmp_path):
     assert codec["wx"] == codec["residual"] == codec["Hx"] == "UNCOMPRESSED"
     assert codec["status"] == codec["body"] == "SNAPPY"
     np.testing.assert_array_equal(pq.read_table(dst).column("Hx").to_numpy(), cols["Hx"])  # nothing lost on the way
-
-
-@pytest.mark.skipif(platform.libc_ver()[0] != "glibc", reason="the settings apply to glibc's malloc only")
-def test_allocator_tune_applies_on_glibc():
-    # in a fresh process, so that this test process's allocator is left as it was
-    code = "from hconv.kernels import allocator; print(allocator.tune())"
-    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True).stdout
-    assert out.strip() == "True"
-
-
-def test_allocator_tune_never_raises_off_glibc(monkeypatch):
-    monkeypatch.setattr(allocator.sys, "platform", "darwin")
-    assert allocator.tune() is False

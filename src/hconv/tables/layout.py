@@ -360,6 +360,6 @@ def _check_unit_keys(options, groups: dict, present: set) -> None:
             known |= set(VECTOR_SETS.get(g.name, ())) | (set(forms.column_names()) | {"I"} if g.name == "I" else set())
     for key, unit in options:
         if key not in known:
-            hint = "" if key in present else f"; it is not a column of the input"
+            hint = "" if key in present else "; it is not a column of the input"
             raise UsageError(f"--unit {key}={unit}: {key!r} is not a column hconv reads{hint}; "
                              f"use a set (H, I, r, m, v, w_obs) or one of its columns")
