@@ -188,3 +188,96 @@ def test_convert_positive_products_are_negated(rng):
     got = hconv.convert_table(t, job=Job(conventions=Conventions(products="positive")))
     assert rel_err(w_of(got), mp_solve(I, H)).max() < 1e-14
     assert rel_err(w_of(hconv.convert_table(t)), mp_solve(I, H)).min() > 1e-3  # without it: wrong
+
+
+# --- the forms registry ----------------------------------------------------------------------
+
+def _form_values(name: str, M: np.ndarray) -> np.ndarray:
+    """Independent spellings of tensors ``M`` ``(N, 3, 3)`` in each of hconv's forms, ``(k, N)``
+    (the diagonal forms take M's diagonal, so M must be diagonal for them)."""
+    if name == "scalar":
+        return M[:, 0, 0][None]
+    if name == "principal":
+        return np.stack([M[:, 0, 0], M[:, 1, 1], M[:, 2, 2]])
+    if name == "sym6":
+        return six(M).T
+    return M.reshape(-1, 9).T  # full9: row-major
+
+
+def _tensors_for(name: str, rng, n: int) -> np.ndarray:
+    if name == "scalar":
+        return np.eye(3) * rng.uniform(0.5, 2.0, (n, 1, 1))
+    if name == "principal":
+        c = rng.uniform(0.05, 1.0, (n, 3))
+        return np.stack([np.diag(d) for d in np.stack([c[:, 1] + c[:, 2], c[:, 0] + c[:, 2], c[:, 0] + c[:, 1]], 1)])
+    return physical_bodies(rng, n)
+
+
+@pytest.mark.parametrize("name", ["scalar", "principal", "sym6", "full9"])
+def test_form_as_array_solves_to_the_matrix_answer(name, rng):
+    from hconv.solve import forms
+
+    M, H = _tensors_for(name, rng, 40), rng.normal(size=(40, 3))
+    form = forms.get(name)
+    got = hconv.convert(H, form.as_array(_form_values(name, M))).w
+    assert rel_err(got, mp_solve(M, H)).max() < 4 * np.finfo(float).eps * 20
+
+
+@pytest.mark.parametrize("name", ["scalar", "principal", "sym6", "full9"])
+def test_form_trace_offdiag_and_products_flip(name, rng):
+    from hconv.solve import forms
+
+    M = _tensors_for(name, rng, 30)
+    form, I = forms.get(name), _form_values(name, M)
+    np.testing.assert_allclose(form.trace(I), np.abs(np.trace(M, axis1=1, axis2=2)), rtol=1e-15)
+    d = np.sqrt(np.abs(np.einsum("nii->ni", M)))
+    ratio = np.abs(M) / (d[:, :, None] * d[:, None, :])
+    ratio[:, [0, 1, 2], [0, 1, 2]] = 0
+    np.testing.assert_allclose(form.offdiag(I), ratio.max(axis=(1, 2)), rtol=1e-15)
+    flipped = M * np.where(np.eye(3, dtype=bool), 1.0, -1.0)
+    np.testing.assert_array_equal(form.flip_products(I), _form_values(name, flipped))
+
+
+@pytest.mark.parametrize("name", ["scalar", "principal", "sym6", "full9"])
+def test_form_shifted_is_the_parallel_axis_theorem(name, rng):
+    from hconv.kernels.frames import shift_to_pivot
+    from hconv.kernels.inertia import Sym3
+    from hconv.solve import forms
+
+    n = 25
+    M, m, r = _tensors_for(name, rng, n), rng.uniform(0.1, 5, n), rng.normal(size=(n, 3))
+    zero = np.zeros(n)
+    new_name, I_P = forms.get(name).shifted(_form_values(name, M), shift_to_pivot(Sym3(*[zero] * 6), m, r.T))
+    # I_P = I_C + m·(|r|²·E − r·rᵀ), written out independently
+    expect = M + m[:, None, None] * (np.einsum("ni,ni->n", r, r)[:, None, None] * np.eye(3) - np.einsum("ni,nj->nij", r, r))
+    np.testing.assert_allclose(_form_values(new_name, expect), I_P, rtol=1e-14, atol=1e-14)
+
+
+def test_forms_lookup_by_name_count_and_list_size():
+    from hconv.solve import forms
+
+    assert [forms.by_count(k).name for k in (1, 3, 6, 9)] == ["scalar", "principal", "sym6", "full9"]
+    assert forms.by_list_size(6).name == "sym6" and forms.by_list_size(4) is None and forms.by_count(2) is None
+    with pytest.raises(UsageError, match="unknown inertia form 'sym7'; choose one of: scalar, principal"):
+        forms.get("sym7")
+
+
+def test_register_one_entry_is_read_mapped_and_named(monkeypatch, rng):
+    """A new form (URDF's lower-case six) is one registry entry: reading, --map and the messages
+    follow by themselves."""
+    import dataclasses
+
+    from hconv.solve import forms
+
+    urdf = dataclasses.replace(forms.get("sym6"), name="urdf", columns=("ixx", "iyy", "izz", "ixy", "ixz", "iyz"),
+                               description="ixx, iyy, izz, ixy, ixz, iyz (URDF)", note="URDF")
+    monkeypatch.setitem(forms.FORMS, "urdf", urdf)
+    M, H = physical_bodies(rng, 20), rng.normal(size=(20, 3))
+    upper = table(**vec("H", H), **dict(zip(forms.SIX, six(M).T)))
+    lower = table(**vec("H", H), **dict(zip(urdf.columns, six(M).T)))
+    np.testing.assert_array_equal(w_of(hconv.convert_table(lower)), w_of(hconv.convert_table(upper)))
+    renamed = table(**vec("H", H), **dict(zip(["a", "b", "c", "d", "e", "f"], six(M).T)))
+    job = Job(mapping=tuple(zip(urdf.columns, "abcdef")))
+    np.testing.assert_array_equal(w_of(hconv.convert_table(renamed, job=job)), w_of(hconv.convert_table(upper)))
+    with pytest.raises(InputError, match=r"ixx, iyy, izz, ixy, ixz, iyz \(URDF\)"):
+        hconv.convert_table(table(**vec("H", H)))

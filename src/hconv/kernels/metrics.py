@@ -17,7 +17,7 @@ def relative_error(x: np.ndarray, ref: np.ndarray) -> np.ndarray:
     Both norms are taken in units of ref's largest component, so that neither the squares of
     1e200 nor those of 1e-200 leave the range (the ratio is unchanged). Where ref is 0, an x of
     0 is exact (0) and anything else infinitely off (inf). A NaN in x gives NaN; a ref that is not
-    finite gives inf (callers that hold such rows leave them out).
+    finite gives inf or NaN (callers that hold such rows leave them out).
     """
     d = x - ref
     unit = max_abs(ref)
@@ -26,7 +26,7 @@ def relative_error(x: np.ndarray, ref: np.ndarray) -> np.ndarray:
     num = np.sqrt(sum_sq(d))
     den = np.sqrt(sum_sq(ref))
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(den > 0, num / np.where(den > 0, den, 1.0), np.where(num == 0, 0.0, np.inf))
+        return np.where(den > 0, num / np.where(den > 0, den, 1.0), np.where(num == 0, 0.0, num * np.inf))
 
 
 def angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -37,10 +37,10 @@ def angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """
     ua, ub = max_abs(a), max_abs(b)
     defined = (ua > 0) & (ub > 0) & np.isfinite(ua) & np.isfinite(ub)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         a = a / np.where(defined, ua, 1.0)
         b = b / np.where(defined, ub, 1.0)
-    cross = np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
-    dot = a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-    ang = np.degrees(np.arctan2(np.sqrt(sum_sq(cross)), dot))
+        cross = np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+        dot = a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+        ang = np.degrees(np.arctan2(np.sqrt(sum_sq(cross)), dot))
     return np.where(defined, ang, np.nan)

@@ -48,9 +48,13 @@ VECTOR_SETS = {
 QUANTITY = {"H": "H", "I": "I", "q": "q", "r": "r", "m": "m", "v": "v", "w_obs": "w"}
 #: Sets read whenever present (they change the answer or its status); v and w_obs only when needed.
 OPTIONAL_SETS = ("q", "r", "m")
-#: Every name --map takes: the sets' columns, every inertia form's, and the list columns' sets.
-ALL_NAMES = tuple(sorted({n for names in VECTOR_SETS.values() for n in names} | set(forms.column_names())
-                         | set(QUANTITY), key=str.lower))
+
+
+def all_names() -> tuple:
+    """Every name --map takes: the sets' columns, every registered inertia form's, and the sets."""
+    return tuple(sorted({n for names in VECTOR_SETS.values() for n in names} | set(forms.column_names())
+                        | set(QUANTITY), key=str.lower))
+
 
 #: The columns hconv writes after the input's.
 W_COLUMNS = ("wx", "wy", "wz")
@@ -245,9 +249,9 @@ def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
 def _mapping(pairs, present: set, source: str) -> dict:
     mapping = {}
     for name, column in pairs:
-        if name not in ALL_NAMES:
+        if name not in all_names():
             raise UsageError(f"--map {name}={column}: hconv has no column {name!r}; "
-                             f"map one of {', '.join(ALL_NAMES)}")
+                             f"map one of {', '.join(all_names())}")
         if column not in present:
             raise InputError(f"{source}: --map {name}={column}, but there is no column {column!r}")
         if name in mapping and mapping[name] != column:

@@ -144,10 +144,11 @@ def _sniff_csv(path: str, name: str) -> None:
 
 def _header_hint(names: list) -> str:
     """Why a header may not have matched: spaces around names, or a first line that is no header."""
-    spaced = [n for n in names if n != n.strip() and n.strip() in layout.ALL_NAMES]
+    known = layout.all_names()
+    spaced = [n for n in names if n != n.strip() and n.strip() in known]
     if spaced:
         return f" (the header has spaces around {', '.join(repr(n) for n in spaced[:3])}; remove them)"
-    if not any(n.strip() in layout.ALL_NAMES for n in names):
+    if not any(n.strip() in known for n in names):
         return f" (the first line, {','.join(names)[:50]!r}, names none of hconv's columns: is it a CSV header?)"
     return ""
 

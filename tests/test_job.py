@@ -1,0 +1,48 @@
+"""The run configuration: checked once when made, from Python or the CLI alike."""
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from hconv.errors import UsageError
+from hconv.solve.options import Conventions
+from hconv.tables.job import Job
+
+
+def test_job_mapping_and_units_as_dict_or_pairs():
+    assert Job(mapping={"Hx": "Lx", "Hy": "Ly"}) == Job(mapping=(("Hx", "Lx"), ("Hy", "Ly")))
+    assert Job(unit_options={"I": "g*cm**2"}).unit_options == (("I", "g*cm**2"),)
+    with pytest.raises(UsageError, match="mapping takes pairs such as"):
+        Job(mapping="Hx=Lx")
+
+
+def test_job_is_immutable():
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        Job().method = "lapack"
+
+
+@pytest.mark.parametrize("kwargs, needle", [
+    ({"method": "exakt"}, "unknown method 'exakt'; choose one of: exact"),
+    ({"quat_order": "zyxw"}, "--quat-order must be one of wxyz, xyzw, got 'zyxw'"),
+    ({"omega_unit": "parsecs"}, "--omega-unit: 'parsecs'"),
+    ({"method": "document", "omega_unit": "deg/s"}, r"gives m\^2/s, which is not an angular velocity"),
+    ({"conventions": "world"}, "conventions must be a Conventions, got str"),
+])
+def test_job_bad_option_is_refused_when_made(kwargs, needle):
+    with pytest.raises(UsageError, match=needle):
+        Job(**kwargs)
+
+
+def test_job_needs_and_output_unit():
+    job = Job("document", conventions=Conventions(about="pivot"), observed=True)
+    assert list(job.needs()) == ["r", "m", "w_obs"]
+    assert job.unit == "m^2/s" and job.omega_scale == 1.0
+    deg = Job(omega_unit="deg/s")
+    assert deg.unit == "deg/s" and deg.omega_scale == pytest.approx(57.29577951308232, rel=1e-15)
+
+
+def test_job_set_factor_reads_whole_set_units():
+    job = Job(unit_options=(("I", "g*cm**2"), ("Hx", "kg*cm**2/s")))
+    assert job.set_factor("I") == pytest.approx(1e-7, rel=1e-15)
+    assert job.set_factor("H") == 1.0  # a single column's unit is the planner's business, not a set's

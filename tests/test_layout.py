@@ -1,0 +1,65 @@
+"""Column plans: a pure function of (schema, job), an immutable layout, and list columns whose
+length one batch fixes for the whole file."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+
+from hconv.errors import InputError
+from hconv.tables import layout, pipeline
+from hconv.tables.job import Job
+
+
+def _list_table(H_rows, I_rows) -> pa.Table:
+    return pa.table({"H": pa.array(H_rows, pa.list_(pa.float64())), "I": pa.array(I_rows, pa.list_(pa.float64()))})
+
+
+def test_plan_is_pure_and_its_layout_immutable():
+    schema = pa.schema([(c, pa.float64()) for c in ("Hx", "Hy", "Hz", "I1", "I2", "I3")])
+    job = Job()
+    a, b = layout.plan(schema, job, "x.csv"), layout.plan(schema, job, "x.csv")
+    assert a == b and a.form == "principal" and job == Job()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        a.form = "sym6"
+
+
+def test_resolve_fixes_list_lengths_in_a_new_layout():
+    t = _list_table([[1.0, 2.0, 3.0]], [[1.0, 2.0, 3.0, 0.0, 0.0, 0.0]])
+    plan = layout.plan(t.schema, Job(), "t")
+    assert plan.form is None and plan.groups["I"].size is None
+    resolved = plan.resolve(t)
+    assert resolved.form == "sym6" and resolved.groups["I"].size == 6 and resolved.groups["H"].size == 3
+    assert plan.form is None and plan.groups["I"].size is None  # the original is untouched
+    sets, form = resolved.read(t)
+    assert form == "sym6" and sets["I"].shape == (6, 1)
+
+
+def test_read_list_column_null_in_every_row_gives_invalid_input_rows():
+    import hconv
+
+    t = _list_table([[1.0, 2.0, 3.0], [1.0, 0.0, 0.0]], [None, None])
+    got = hconv.convert_table(t)
+    assert got.column("status").to_pylist() == ["invalid_input", "invalid_input"]
+
+
+def _two_row_groups(path, second_H):
+    writer = pq.ParquetWriter(path, _list_table([[1.0, 2.0, 3.0]], [[1.0, 2.0, 3.0]]).schema)
+    writer.write_table(_list_table([[1.0, 2.0, 3.0]] * 5, [[1.0, 2.0, 3.0]] * 5))
+    writer.write_table(_list_table([second_H] * 5, [[1.0, 2.0, 3.0]] * 5))
+    writer.close()
+
+
+def test_parquet_list_length_is_fixed_by_the_first_batch(tmp_path, monkeypatch):
+    monkeypatch.setattr("hconv.tables.tableio.PARQUET_BATCH_ROWS", 5)  # one batch per row group
+    _two_row_groups(tmp_path / "bad.parquet", [1.0, 2.0])
+    with pytest.raises(InputError, match="list column 'H' holds 2 values in one row but 3 in others"):
+        pipeline.convert_file(str(tmp_path / "bad.parquet"), str(tmp_path / "out.parquet"), threads=2)
+    assert not (tmp_path / "out.parquet").exists()
+    _two_row_groups(tmp_path / "good.parquet", [0.0, 1.0, 0.0])
+    pipeline.convert_file(str(tmp_path / "good.parquet"), str(tmp_path / "out.parquet"), threads=2)
+    w = np.column_stack([pq.read_table(tmp_path / "out.parquet").column(c).to_numpy() for c in ("wx", "wy", "wz")])
+    np.testing.assert_array_equal(w, [[1.0, 1.0, 1.0]] * 5 + [[0.0, 0.5, 0.0]] * 5)
