@@ -214,13 +214,36 @@ def _tensors_for(name: str, rng, n: int) -> np.ndarray:
 
 
 @pytest.mark.parametrize("name", ["scalar", "principal", "sym6", "full9"])
-def test_form_as_array_solves_to_the_matrix_answer(name, rng):
+def test_form_as_sym3_solves_to_the_matrix_answer(name, rng):
     from hconv.solve import forms
+    from hconv.solve.convert import convert_columns
 
     M, H = _tensors_for(name, rng, 40), rng.normal(size=(40, 3))
     form = forms.get(name)
-    got = hconv.convert(H, form.as_array(_form_values(name, M))).w
+    I, asym = form.as_sym3(_form_values(name, M))
+    assert not asym.any() and all(c.flags.c_contiguous for c in I)
+    got = convert_columns(H.T, I, asym, form.diagonal).w
     assert rel_err(got, mp_solve(M, H)).max() < 4 * np.finfo(float).eps * 20
+
+
+def test_form_nine_numbers_flag_asymmetry_relative_to_the_largest_entry():
+    from hconv.solve import forms
+
+    M = np.tile(np.diag([1e6, 2e6, 3e6]), (3, 1, 1))
+    M[1, 0, 2] += 1e-7  # 1e-13 of the largest entry: within SYMMETRY_RTOL
+    M[2, 2, 1] += 1e-5  # 3e-12 of it: beyond
+    I, asym = forms.get("full9").as_sym3(_form_values("full9", M))
+    assert asym.tolist() == [False, False, True] and I.yz[2] == 0.5e-5
+
+
+def test_forms_from_array_reads_the_stacked_layouts():
+    from hconv.solve import forms
+
+    for shape, name in (((5, 3), "principal"), ((5, 6), "sym6"), ((5, 3, 3), "full9")):
+        form, values = forms.from_array(np.zeros(shape))
+        assert form.name == name and values.shape == (form.count, 5)
+    with pytest.raises(ValueError, match=r"Expected I to have shape .*got \(5, 4\)"):
+        forms.from_array(np.zeros((5, 4)))
 
 
 @pytest.mark.parametrize("name", ["scalar", "principal", "sym6", "full9"])

@@ -46,33 +46,6 @@ class Sym3(NamedTuple):
         return m
 
 
-def sym_from_array(I: np.ndarray, *, symmetry_rtol: float = 1e-12) -> tuple[Sym3, np.ndarray]:
-    """Read tensors given as ``(N, 6)``, ``(N, 3, 3)`` or ``(N, 3)`` (principal/diagonal moments).
-
-    Returns the tensors and a boolean mask of shape ``(N,)`` that is True where a ``(N, 3, 3)``
-    input is not symmetric: ``|Iij - Iji| > symmetry_rtol · max|I|`` for that row. Those rows keep
-    the mean of the two entries so that the arrays stay finite; the caller flags them.
-    """
-    I = np.asarray(I, dtype=np.float64)
-    n = I.shape[0]
-    asym = np.zeros(n, dtype=bool)
-    if I.ndim == 2 and I.shape[1] == 6:
-        return Sym3(*(np.ascontiguousarray(I[:, k]) for k in range(6))), asym
-    if I.ndim == 2 and I.shape[1] == 3:
-        zero = np.zeros(n)
-        return Sym3(*(np.ascontiguousarray(I[:, k]) for k in range(3)), zero, zero.copy(), zero.copy()), asym
-    if I.ndim == 3 and I.shape[1:] == (3, 3):
-        scale = np.max(np.abs(I), axis=(1, 2))
-        skew = np.max(np.abs(I - np.swapaxes(I, 1, 2)), axis=(1, 2))
-        with np.errstate(invalid="ignore"):
-            asym = skew > symmetry_rtol * scale
-        half = 0.5 * (I + np.swapaxes(I, 1, 2))
-        return Sym3(half[:, 0, 0], half[:, 1, 1], half[:, 2, 2], half[:, 0, 1], half[:, 0, 2], half[:, 1, 2]), asym
-    raise ValueError(
-        f"Expected I to have shape (3,), (6,), (3, 3), (N, 3), (N, 6) or (N, 3, 3), got {I.shape}"
-    )
-
-
 def max_abs(columns) -> np.ndarray:
     """Elementwise max of |column| over a few ``(N,)`` columns (chained, no stacking copy)."""
     it = iter(columns)

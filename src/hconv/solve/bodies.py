@@ -93,9 +93,9 @@ def _solve(sets: dict, form: forms.Form, method, precision, conv: Conventions, d
             H_solved = frames.momentum_about_com(H_P_B, m, r_B, v_B)
     if bad.any():
         H_solved = np.where(bad, np.nan, H_solved)  # status invalid_input, through core
-    res = core.convert(H_solved.T, solved_form.as_array(I_solved), None if r_B is None else r_B.T, method=method,
-                       precision=precision, diagnostics=diagnostics, degenerate=conv.degenerate,
-                       degenerate_rtol=conv.degenerate_rtol, extra_k=ROTATION_K if rotate_in else 0.0)
+    res = core.convert_columns(H_solved, *solved_form.as_sym3(I_solved), solved_form.diagonal, r_B, method=method,
+                               precision=precision, diagnostics=diagnostics, degenerate=conv.degenerate,
+                               degenerate_rtol=conv.degenerate_rtol, extra_k=ROTATION_K if rotate_in else 0.0)
     w_B, axis_B, code = res.w, res.null_axis, res.status_code
     w_out, axis_out = w_B, axis_B
     if R_WB is not None and conv.w_frame == "world":

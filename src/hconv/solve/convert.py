@@ -24,10 +24,10 @@ from typing import Optional
 import numpy as np
 
 from hconv.kernels import frames, linsolve
+from hconv.kernels.inertia import Sym3, max_abs, pinv_moments, principal_frame
 from hconv.kernels.metrics import relative_error
-from hconv.kernels.inertia import Sym3, max_abs, pinv_moments, principal_frame, sym_from_array
 from hconv.kernels.spectrum import eigenvalues
-from hconv.solve import methods, options, status
+from hconv.solve import forms, methods, options, status
 
 #: Rows per kernel block: small enough that a block's temporaries stay in cache.
 BLOCK_ROWS = 16384
@@ -85,9 +85,7 @@ def convert(H, I, r=None, *, method: str = "exact", precision: int = 64,
     ``extra_k`` adds to the method's error constant K for the ``ill_conditioned`` test, for a
     caller that has already rounded H in a way that grows with cond (a frame rotation: 2).
     """
-    m = methods.get(method)
-    options.check_precision(precision)
-    options.check_degenerate(degenerate, degenerate_rtol, method)
+    m = _checked(method, precision, degenerate, degenerate_rtol)
     H = _as_float("H", H)
     I = _as_float("I", I)
     single = H.ndim == 1
@@ -105,9 +103,36 @@ def convert(H, I, r=None, *, method: str = "exact", precision: int = 64,
             raise ValueError(f"Expected r to have shape {(3,) if single else (n, 3)}, got {r.shape[1:] if single else r.shape}")
     elif m.needs_r:
         raise ValueError(f"method {method!r} needs the offset r [m]; pass r=...")
-    Isym, asym = sym_from_array(I)
-    diagonal = I.ndim == 2 and I.shape[1] == 3
+    form, values = forms.from_array(I)
+    res = convert_columns(H.T, *form.as_sym3(values), form.diagonal, None if r is None else r.T, method=method,
+                          precision=precision, diagnostics=diagnostics, degenerate=degenerate,
+                          degenerate_rtol=degenerate_rtol, extra_k=extra_k)
+    if single:
+        return Result(res.w[0], None if res.residual is None else res.residual[0], res.cond[0], res.status_code[0],
+                      res.unit, res.method, None if res.null_axis is None else res.null_axis[0],
+                      None if res.null_dim is None else res.null_dim[0])
+    return res
 
+
+def _checked(method: str, precision: int, degenerate: str, degenerate_rtol: Optional[float]) -> methods.Method:
+    m = methods.get(method)
+    options.check_precision(precision)
+    options.check_degenerate(degenerate, degenerate_rtol, method)
+    return m
+
+
+def convert_columns(H: np.ndarray, I: Sym3, asym: np.ndarray, diagonal: bool, r: Optional[np.ndarray] = None, *,
+                    method: str = "exact", precision: int = 64, diagnostics: bool = True, degenerate: str = "error",
+                    degenerate_rtol: Optional[float] = None, extra_k: float = 0.0) -> Result:
+    """:func:`convert` on hconv's internal layout: ``H`` and ``r`` component-major ``(3, N)``,
+    I a :class:`Sym3` of ``(N,)`` columns with the ``(N,)`` mask ``asym`` of rows given as
+    non-symmetric nine numbers (:meth:`hconv.solve.forms.Form.as_sym3` makes both); ``diagonal``
+    when I holds principal moments in their own axes. Returns a stacked :class:`Result`.
+    """
+    m = _checked(method, precision, degenerate, degenerate_rtol)
+    n = H.shape[1]
+    if m.needs_r and r is None:
+        raise ValueError(f"method {method!r} needs the offset r [m]; pass r=...")
     dtype = options.DTYPES[precision]
     w = np.empty((n, 3), dtype=dtype)
     cond = np.empty(n)
@@ -118,11 +143,8 @@ def convert(H, I, r=None, *, method: str = "exact", precision: int = 64,
         deg = _Degenerate(np.full((n, 3), np.nan), np.zeros(n, dtype=np.int8))
     opts = _BlockOptions(m, dtype, diagonal, degenerate_rtol, extra_k)
     with np.errstate(all="ignore"):  # every row that would warn gets a status instead
-        _convert_blocks(n, opts, Isym, asym, H, r, w, cond, code, residual, deg)
+        _convert_blocks(n, opts, I, asym, H, r, w, cond, code, residual, deg)
     axis, dim = (None, None) if deg is None else (deg.axis, deg.dim)
-    if single:
-        return Result(w[0], None if residual is None else residual[0], cond[0], code[0], m.unit, m.name,
-                      None if axis is None else axis[0], None if dim is None else dim[0])
     return Result(w, residual, cond, code, m.unit, m.name, axis, dim)
 
 
@@ -130,7 +152,7 @@ def _convert_blocks(n, opts, Isym, asym, H, r, w, cond, code, residual, deg) -> 
     for lo in range(0, n, BLOCK_ROWS):
         sl = slice(lo, min(n, lo + BLOCK_ROWS))
         _convert_block(
-            opts, Isym.take(sl), asym[sl], H[sl], None if r is None else r[sl],
+            opts, Isym.take(sl), asym[sl], H[:, sl], None if r is None else r[:, sl],
             w[sl], cond[sl], code[sl], None if residual is None else residual[sl],
             None if deg is None else _Degenerate(deg.axis[sl], deg.dim[sl]),
         )
@@ -154,11 +176,12 @@ class _Degenerate:
 
 
 def _convert_block(o: _BlockOptions, I: Sym3, asym, H, r, w_out, cond_out, code_out, res_out, deg) -> None:
-    """One block of rows; writes into the ``*_out`` views (and ``deg``'s, for pinv/lock)."""
+    """One block of rows, ``H`` and ``r`` ``(3, n)``; writes into the ``*_out`` views (and
+    ``deg``'s, for pinv/lock)."""
     m, dtype = o.m, o.dtype
-    n = H.shape[0]
-    H = np.ascontiguousarray(H.T)  # (3, n): the kernels' component-major layout
-    r_used = np.ascontiguousarray(r.T) if m.needs_r else None
+    n = H.shape[1]
+    H = np.ascontiguousarray(H)  # a copy of the block: contiguous rows, and the caller's never written
+    r_used = np.ascontiguousarray(r) if m.needs_r else None
     columns = [*I, *H] + ([] if r_used is None else list(r_used))
     limit = np.finfo(dtype).max  # a finite float64 beyond float32's range is no usable input there
     with np.errstate(invalid="ignore"):

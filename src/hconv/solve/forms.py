@@ -30,6 +30,7 @@ import numpy as np
 
 from hconv.errors import UsageError
 from hconv.kernels.inertia import Sym3
+from hconv.solve.status import SYMMETRY_RTOL
 
 #: The six numbers' order, and the name of each entry.
 SIX = ("Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz")
@@ -50,9 +51,10 @@ class Form:
     extends: Optional[str] = None
     #: position in :attr:`columns` of each value, in value order; None when they coincide
     value_order: Optional[tuple] = None
-    #: ``(k, N)`` → what :func:`hconv.solve.convert.convert` takes: ``(N, 3)`` diagonal moments,
-    #: ``(N, 6)`` or ``(N, 3, 3)``; a view where one will do
-    as_array: Callable = None
+    #: ``(k, N)`` → the one internal representation: a :class:`Sym3` of contiguous ``(N,)``
+    #: columns, and the ``(N,)`` mask of rows whose nine numbers are not symmetric (those rows
+    #: keep the mean of the two entries, so that the arrays stay finite; the caller flags them)
+    as_sym3: Callable = None
     #: ``(k, N)`` → the three diagonal entries and the three products ``(xy, xz, yz)`` as
     #: :class:`Sym3`-ordered rows ``(6, N)``; products are averaged for a nine-number form
     as_six: Callable = None
@@ -104,6 +106,19 @@ def get(name: str) -> Form:
         raise UsageError(f"unknown inertia form {name!r}; choose one of: {', '.join(FORMS)}") from None
 
 
+def from_array(I: np.ndarray) -> tuple[Form, np.ndarray]:
+    """The form and values ``(k, N)`` (views) of tensors given as numpy users hold them: ``(N, 3)``
+    principal moments, ``(N, 6)`` six numbers or ``(N, 3, 3)`` matrices; ValueError otherwise."""
+    if I.ndim == 2 and I.shape[1] == 3:
+        return FORMS["principal"], I.T
+    if I.ndim == 2 and I.shape[1] == 6:
+        return FORMS["sym6"], I.T
+    if I.ndim == 3 and I.shape[1:] == (3, 3):
+        return FORMS["full9"], I.reshape(I.shape[0], 9).T
+    raise ValueError(
+        f"Expected I to have shape (3,), (6,), (3, 3), (N, 3), (N, 6) or (N, 3, 3), got {I.shape}")
+
+
 def by_count(k: int) -> Optional[Form]:
     """The first registered form with ``k`` numbers per row (``hconv one --I``), or None."""
     return next((f for f in FORMS.values() if f.count == k), None)
@@ -153,9 +168,32 @@ def _six_of_diagonal(diag: np.ndarray) -> np.ndarray:
     return np.stack([diag[0], diag[1], diag[2], zero, zero, zero])
 
 
+def _sym3_of_diagonal(diag: np.ndarray) -> tuple[Sym3, np.ndarray]:
+    n = diag.shape[1]
+    return Sym3(*(np.ascontiguousarray(d, dtype=np.float64) for d in diag), np.zeros(n), np.zeros(n),
+                np.zeros(n)), np.zeros(n, dtype=bool)
+
+
+def _sym3_of_six(I: np.ndarray) -> tuple[Sym3, np.ndarray]:
+    return Sym3(*(np.ascontiguousarray(c, dtype=np.float64) for c in I)), np.zeros(I.shape[1], dtype=bool)
+
+
+def _sym3_of_nine(I: np.ndarray) -> tuple[Sym3, np.ndarray]:
+    """The symmetric part of row-major nine numbers, and where they are not symmetric:
+    |Iij − Iji| > SYMMETRY_RTOL · max|I| on that row."""
+    skew = np.abs(I[1] - I[3])
+    with np.errstate(invalid="ignore"):
+        scale = np.abs(I).max(axis=0)
+        np.maximum(skew, np.abs(I[2] - I[6]), out=skew)
+        np.maximum(skew, np.abs(I[5] - I[7]), out=skew)
+        asym = skew > SYMMETRY_RTOL * scale
+    return Sym3(I[0].copy(), I[4].copy(), I[8].copy(), 0.5 * (I[1] + I[3]), 0.5 * (I[2] + I[6]),
+                0.5 * (I[5] + I[7])), asym
+
+
 register(Form(
     "scalar", ("I",), "I (isotropic)", "isotropic", diagonal=True, list_size=None,
-    as_array=lambda I: np.repeat(I, 3, axis=0).T,
+    as_sym3=lambda I: _sym3_of_diagonal(np.repeat(I, 3, axis=0)),
     as_six=lambda I: _six_of_diagonal(np.repeat(I, 3, axis=0)),
     flip_products=_no_products,
     shifted=lambda I, d: _shift_diagonal(np.repeat(I, 3, axis=0), d),
@@ -163,7 +201,7 @@ register(Form(
 
 register(Form(
     "principal", ("I1", "I2", "I3"), "I1, I2, I3 (principal)", "principal", diagonal=True, list_size=3,
-    as_array=lambda I: I.T,
+    as_sym3=_sym3_of_diagonal,
     as_six=_six_of_diagonal,
     flip_products=_no_products,
     shifted=_shift_diagonal,
@@ -171,7 +209,7 @@ register(Form(
 
 register(Form(
     "sym6", SIX, f"{', '.join(SIX)} (tensor)", ",".join(SIX), diagonal=False, list_size=6,
-    as_array=lambda I: I.T,
+    as_sym3=_sym3_of_six,
     as_six=lambda I: I,
     flip_products=lambda I: np.concatenate([I[:3], -I[3:]]),
     shifted=lambda I, d: ("sym6", I + np.stack(list(d))),
@@ -192,7 +230,7 @@ register(Form(
     extends="sym6",
     # the named nine are the six, then Iyx, Izx, Izy; as values they are row-major
     value_order=(0, 3, 4, 6, 1, 5, 7, 8, 2),
-    as_array=lambda I: np.moveaxis(I.reshape(3, 3, -1), -1, 0),
+    as_sym3=_sym3_of_nine,
     as_six=lambda I: np.stack([I[0], I[4], I[8], 0.5 * (I[1] + I[3]), 0.5 * (I[2] + I[6]), 0.5 * (I[5] + I[7])]),
     flip_products=_flip9,
     # stays nine numbers, so that an asymmetry remains visible (status not_symmetric)
