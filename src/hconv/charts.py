@@ -24,7 +24,7 @@ def _pyplot():
 
 def requested(out: Optional[str], no_chart: bool) -> Optional[str]:
     """The chart path a command should write, or None; UsageError now, before a long run, if the
-    name is not .png/.svg or matplotlib is missing. matplotlib itself (about 1 s to import) is
+    name is not .png/.svg or matplotlib is missing. matplotlib itself (slow to import) is
     loaded only when a chart is drawn."""
     if no_chart or out is None:
         return None

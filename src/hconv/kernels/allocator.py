@@ -2,11 +2,10 @@
 
 Every numpy operation on a block of rows allocates its result. A block of 16384 float64 rows is
 128 KiB, glibc's default ``mmap`` threshold, and its dynamic thresholds then trim the heap back
-after nearly every block, so each new temporary is faulted in and zeroed by the kernel again.
-Measured on this project's 2-core machine (fresh processes, ``exact`` over 2M rows): 62–77 ns/row
-with the defaults against 13–15 ns/row with the settings below, and 20 % off a whole
-``hconv convert``. Raising the two thresholds keeps freed temporaries in the heap for the next
-block, at the price of up to :data:`TRIM_THRESHOLD` of freed memory held until the process ends.
+after nearly every block, so each new temporary is faulted in and zeroed by the kernel again,
+which cost the kernels several times their arithmetic (figures: docs/measurements.md). Raising
+the two thresholds keeps freed temporaries in the heap for the next block, at the price of up to
+:data:`TRIM_THRESHOLD` of freed memory held until the process ends.
 
 The ``hconv`` command calls :func:`tune` at start-up. A program that uses hconv as a library may
 call it too; hconv never calls it on import, since it changes the whole process's allocator.

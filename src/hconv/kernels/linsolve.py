@@ -39,8 +39,8 @@ def ldlt_factor(I: Sym3) -> LDLt:
     """Square-root-free Cholesky, written out for 3×3 so it vectorises over rows (~25 flops/row).
 
     Scale-safe as written: every l is a ratio and every d a difference of like-scaled terms.
-    The fields share one ``(5, N)`` buffer and every step writes in place: fewer temporaries,
-    which was measured to make the kernel 15 % faster.
+    The fields share one ``(5, N)`` buffer and every step writes in place: fewer temporaries
+    make the kernel faster (docs/measurements.md).
     """
     buf = np.empty((5,) + I.xx.shape, dtype=np.result_type(I.xx, I.xy))
     d2, d3, l21, l31, l32 = buf
@@ -137,8 +137,8 @@ def residual_dd(A: SplitSym, h: np.ndarray, x: np.ndarray) -> np.ndarray:
 
     The arithmetic is :func:`hconv.kernels.eft.two_prod_split` and :func:`hconv.kernels.eft.two_diff` written
     out over a fixed set of scratch rows (every intermediate lands in one of them): the same
-    operations in the same order, so the same bits, ~30 % faster than with a fresh array per
-    operation (measured, 16384 rows).
+    operations in the same order, so the same bits, faster than with a fresh array per
+    operation (docs/measurements.md).
     """
     n = x.shape[1]
     buf = np.empty((13, n), dtype=x.dtype)
@@ -221,9 +221,8 @@ def _in_safe_range(arrays, dtype, skip_nan: bool = False) -> bool:
 #: Most refinement steps; with an exact residual each step multiplies the error by ~cond·eps.
 MAX_REFINE_STEPS = 6
 #: Refinement stops once no row's next correction is predicted above STOP_TOL·eps (relative).
-#: Measured margin: with 16 instead of 1, 512k rows at each of cond 1e8 and 1e12 (middle
-#: moment spread or next to the smallest) still all came out within one rounding of a ten-step
-#: refinement; tests/test_linsolve.py checks the value in use.
+#: A 16× looser value still met the target (docs/measurements.md), so 1 leaves a margin;
+#: tests/test_linsolve.py checks the value in use.
 STOP_TOL = 1.0
 
 
@@ -238,9 +237,8 @@ def solve_refined(I: Sym3, h: np.ndarray, steps: Optional[int] = None,
     of the block is predicted to move by more than ``STOP_TOL``·eps (relative) in the next step.
     The prediction is Wilkinson's: each step multiplies the error by about the ratio of the last
     two corrections; after the first step, with no ratio yet, by the block's largest first
-    correction (x₀'s worst relative error, about cond·eps for LDLᵀ's answer). Measured on
-    16384-row blocks of rotated bodies: one step to cond ~1e8, two to ~1e10, three at 1e12;
-    every answer within one rounding of a ten-step refinement.
+    correction (x₀'s worst relative error, about cond·eps for LDLᵀ's answer). The steps this
+    takes per cond, and its accuracy against ten steps, are in docs/measurements.md.
 
     Blocks whose magnitudes (I, h or ω) are extreme are solved equilibrated by powers of two.
     """

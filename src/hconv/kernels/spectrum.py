@@ -16,8 +16,8 @@ def eigenvalues(I: Sym3) -> np.ndarray:
     """Principal moments of each tensor, ascending, shape ``(3, N)`` [kg·m²] (component-major, so
     each of the three is a contiguous column). Inputs must be finite.
 
-    Accurate to what the statuses and ``cond`` need, and several times faster (in 16k-row blocks)
-    than LAPACK's ``eigvalsh``, which it falls back to wherever a decision could be in doubt:
+    Accurate to what the statuses and ``cond`` need, and faster than LAPACK's ``eigvalsh``
+    (docs/measurements.md), which it falls back to wherever a decision could be in doubt:
 
     * Positive definite rows (all LDLᵀ pivots > 0): the largest moment λ₂ from the closed-form
       (trigonometric) root of the characteristic cubic. The other two are the roots of
@@ -90,8 +90,8 @@ _COS = tuple((-1) ** k / math.factorial(2 * k) for k in range(11))
 def _cos(x: np.ndarray) -> np.ndarray:
     """cos(x) for 0 ≤ x ≤ π/3, within a few ulps (the series' remainder there is below 1e-21).
 
-    numpy's own ``cos`` took 9.2 ns per value on this project's machine (libm, not vectorised),
-    8 times its ``arccos``; this series, evaluated by Horner's rule, takes about a quarter of that.
+    numpy's own ``cos`` is libm's, not vectorised, and cost more than the rest of the root;
+    this series by Horner's rule is several times cheaper (docs/measurements.md).
     """
     y = x * x
     c = np.full_like(y, _COS[-1])

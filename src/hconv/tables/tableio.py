@@ -261,8 +261,8 @@ def _open_parquet(path: str, name: str, job) -> Input:
     try:
         if os.path.getsize(path) == 0:
             raise InputError(f"{name}: the file is empty (0 bytes); it is not a Parquet file")
-        # Stream pages rather than pre-buffering whole row groups: halves peak memory on files
-        # written with large row groups (pyarrow's default is 1M rows).
+        # Stream pages rather than pre-buffering whole row groups, so that peak memory does not
+        # grow with the writer's row-group size (docs/measurements.md).
         pf = pq.ParquetFile(path, pre_buffer=False, buffer_size=1 << 20)
     except pa.ArrowException as exc:
         raise InputError(f"{name}: not a readable Parquet file ({_first_line(exc)}); "
@@ -372,8 +372,8 @@ class Output:
 class _ParquetWriter:
     def __init__(self, path: str, schema: pa.Schema):
         # Dictionary encoding and compression pay for labels and statuses. On floats that rarely
-        # repeat, dictionaries only cost time, and snappy saved 1–5 % of the file for a third of
-        # the writing time (2M generated rows), so float columns are written plain.
+        # repeat, dictionaries only cost time and snappy saves little space for much writing
+        # time (docs/measurements.md), so float columns are written plain.
         floats = {f.name for f in schema if pa.types.is_floating(f.type)}
         others = [f.name for f in schema if f.name not in floats]
         self._w = pq.ParquetWriter(path, schema, use_dictionary=others or False,

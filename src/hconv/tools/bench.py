@@ -122,8 +122,8 @@ def refined_by_cond(rows: int, repeats: int, seed: int = 0) -> dict:
 
 def _each_block(kernel, blocks) -> None:
     """Run ``kernel`` on every block and drop each answer, as ``convert`` does once it has copied
-    it out. (Keeping all of them, 48 MB on 2M rows, made the allocator hand the memory back and
-    fault it in again on every repeat: 55 instead of 98 M rows/s for ``exact``.)"""
+    it out: keeping all of them made the allocator hand the memory back and fault it in again on
+    every repeat, which slowed the kernels (docs/measurements.md)."""
     for b in blocks:
         kernel(*b)
 
@@ -194,8 +194,8 @@ else:
 def yardstick(I: Sym3, H: np.ndarray, tmp: str, repeats: int) -> tuple[Optional[float], float]:
     """(compiled loop, exact kernel) in rows/s, each in fresh processes, alternating per round.
 
-    Separate processes, because importing numba and compiling was measured (twice each way) to
-    slow the float64 numpy kernels of the same process from 55 to 40 M rows/s.
+    Separate processes, because importing numba and compiling slows the float64 numpy kernels of
+    the same process (docs/measurements.md).
     """
     if importlib.util.find_spec("numba") is None:
         return None, float("nan")
