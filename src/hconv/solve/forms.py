@@ -28,7 +28,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from hconv.errors import UsageError
+from hconv.registry import Registry
 from hconv.kernels.inertia import Sym3
 from hconv.solve.status import SYMMETRY_RTOL
 
@@ -90,20 +90,16 @@ class Form:
         return np.fmax(np.fmax(ratios[0], ratios[1]), ratios[2])
 
 
-FORMS: dict[str, Form] = {}
+FORMS: Registry = Registry("inertia form")
 
 
 def register(form: Form) -> Form:
-    FORMS[form.name] = form
-    return form
+    return FORMS.add(form.name, form)
 
 
 def get(name: str) -> Form:
-    """The form called ``name``; UsageError naming the choices otherwise."""
-    try:
-        return FORMS[name]
-    except KeyError:
-        raise UsageError(f"unknown inertia form {name!r}; choose one of: {', '.join(FORMS)}") from None
+    """The form called ``name``; UsageError (a ValueError) naming the choices otherwise."""
+    return FORMS.get_checked(name)
 
 
 def from_array(I: np.ndarray) -> tuple[Form, np.ndarray]:

@@ -14,7 +14,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from hconv.errors import UsageError
+from hconv.registry import Registry
 from hconv.kernels import frames, linsolve
 from hconv.kernels.inertia import Sym3, pinv_moments, principal_frame
 from hconv.solve.status import ILL_CONDITIONED_TOL, REPEATED_RTOL, R_AXIS_RTOL, singular_rtol
@@ -53,7 +53,7 @@ class Method:
         return ILL_CONDITIONED_TOL / (k * eps)
 
 
-METHODS: dict[str, Method] = {}
+METHODS: Registry = Registry("method")
 
 
 def register(name: str, *, unit: str, exact: bool, summary: str, cost: str, fails: str,
@@ -62,7 +62,7 @@ def register(name: str, *, unit: str, exact: bool, summary: str, cost: str, fail
         kw = {"error_k": error_k}
         if nan_on is not None:
             kw["nan_on"] = frozenset(nan_on)
-        METHODS[name] = Method(name, kernel, unit, exact, needs_r, summary, cost, fails, **kw)
+        METHODS.add(name, Method(name, kernel, unit, exact, needs_r, summary, cost, fails, **kw))
         return kernel
 
     return deco
@@ -70,10 +70,7 @@ def register(name: str, *, unit: str, exact: bool, summary: str, cost: str, fail
 
 def get(name: str) -> Method:
     """The method called ``name``; UsageError (a ValueError) naming the choices otherwise."""
-    try:
-        return METHODS[name]
-    except KeyError:
-        raise UsageError(f"unknown method {name!r}; choose one of: {', '.join(METHODS)}") from None
+    return METHODS.get_checked(name)
 
 
 @register(
