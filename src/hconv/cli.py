@@ -6,6 +6,7 @@ Errors print one line, ``hconv: error: ...``, and exit with the codes in :mod:`h
 from __future__ import annotations
 
 import functools
+import inspect
 import json
 import math
 import os
@@ -44,22 +45,72 @@ Products = _choices("Products", options.PRODUCTS)
 Degenerate = _choices("Degenerate", options.DEGENERATE_MODES)
 QuatOrder = _choices("QuatOrder", options.QUAT_ORDERS)
 
-# Options shared by every command that reads scenes (convert, diagnose, compare, one).
-FRAME_OPT = typer.Option("world", "--frame", help="the frame of H (and r, v): world, or body (the frame of q's body)")
-OMEGA_FRAME_OPT = typer.Option(None, "--omega-frame", help="the frame of ω; default: the frame of H (another needs q)")
-ABOUT_OPT = typer.Option("same", "--about", help="same: I and H about one point; pivot: I about the centre of mass, "
-                         "H about a fixed pivot (needs m, r); free: H about an origin (needs m, r, v)")
-PRODUCTS_OPT = typer.Option("tensor", "--products", help="tensor: Ixy = -∫xy dm (hconv, URDF, engines); "
-                            "positive: Pxy = +∫xy dm (CAD reports)")
-DEGENERATE_OPT = typer.Option("error", "--degenerate", help="zero principal moments (rods, point masses): error "
-                              "(status singular), pinv or lock (no rotation about the dropped axis)")
-DEGENERATE_RTOL_OPT = typer.Option(None, "--degenerate-rtol", help="a principal moment <= this × the trace counts as "
-                                   "zero; default: singular in the working precision (about 1e-15 in float64)")
-MAP_OPT = typer.Option(None, "--map", help="NAME=COLUMN: read hconv's NAME from COLUMN (repeatable, or comma-separated)")
-UNIT_OPT = typer.Option(None, "--unit", help="COLUMN=UNIT or SET=UNIT (H, I, r, m, v, w_obs), e.g. I=g*cm**2 "
-                        "(repeatable; non-SI units need pint)")
-OMEGA_UNIT_OPT = typer.Option("rad/s", "--omega-unit", help="unit of ω: rad/s, deg/s, rpm, ...")
-QUAT_ORDER_OPT = typer.Option("wxyz", "--quat-order", help="order of a 4-value list column q (named columns need none)")
+#: Every option of the run configuration (hconv.tables.job.Job), as the command line spells it:
+#: Job field (or Conventions field) -> (type, typer option). Commands take theirs through
+#: :func:`job_options`, which builds the Job in one place.
+JOB_OPTIONS = {
+    "method": (MethodName, typer.Option("exact", "--method", "-m", help="see `hconv methods`")),
+    "precision": (int, typer.Option(64, "--precision", help="64 or 32: the dtype the method computes in")),
+    "frame": (Frame, typer.Option("world", "--frame", help="the frame of H (and r, v): world, or body (the frame of q's body)")),
+    "omega_frame": (Optional[Frame], typer.Option(None, "--omega-frame", help="the frame of ω; default: the frame of H "
+                                                  "(another needs q)")),
+    "about": (About, typer.Option("same", "--about", help="same: I and H about one point; pivot: I about the centre of "
+                                  "mass, H about a fixed pivot (needs m, r); free: H about an origin (needs m, r, v)")),
+    "products": (Products, typer.Option("tensor", "--products", help="tensor: Ixy = -∫xy dm (hconv, URDF, engines); "
+                                        "positive: Pxy = +∫xy dm (CAD reports)")),
+    "degenerate": (Degenerate, typer.Option("error", "--degenerate", help="zero principal moments (rods, point masses): "
+                                            "error (status singular), pinv or lock (no rotation about the dropped axis)")),
+    "degenerate_rtol": (Optional[float], typer.Option(None, "--degenerate-rtol", help="a principal moment <= this × the "
+                                                      "trace counts as zero; default: singular in the working precision "
+                                                      "(about 1e-15 in float64)")),
+    "mapping": (Optional[List[str]], typer.Option(None, "--map", help="NAME=COLUMN: read hconv's NAME from COLUMN "
+                                                  "(repeatable, or comma-separated)")),
+    "unit_options": (Optional[List[str]], typer.Option(None, "--unit", help="COLUMN=UNIT or SET=UNIT (H, I, r, m, v, "
+                                                       "w_obs), e.g. I=g*cm**2 (repeatable; non-SI units need pint)")),
+    "omega_unit": (str, typer.Option("rad/s", "--omega-unit", help="unit of ω: rad/s, deg/s, rpm, ...")),
+    "quat_order": (QuatOrder, typer.Option("wxyz", "--quat-order", help="order of a 4-value list column q "
+                                           "(named columns need none)")),
+}
+_CONVENTIONS = ("frame", "omega_frame", "about", "products", "degenerate", "degenerate_rtol")
+SCENE = ("frame", "omega_frame", "about", "products")
+DEGENERATE = ("degenerate", "degenerate_rtol")
+COLUMNS = ("mapping", "unit_options", "quat_order")
+
+
+def job_options(*names: str, **fixed):
+    """Give a command the Job options ``names`` (in that order, after its own), and call it with
+    the :class:`~hconv.tables.job.Job` they make as ``job``; ``fixed`` sets Job fields the
+    command does not offer. The Job checks itself when made, so every command's options are
+    checked once, in one place."""
+
+    def deco(fn):
+        sig = inspect.signature(fn)
+        own = [p for p in sig.parameters.values() if p.name != "job"]
+        extra = [inspect.Parameter(n, inspect.Parameter.KEYWORD_ONLY, default=JOB_OPTIONS[n][1],
+                                   annotation=JOB_OPTIONS[n][0]) for n in names]
+
+        @functools.wraps(fn)
+        def wrapper(*args, **kwargs):
+            given = {n: kwargs.pop(n) for n in names}
+            return fn(*args, job=_make_job(given, fixed), **kwargs)
+
+        wrapper.__signature__ = sig.replace(parameters=own + extra)
+        wrapper.__annotations__ = {**{p.name: p.annotation for p in own}, **{n: JOB_OPTIONS[n][0] for n in names}}
+        return wrapper
+
+    return deco
+
+
+def _make_job(given: dict, fixed: dict):
+    from hconv.tables.job import Job
+
+    values = {n: (v.value if isinstance(v, Enum) else v) for n, v in given.items()}
+    if "mapping" in values:
+        values["mapping"] = _pairs("--map", values["mapping"])
+    if "unit_options" in values:
+        values["unit_options"] = _pairs("--unit", values["unit_options"])
+    conv = options.Conventions(**{n: values.pop(n) for n in _CONVENTIONS if n in values})
+    return Job(conventions=conv, **values, **fixed)
 
 
 def _fail(msg: str, code: int) -> None:
@@ -124,11 +175,6 @@ def _pairs(option: str, items: Optional[List[str]]) -> tuple:
     return tuple(pairs)
 
 
-def _conventions(frame, omega_frame, about, products, degenerate, degenerate_rtol) -> options.Conventions:
-    return options.Conventions(frame.value, omega_frame and omega_frame.value, about.value, products.value,
-                               degenerate.value, degenerate_rtol)
-
-
 #: The sets ``hconv one`` takes, each with what its option holds.
 ONE_VALUES = {"H": "Hx,Hy,Hz", "I": "I", "r": "rx,ry,rz", "m": "MASS", "v": "vx,vy,vz", "q": "qw,qx,qy,qz"}
 ONE_UNIT_SETS = ("H", "I", "r", "m", "v")
@@ -136,6 +182,7 @@ ONE_UNIT_SETS = ("H", "I", "r", "m", "v")
 
 @app.command()
 @friendly
+@job_options("method", "precision", *SCENE, *DEGENERATE, "unit_options", "omega_unit")
 def one(
     H: str = typer.Option(..., "--H", help="Hx,Hy,Hz (kg·m²/s)"),
     I: str = typer.Option(..., "--I", help=f"{forms.counts_text()} values (kg·m²)"),
@@ -143,26 +190,15 @@ def one(
     q: Optional[str] = typer.Option(None, "--q", help="qw,qx,qy,qz: the body's orientation (body → world)"),
     mass: Optional[float] = typer.Option(None, "--m", help="mass (kg), for --about pivot|free and the unit check"),
     v: Optional[str] = typer.Option(None, "--v", help="vx,vy,vz (m/s): velocity of the centre of mass, for --about free"),
-    method: MethodName = typer.Option("exact", "--method", "-m", help="see `hconv methods`"),
-    precision: int = typer.Option(64, "--precision", help="64 or 32"),
-    frame: Frame = FRAME_OPT,
-    omega_frame: Optional[Frame] = OMEGA_FRAME_OPT,
-    about: About = ABOUT_OPT,
-    products: Products = PRODUCTS_OPT,
-    degenerate: Degenerate = DEGENERATE_OPT,
-    degenerate_rtol: Optional[float] = DEGENERATE_RTOL_OPT,
-    unit: Optional[List[str]] = UNIT_OPT,
-    omega_unit: str = OMEGA_UNIT_OPT,
     as_json: bool = typer.Option(False, "--json", help="print one JSON object"),
+    *,
+    job,
 ) -> None:
     """Convert one body state and print ω with its unit, the residual, cond and the status."""
     import numpy as np
 
     from hconv.solve import bodies, methods
-    from hconv.tables.job import Job
 
-    job = Job(method.value, precision, True, _conventions(frame, omega_frame, about, products, degenerate, degenerate_rtol),
-              unit_options=_pairs("--unit", unit), omega_unit=omega_unit)
     i = _numbers("--I", I, tuple(sorted({f.count for f in forms.FORMS.values()})))
     form = forms.by_count(len(i))
     sets = {"H": _numbers("--H", H, (3,)), "I": i}
@@ -204,22 +240,12 @@ def one(
         print(f"note: {unit_out} is not a unit of angular velocity; see 'The seed's three questions' in the README")
 
 
-def _job(method, precision, frame, omega_frame, about, products, degenerate, degenerate_rtol,
-         mapping, unit, omega_unit, quat_order, diagnostics: bool = True):
-    from hconv.tables.job import Job
-
-    conv = _conventions(frame, omega_frame, about, products, degenerate, degenerate_rtol)
-    return Job(method.value, precision, diagnostics, conv, _pairs("--map", mapping), _pairs("--unit", unit),
-               quat_order.value, omega_unit)
-
-
 @app.command("convert")
 @friendly
+@job_options("method", "precision", *SCENE, *DEGENERATE, *COLUMNS, "omega_unit")
 def convert_cmd(
     src: str = typer.Argument(..., metavar="IN", help="input .csv or .parquet, or - for stdin"),
     dst: str = typer.Argument(..., metavar="OUT", help="output .csv or .parquet, or - for stdout"),
-    method: MethodName = typer.Option("exact", "--method", "-m", help="see `hconv methods`"),
-    precision: int = typer.Option(64, "--precision", help="64 or 32: the dtype the method computes in"),
     from_: Optional[Fmt] = typer.Option(None, "--from", help="input format; needed when IN is -"),
     to: Optional[Fmt] = typer.Option(None, "--to", help="output format; needed when OUT is -"),
     force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
@@ -227,23 +253,13 @@ def convert_cmd(
     strict: bool = typer.Option(False, "--strict", help="fail (exit 5, nothing written) if any row's status is not ok"),
     threads: Optional[int] = typer.Option(None, "--threads", help="batches converted at once; default: the cores available, "
                                           "at most 4 (the output is the same for any number)"),
-    frame: Frame = FRAME_OPT,
-    omega_frame: Optional[Frame] = OMEGA_FRAME_OPT,
-    about: About = ABOUT_OPT,
-    products: Products = PRODUCTS_OPT,
-    degenerate: Degenerate = DEGENERATE_OPT,
-    degenerate_rtol: Optional[float] = DEGENERATE_RTOL_OPT,
-    mapping: Optional[List[str]] = MAP_OPT,
-    unit: Optional[List[str]] = UNIT_OPT,
-    omega_unit: str = OMEGA_UNIT_OPT,
-    quat_order: QuatOrder = QUAT_ORDER_OPT,
+    *,
+    job,
 ) -> None:
     """Convert every row of a CSV or Parquet table; OUT gets the input columns, ω and diagnostics."""
     from hconv import report
     from hconv.tables import pipeline
 
-    job = _job(method, precision, frame, omega_frame, about, products, degenerate, degenerate_rtol,
-               mapping, unit, omega_unit, quat_order)
     kwargs = dict(job=job, src_format=from_ and from_.value, dst_format=to and to.value, force=force, strict=strict,
                   threads=threads)
     if sys.stderr.isatty() and dst != "-" and not quiet:
@@ -257,21 +273,18 @@ def convert_cmd(
 
 @app.command("diagnose")
 @friendly
+@job_options(*COLUMNS, observed=True)
 def diagnose_cmd(
     src: str = typer.Argument(..., metavar="IN", help="input .csv or .parquet with H, I and wx_obs, wy_obs, wz_obs"),
     tol: float = typer.Option(1e-3, "--tol", help="a row is explained when |ω - ω_obs| / |ω_obs| <= this"),
     from_: Optional[Fmt] = typer.Option(None, "--from", help="input format; needed when IN is -"),
     as_json: bool = typer.Option(False, "--json", help="print the ranking as JSON, best first"),
-    mapping: Optional[List[str]] = MAP_OPT,
-    unit: Optional[List[str]] = UNIT_OPT,
-    quat_order: QuatOrder = QUAT_ORDER_OPT,
+    *,
+    job,
 ) -> None:
     """Find which convention explains the ω your engine produced (columns wx_obs, wy_obs, wz_obs)."""
     from hconv.tools import diagnose
-    from hconv.tables.job import Job
 
-    job = Job(mapping=_pairs("--map", mapping), unit_options=_pairs("--unit", unit), quat_order=quat_order.value,
-              observed=True)
     d = diagnose.diagnose_file(src, src_format=from_ and from_.value, tol=tol, job=job)
     if as_json:
         clean = _json_number
@@ -286,26 +299,20 @@ def diagnose_cmd(
 
 @app.command("compare")
 @friendly
+@job_options(*SCENE, *COLUMNS)
 def compare_cmd(
     src: str = typer.Argument(..., metavar="IN", help="input .csv or .parquet"),
     dst: Optional[str] = typer.Argument(None, metavar="[OUT]", help="also write per-row figures here (.csv or .parquet, - for stdout)"),
     from_: Optional[Fmt] = typer.Option(None, "--from", help="input format; needed when IN is -"),
     to: Optional[Fmt] = typer.Option(None, "--to", help="output format; needed when OUT is -"),
     force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
-    frame: Frame = FRAME_OPT,
-    omega_frame: Optional[Frame] = OMEGA_FRAME_OPT,
-    about: About = ABOUT_OPT,
-    products: Products = PRODUCTS_OPT,
-    mapping: Optional[List[str]] = MAP_OPT,
-    unit: Optional[List[str]] = UNIT_OPT,
-    quat_order: QuatOrder = QUAT_ORDER_OPT,
+    *,
+    job,
 ) -> None:
     """Run every method on the same rows: how far each is from exact, and where the shortcuts fail."""
     from hconv import report
     from hconv.tools import compare
 
-    job = _job(MethodName("exact"), 64, frame, omega_frame, about, products, Degenerate("error"), None,
-               mapping, unit, "rad/s", quat_order)
     c = compare.compare_file(src, dst, src_format=from_ and from_.value, dst_format=to and to.value, force=force, job=job)
     from rich.console import Console
 
