@@ -1,17 +1,22 @@
 """hconv: angular momentum H [kg·m²/s] to angular velocity ω, row by row, with honest diagnostics.
 
 ``hconv.convert`` works on numpy arrays; ``hconv.convert_table`` on pyarrow Tables and
-RecordBatches (pyarrow is imported only when that is called). Conventions: :mod:`hconv.kernels.inertia`.
+RecordBatches (pyarrow is imported only when that is called), with a :class:`Job` for the scene's
+conventions, units and column names. Conventions: :mod:`hconv.kernels.inertia`; the package's
+layers: docs/architecture.md.
 """
 from __future__ import annotations
 
 __version__ = "0.1.0"
 
 from hconv.solve.convert import Result, convert  # noqa: E402
+from hconv.solve.forms import FORMS  # noqa: E402
 from hconv.solve.methods import METHODS  # noqa: E402
+from hconv.solve.options import Conventions  # noqa: E402
 from hconv.solve.status import STATUSES  # noqa: E402
+from hconv.tables.job import Job  # noqa: E402
 
-__all__ = ["convert", "convert_table", "Result", "METHODS", "STATUSES", "__version__"]
+__all__ = ["convert", "convert_table", "Job", "Conventions", "Result", "METHODS", "FORMS", "STATUSES", "__version__"]
 
 
 def __getattr__(name):  # keeps `import hconv` free of pyarrow
