@@ -222,7 +222,7 @@ def _flip9(I: np.ndarray) -> np.ndarray:
 
 
 register(Form(
-    "full9", SIX + ("Iyx", "Izx", "Izy"), "these plus Iyx, Izx, Izy", "row-major", diagonal=False, list_size=9,
+    "full9", SIX + ("Iyx", "Izx", "Izy"), "the six plus Iyx, Izx, Izy", "row-major", diagonal=False, list_size=9,
     extends="sym6",
     # the named nine are the six, then Iyx, Izx, Izy; as values they are row-major
     value_order=(0, 3, 4, 6, 1, 5, 7, 8, 2),
