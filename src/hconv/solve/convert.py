@@ -3,7 +3,9 @@
 Shapes: ``H`` is ``(N, 3)`` [kg·m²/s]; ``I`` is ``(N, 6)`` as (Ixx, Iyy, Izz, Ixy, Ixz, Iyz),
 ``(N, 3, 3)`` or ``(N, 3)`` principal/diagonal moments [kg·m²]; ``r`` is ``(N, 3)`` [m]. One body
 may be given as ``H`` of shape ``(3,)`` with ``I`` of shape ``(6,)``, ``(3, 3)`` or ``(3,)``; its
-result comes back unstacked. Conventions are those of :mod:`hconv.kernels.inertia`.
+result comes back unstacked. These stacks are read into hconv's column layout at the edge
+(:func:`hconv.solve.forms.from_array`); :func:`convert_columns` takes that layout directly.
+Conventions are those of :mod:`hconv.kernels.inertia`.
 
 Diagnostics per row:
 

@@ -1,4 +1,5 @@
-"""hconv on Arrow data: a :class:`Job` (method, conventions, units), and ``convert_table``.
+"""hconv on Arrow data: ``convert_table`` for a pyarrow Table or RecordBatch and a
+:class:`~hconv.tables.job.Job`, and the fields it appends.
 
 Input columns are found by name (see :mod:`hconv.tables.layout` for every set and inertia form); any
 other column passes through unchanged and in order. Output: the input columns, then ``wx, wy, wz``
