@@ -22,6 +22,7 @@ from hconv.kernels import allocator
 from hconv.solve import forms, options
 from hconv.solve.methods import METHODS
 from hconv.tables.formats import FORMATS
+from hconv.tools.scene import SCENES
 
 app = typer.Typer(
     add_completion=False,
@@ -324,7 +325,7 @@ def compare_cmd(
 def generate_cmd(
     dst: str = typer.Argument(..., metavar="OUT", help="output .csv or .parquet, or - for stdout"),
     rows: int = typer.Option(..., "--rows", "-n", help="number of bodies"),
-    scene: str = typer.Option("mix", "--scene", help="mix, box, cylinder, rod, sphere or ellipsoid"),
+    scene: str = typer.Option("mix", "--scene", help=f"{', '.join(SCENES[:-1])} or {SCENES[-1]}"),
     cond_max: float = typer.Option(1e3, "--cond-max", help="cond(I) is log-uniform from 1 to this (as the body kind allows)"),
     seed: int = typer.Option(0, "--seed"),
     to: Optional[Fmt] = typer.Option(None, "--to", help="output format; needed when OUT is -"),

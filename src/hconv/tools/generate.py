@@ -10,7 +10,7 @@ import pyarrow as pa
 from hconv.errors import UsageError
 from hconv.tables.pipeline import BackgroundWriter
 from hconv.tables.tableio import Output, format_of
-from hconv.tools.scene import SCENES, iter_scene, make_scene
+from hconv.tools.scene import check_scene, iter_scene, make_scene
 
 
 def generate_file(dst: str, rows: int, *, scene: str = "mix", cond_max: float = 1e3, seed: int = 0,
@@ -19,10 +19,7 @@ def generate_file(dst: str, rows: int, *, scene: str = "mix", cond_max: float = 
     chunk by chunk; returns the seconds taken."""
     if rows < 0:
         raise UsageError(f"--rows must be 0 or more, got {rows}")
-    if scene not in SCENES:
-        raise UsageError(f"unknown scene {scene!r}; choose one of: {', '.join(SCENES)}")
-    if not cond_max >= 1:
-        raise UsageError(f"--cond-max must be at least 1, got {cond_max}")
+    check_scene(scene, cond_max)
     fout = format_of(dst, dst_format, "--to")
     t0 = time.perf_counter()
     with Output(dst, fout, force=force) as out, BackgroundWriter(out) as writer:

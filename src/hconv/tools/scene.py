@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from hconv.errors import UsageError
 from hconv.kernels.frames import quaternion_matrix
 
 KINDS = ("box", "cylinder", "rod", "sphere", "ellipsoid")
@@ -84,12 +85,19 @@ def _shapes(rng: np.random.Generator, kind: np.ndarray, m: np.ndarray, cond_max:
     return moments
 
 
+def check_scene(scene: str, cond_max: float) -> None:
+    """UsageError (a ValueError) for a scene kind or cond_max that cannot be drawn."""
+    if scene not in SCENES:
+        raise UsageError(f"unknown scene {scene!r}; choose one of: {', '.join(SCENES)}")
+    if not cond_max >= 1:
+        raise UsageError(f"--cond-max must be at least 1, got {cond_max}")
+
+
 def make_scene(n: int, seed: int = 0, scene: str = "mix", cond_max: float = 1e3, *, first_id: int = 1,
                rng: np.random.Generator | None = None) -> dict[str, np.ndarray]:
     """A scene of ``n`` bodies as named columns: the input contract plus ``id``, ``body``, ``mass``
     and the known ``w_true_x, w_true_y, w_true_z`` [rad/s]."""
-    if scene not in SCENES:
-        raise ValueError(f"unknown scene {scene!r}; choose one of: {', '.join(SCENES)}")
+    check_scene(scene, cond_max)
     rng = rng if rng is not None else np.random.default_rng(seed)
     kind = rng.choice(np.asarray(KINDS), size=n) if scene == "mix" else np.full(n, scene)
     m = rng.uniform(0.1, 20.0, n)
