@@ -46,3 +46,19 @@ def test_job_set_factor_reads_whole_set_units():
     job = Job(unit_options=(("I", "g*cm**2"), ("Hx", "kg*cm**2/s")))
     assert job.set_factor("I") == pytest.approx(1e-7, rel=1e-15)
     assert job.set_factor("H") == 1.0  # a single column's unit is the planner's business, not a set's
+
+
+@pytest.mark.parametrize("kwargs, needle", [
+    ({"mapping": {"Hw": "Lx"}}, "--map Hw=Lx: hconv has no column 'Hw'; map one of"),
+    ({"mapping": (("Hx", "a"), ("Hx", "b"))}, r"--map gives Hx twice \(a and b\)"),
+    ({"mapping": {"Hx": "a", "Hy": "a"}}, "--map points both Hx and Hy at column 'a'"),
+    ({"unit_options": {"I": "furlongs"}}, r"--unit I=furlongs: .furlongs. is not a unit of inertia"),
+    ({"unit_options": {"Hx": "kg"}}, r"--unit Hx=kg: 'kg' is not a unit of angular momentum"),
+])
+def test_job_map_and_units_checked_when_made_without_the_data(kwargs, needle):
+    with pytest.raises(UsageError, match=needle):
+        Job(**kwargs)
+
+
+def test_job_unit_for_another_column_waits_for_the_data():
+    assert Job(unit_options={"Lx": "g*cm**2/s"}).unit_options == (("Lx", "g*cm**2/s"),)

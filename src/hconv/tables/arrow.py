@@ -18,6 +18,7 @@ from hconv import __version__
 from hconv.solve import bodies, methods, status, units
 from hconv.tables import layout
 from hconv.tables.job import Job
+from hconv.tables.sets import QUANTITY
 
 _STATUS_TYPE = pa.dictionary(pa.int8(), pa.string())
 
@@ -84,7 +85,7 @@ def _with_input_units(schema: pa.Schema, plan: layout.Layout) -> list[pa.Field]:
     """The input's fields, each column hconv read carrying the unit it was read in."""
     unit_of = {}
     for g in plan.groups.values():
-        si = units.SI[layout.QUANTITY[g.name]]
+        si = units.SI[QUANTITY[g.name]]
         for k, c in enumerate(g.columns):
             unit_of[c] = (g.units[k] if k < len(g.units) and g.units[k] else si)
     fields = []

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from hconv.errors import UsageError
 from hconv.solve import methods, options, units
 from hconv.solve.options import Conventions
+from hconv.tables.sets import all_names, quantity_of
 
 
 def _pairs(what: str, value) -> tuple:
@@ -24,6 +25,22 @@ def _pairs(what: str, value) -> tuple:
     except (TypeError, ValueError):
         raise UsageError(f"{what} takes pairs such as {{'Hx': 'Lx'}} or (('Hx', 'Lx'),), got {value!r}") from None
     return pairs
+
+
+def _check_mapping(pairs: tuple) -> None:
+    """--map names hconv's own columns, each once, each at its own column."""
+    names = all_names()
+    given, seen = {}, {}
+    for name, column in pairs:
+        if name not in names:
+            raise UsageError(f"--map {name}={column}: hconv has no column {name!r}; map one of {', '.join(names)}")
+        if name in given and given[name] != column:
+            raise UsageError(f"--map gives {name} twice ({given[name]} and {column}); give it once")
+        given[name] = column
+    for name, column in given.items():
+        if column in seen:
+            raise UsageError(f"--map points both {seen[column]} and {name} at column {column!r}; one column, one name")
+        seen[column] = name
 
 
 @dataclass(frozen=True)
@@ -50,6 +67,11 @@ class Job:
     def __post_init__(self) -> None:
         object.__setattr__(self, "mapping", _pairs("mapping", self.mapping))
         object.__setattr__(self, "unit_options", _pairs("unit_options", self.unit_options))
+        _check_mapping(self.mapping)
+        for key, unit in self.unit_options:
+            quantity = quantity_of(key)
+            if quantity is not None:  # a set or one of hconv's names: its unit can be checked now
+                units.factor(quantity, unit, f"--unit {key}={unit}")
         m = methods.get(self.method)
         options.check_precision(self.precision)
         if not isinstance(self.conventions, Conventions):

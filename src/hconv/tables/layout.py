@@ -1,18 +1,5 @@
-"""Which columns hold what: the input's column sets, found by name, and the form of its inertia.
-
-Column sets (hconv's names; ``--map NAME=COLUMN`` points a name at a column of another name):
-
-=========  ===============================================  ==================================
-set        named columns                                    or one list column (Parquet)
-=========  ===============================================  ==================================
-H          Hx, Hy, Hz  [kg·m²/s]                            H: 3 values
-I          exactly one form, below  [kg·m²]                 I: 3, 6 or 9 values
-q          qw, qx, qy, qz (body → world)                    q: 4 values, order --quat-order
-r          rx, ry, rz  [m]                                  r: 3 values
-m          m  [kg]
-v          vx, vy, vz  [m/s]                                v: 3 values
-w_obs      wx_obs, wy_obs, wz_obs  [rad/s]                  w_obs: 3 values
-=========  ===============================================  ==================================
+"""Which columns hold what: the input's column sets (:mod:`hconv.tables.sets`), found by name, and
+the form of its inertia.
 
 The inertia forms and their columns are :mod:`hconv.solve.forms`' registry. A file uses one form, chosen by its columns, for every row; two forms at once (``I1`` and
 ``Ixx``, say) is an error, as is a set with some of its columns missing. With q present the tensor
@@ -35,26 +22,7 @@ import pyarrow.compute as pc
 from hconv.errors import InputError, UsageError
 from hconv.solve import forms, units
 from hconv.tables.job import Job
-
-VECTOR_SETS = {
-    "H": ("Hx", "Hy", "Hz"),
-    "q": ("qw", "qx", "qy", "qz"),
-    "r": ("rx", "ry", "rz"),
-    "m": ("m",),
-    "v": ("vx", "vy", "vz"),
-    "w_obs": ("wx_obs", "wy_obs", "wz_obs"),
-}
-#: The unit quantity (a key of units.SI) of each set.
-QUANTITY = {"H": "H", "I": "I", "q": "q", "r": "r", "m": "m", "v": "v", "w_obs": "w"}
-#: Sets read whenever present (they change the answer or its status); v and w_obs only when needed.
-OPTIONAL_SETS = ("q", "r", "m")
-
-
-def all_names() -> tuple:
-    """Every name --map takes: the sets' columns, every registered inertia form's, and the sets."""
-    return tuple(sorted({n for names in VECTOR_SETS.values() for n in names} | set(forms.column_names())
-                        | set(QUANTITY), key=str.lower))
-
+from hconv.tables.sets import OPTIONAL_SETS, QUANTITY, VECTOR_SETS
 
 #: The columns hconv writes after the input's.
 W_COLUMNS = ("wx", "wy", "wz")
@@ -247,22 +215,11 @@ def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
 
 
 def _mapping(pairs, present: set, source: str) -> dict:
-    mapping = {}
+    """The Job's --map pairs (already checked against hconv's names) against this input."""
     for name, column in pairs:
-        if name not in all_names():
-            raise UsageError(f"--map {name}={column}: hconv has no column {name!r}; "
-                             f"map one of {', '.join(all_names())}")
         if column not in present:
             raise InputError(f"{source}: --map {name}={column}, but there is no column {column!r}")
-        if name in mapping and mapping[name] != column:
-            raise UsageError(f"--map gives {name} twice ({mapping[name]} and {column}); give it once")
-        mapping[name] = column
-    seen = {}
-    for name, column in mapping.items():
-        if column in seen:
-            raise UsageError(f"--map points both {seen[column]} and {name} at column {column!r}; one column, one name")
-        seen[column] = name
-    return mapping
+    return dict(pairs)
 
 
 def _vector_group(name: str, schema, has, src, source: str, why: Optional[str]) -> Optional[Group]:
@@ -364,6 +321,6 @@ def _check_unit_keys(options, groups: dict, present: set) -> None:
             known |= set(VECTOR_SETS.get(g.name, ())) | (set(forms.column_names()) | {"I"} if g.name == "I" else set())
     for key, unit in options:
         if key not in known:
-            hint = "" if key in present else "; it is not a column of the input"
-            raise UsageError(f"--unit {key}={unit}: {key!r} is not a column hconv reads{hint}; "
+            where = "" if key in present else ", nor one of the input"
+            raise UsageError(f"--unit {key}={unit}: {key!r} is not a column hconv reads{where}; "
                              f"use a set (H, I, r, m, v, w_obs) or one of its columns")

@@ -27,8 +27,8 @@ import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
 from hconv.errors import InputError, OutputError, UsageError
-from hconv.solve.forms import SIX
-from hconv.tables import layout
+from hconv.solve import forms
+from hconv.tables import layout, sets
 from hconv.tables.formats import EXTENSIONS, FORMATS
 from hconv.tables.job import Job
 
@@ -144,7 +144,7 @@ def _sniff_csv(path: str, name: str) -> None:
 
 def _header_hint(names: list) -> str:
     """Why a header may not have matched: spaces around names, or a first line that is no header."""
-    known = layout.all_names()
+    known = sets.all_names()
     spaced = [n for n in names if n != n.strip() and n.strip() in known]
     if spaced:
         return f" (the header has spaces around {', '.join(repr(n) for n in spaced[:3])}; remove them)"
@@ -164,7 +164,7 @@ def _open_csv(path: str, name: str, job) -> Input:
     except pa.ArrowInvalid as exc:
         if "Empty CSV file" in str(exc):
             raise InputError(f"{name}: the file is empty; a CSV needs a header line naming the columns "
-                             f"{', '.join(layout.VECTOR_SETS['H'] + SIX)}") from None
+                             f"{', '.join(sets.VECTOR_SETS['H'])} and the inertia: {forms.forms_text()}") from None
         raise _csv_parse_error(path, name, exc) from None
     except OSError as exc:
         raise _oserror(name, exc) from None
