@@ -5,6 +5,7 @@ Errors print one line, ``hconv: error: ...``, and exit with the codes in :mod:`h
 """
 from __future__ import annotations
 
+import copy
 import functools
 import inspect
 import json
@@ -78,25 +79,33 @@ DEGENERATE = ("degenerate", "degenerate_rtol")
 COLUMNS = ("mapping", "unit_options", "quat_order")
 
 
-def job_options(*names: str, **fixed):
-    """Give a command the Job options ``names`` (in that order, after its own), and call it with
-    the :class:`~hconv.tables.job.Job` they make as ``job``; ``fixed`` sets Job fields the
-    command does not offer. The Job checks itself when made, so every command's options are
-    checked once, in one place."""
+def job_options(*names: str, help: Optional[dict] = None, **fixed):
+    """Give a command the Job options ``names``, shown in that order where its ``job`` parameter
+    stands, and call it with the :class:`~hconv.tables.job.Job` they make as ``job``. ``help``
+    rewords an option for this command; ``fixed`` sets Job fields the command does not offer.
+    The Job checks itself when made, so every command's options are checked once, in one place."""
+
+    def option(n: str):
+        info = JOB_OPTIONS[n][1]
+        if help and n in help:
+            info = copy.copy(info)
+            info.help = help[n]
+        return inspect.Parameter(n, inspect.Parameter.KEYWORD_ONLY, default=info, annotation=JOB_OPTIONS[n][0])
 
     def deco(fn):
         sig = inspect.signature(fn)
-        own = [p for p in sig.parameters.values() if p.name != "job"]
-        extra = [inspect.Parameter(n, inspect.Parameter.KEYWORD_ONLY, default=JOB_OPTIONS[n][1],
-                                   annotation=JOB_OPTIONS[n][0]) for n in names]
+        params = list(sig.parameters.values())
+        at = [p.name for p in params].index("job")
+        params = params[:at] + [option(n) for n in names] + params[at + 1:]
+        kinds = [p.replace(kind=inspect.Parameter.KEYWORD_ONLY) if k > at else p for k, p in enumerate(params)]
 
         @functools.wraps(fn)
         def wrapper(*args, **kwargs):
             given = {n: kwargs.pop(n) for n in names}
             return fn(*args, job=_make_job(given, fixed), **kwargs)
 
-        wrapper.__signature__ = sig.replace(parameters=own + extra)
-        wrapper.__annotations__ = {**{p.name: p.annotation for p in own}, **{n: JOB_OPTIONS[n][0] for n in names}}
+        wrapper.__signature__ = sig.replace(parameters=kinds)
+        wrapper.__annotations__ = {p.name: p.annotation for p in kinds}
         return wrapper
 
     return deco
@@ -171,7 +180,8 @@ def _pairs(option: str, items: Optional[List[str]]) -> tuple:
         for part in item.split(",") if option == "--map" else [item]:
             name, eq, value = part.partition("=")
             if not eq or not name.strip() or not value.strip():
-                raise UsageError(f"{option} takes NAME=VALUE, got {part!r}")
+                form = "NAME=COLUMN" if option == "--map" else "COLUMN=UNIT or SET=UNIT"
+                raise UsageError(f"{option} takes {form}, got {part!r}")
             pairs.append((name.strip(), value.strip()))
     return tuple(pairs)
 
@@ -183,7 +193,9 @@ ONE_UNIT_SETS = ("H", "I", "r", "m", "v")
 
 @app.command()
 @friendly
-@job_options("method", "precision", *SCENE, *DEGENERATE, "unit_options", "omega_unit")
+@job_options("method", "precision", *SCENE, *DEGENERATE, "unit_options", "omega_unit",
+             help={"unit_options": f"SET=UNIT for {', '.join(ONE_UNIT_SETS)}, e.g. I=g*cm**2 (repeatable; non-SI "
+                                   "units need pint)"})
 def one(
     H: str = typer.Option(..., "--H", help="Hx,Hy,Hz (kg·m²/s)"),
     I: str = typer.Option(..., "--I", help=f"{forms.counts_text()} values (kg·m²)"),
@@ -191,9 +203,8 @@ def one(
     q: Optional[str] = typer.Option(None, "--q", help="qw,qx,qy,qz: the body's orientation (body → world)"),
     mass: Optional[float] = typer.Option(None, "--m", help="mass (kg), for --about pivot|free and the unit check"),
     v: Optional[str] = typer.Option(None, "--v", help="vx,vy,vz (m/s): velocity of the centre of mass, for --about free"),
+    job=None,  # the run options go here (job_options)
     as_json: bool = typer.Option(False, "--json", help="print one JSON object"),
-    *,
-    job,
 ) -> None:
     """Convert one body state and print ω with its unit, the residual, cond and the status."""
     import numpy as np
@@ -247,6 +258,7 @@ def one(
 def convert_cmd(
     src: str = typer.Argument(..., metavar="IN", help="input .csv or .parquet, or - for stdin"),
     dst: str = typer.Argument(..., metavar="OUT", help="output .csv or .parquet, or - for stdout"),
+    job=None,  # the run options go here (job_options)
     from_: Optional[Fmt] = typer.Option(None, "--from", help="input format; needed when IN is -"),
     to: Optional[Fmt] = typer.Option(None, "--to", help="output format; needed when OUT is -"),
     force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
@@ -254,8 +266,6 @@ def convert_cmd(
     strict: bool = typer.Option(False, "--strict", help="fail (exit 5, nothing written) if any row's status is not ok"),
     threads: Optional[int] = typer.Option(None, "--threads", help="batches converted at once; default: the cores available, "
                                           "at most 4 (the output is the same for any number)"),
-    *,
-    job,
 ) -> None:
     """Convert every row of a CSV or Parquet table; OUT gets the input columns, ω and diagnostics."""
     from hconv import report
@@ -280,8 +290,7 @@ def diagnose_cmd(
     tol: float = typer.Option(1e-3, "--tol", help="a row is explained when |ω - ω_obs| / |ω_obs| <= this"),
     from_: Optional[Fmt] = typer.Option(None, "--from", help="input format; needed when IN is -"),
     as_json: bool = typer.Option(False, "--json", help="print the ranking as JSON, best first"),
-    *,
-    job,
+    job=None,  # the run options go here (job_options)
 ) -> None:
     """Find which convention explains the ω your engine produced (columns wx_obs, wy_obs, wz_obs)."""
     from hconv.tools import diagnose
@@ -307,8 +316,7 @@ def compare_cmd(
     from_: Optional[Fmt] = typer.Option(None, "--from", help="input format; needed when IN is -"),
     to: Optional[Fmt] = typer.Option(None, "--to", help="output format; needed when OUT is -"),
     force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
-    *,
-    job,
+    job=None,  # the run options go here (job_options)
 ) -> None:
     """Run every method on the same rows: how far each is from exact, and where the shortcuts fail."""
     from hconv import report

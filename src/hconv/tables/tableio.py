@@ -164,7 +164,8 @@ def _open_csv(path: str, name: str, job) -> Input:
     except pa.ArrowInvalid as exc:
         if "Empty CSV file" in str(exc):
             raise InputError(f"{name}: the file is empty; a CSV needs a header line naming the columns "
-                             f"{', '.join(sets.VECTOR_SETS['H'])} and the inertia: {forms.forms_text()}") from None
+                             f"{', '.join(sets.VECTOR_SETS['H'])} and the inertia "
+                             f"({'; or '.join(', '.join(f.columns) for f in forms.FORMS.values() if not f.extends)})") from None
         raise _csv_parse_error(path, name, exc) from None
     except OSError as exc:
         raise _oserror(name, exc) from None
