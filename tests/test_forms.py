@@ -304,3 +304,8 @@ def test_register_one_entry_is_read_mapped_and_named(monkeypatch, rng):
     np.testing.assert_array_equal(w_of(hconv.convert_table(renamed, job=job)), w_of(hconv.convert_table(upper)))
     with pytest.raises(InputError, match=r"ixx, iyy, izz, ixy, ixz, iyz \(URDF\)"):
         hconv.convert_table(table(**vec("H", H)))
+
+
+def test_convert_table_refuses_what_is_not_a_table():
+    with pytest.raises(UsageError, match="convert_table takes a pyarrow Table or RecordBatch, got dict"):
+        hconv.convert_table({"Hx": [1.0]})

@@ -194,3 +194,10 @@ def test_convert_bad_shapes_raise_with_expected_shape():
         hconv.convert([1, 2, 3], [1, 1, 1], method="document")
     with pytest.raises(ValueError, match=r"unknown method 'nope'; choose one of: exact"):
         hconv.convert([1, 2, 3], [1, 1, 1], method="nope")
+
+
+def test_convert_one_body_of_the_wrong_shape_names_its_shape():
+    with pytest.raises(ValueError, match=r"Expected one body's I to have shape \(3,\), \(6,\) or \(3, 3\), got \(4,\)"):
+        hconv.convert(np.ones(3), np.ones(4))
+    with pytest.raises(ValueError, match=r"Expected H to have shape \(3,\) or \(N, 3\), got \(2,\)"):
+        hconv.convert(np.ones(2), np.ones(3))

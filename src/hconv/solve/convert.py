@@ -92,6 +92,10 @@ def convert(H, I, r=None, *, method: str = "exact", precision: int = 64,
     I = _as_float("I", I)
     single = H.ndim == 1
     if single:
+        if H.shape != (3,):
+            raise ValueError(f"Expected H to have shape (3,) or (N, 3), got {H.shape}")
+        if I.shape not in ((3,), (6,), (3, 3)):
+            raise ValueError(f"Expected one body's I to have shape (3,), (6,) or (3, 3), got {I.shape}")
         H, I = H[None], I[None]
         r = None if r is None else _as_float("r", r)[None]
     if H.ndim != 2 or H.shape[1] != 3:

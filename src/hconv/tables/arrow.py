@@ -15,6 +15,7 @@ import numpy as np
 import pyarrow as pa
 
 from hconv import __version__
+from hconv.errors import UsageError
 from hconv.solve import bodies, methods, status, units
 from hconv.tables import layout
 from hconv.tables.job import Job
@@ -56,6 +57,9 @@ def convert_table(data, method: str = "exact", precision: int = 64, diagnostics:
     """
     if isinstance(data, pa.RecordBatch):
         data = pa.Table.from_batches([data])
+    if not isinstance(data, pa.Table):
+        raise UsageError(f"convert_table takes a pyarrow Table or RecordBatch, got {type(data).__name__}; "
+                         "make one with pyarrow.table(...)")
     if job is None:
         job = Job(method, precision, diagnostics)
     if plan is None:
