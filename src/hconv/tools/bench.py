@@ -62,7 +62,7 @@ def describe_machine() -> str:
             f"numpy {np.__version__}, pyarrow {pyarrow.__version__}")
 
 
-def _rounds(jobs: dict, repeats: int) -> dict:
+def rounds(jobs: dict, repeats: int) -> dict:
     """Median seconds of each job, run in interleaved rounds (every job once per round), so that
     the machine's slow drifts fall on every side of a ratio alike."""
     times: dict = {k: [] for k in jobs}
@@ -96,7 +96,7 @@ def kernel_rates(I: Sym3, H: np.ndarray, r: np.ndarray, repeats: int, only=None)
         for name, m in methods.METHODS.items():
             if only is None or f"{name}/{prec}" in only:
                 jobs[f"{name}/{prec}"] = functools.partial(_each_block, m.kernel, blocks)
-    return {k: n / v for k, v in _rounds(jobs, repeats).items()}
+    return {k: n / v for k, v in rounds(jobs, repeats).items()}
 
 
 def cond_bodies(rng: np.random.Generator, n: int, cond: float) -> tuple[Sym3, np.ndarray]:
@@ -185,7 +185,7 @@ from hconv.kernels.metrics import relative_error
 d = np.load(sys.argv[1])
 I, H = Sym3(*(np.ascontiguousarray(d[k]) for k in range(6))), np.ascontiguousarray(d[6:9])
 if sys.argv[2] == "compiled":
-    print(H.shape[1] / bench._rounds({"c": bench.compiled_loop(I, H)}, 3)["c"])
+    print(H.shape[1] / bench.rounds({"c": bench.compiled_loop(I, H)}, 3)["c"])
 else:
     print(bench.kernel_rates(I, H, np.zeros_like(H), 3, only="exact/64")["exact/64"])
 """
@@ -285,12 +285,12 @@ def run(rows: int = 2_000_000, repeats: int = 3, seed: int = 0, memory_rows: int
         tiny, tiny_out = os.path.join(tmp, "tiny.parquet"), os.path.join(tmp, "tiny-out.parquet")
         generate.generate_file(tiny, 10, seed=seed)
         jobs["hconv start-up"] = _command(hconv_cmd + ["convert", tiny, tiny_out, "--force", "-q"])
-        secs = _rounds(jobs, repeats)
+        secs = rounds(jobs, repeats)
         roof, plain_s, hconv_cli_s = rows / secs.pop("roofline"), secs.pop("plain script"), secs.pop("hconv convert")
         startup_s = secs.pop("hconv start-up")
         res.convert = {k: rows / v for k, v in secs.items()}
         log("start-up")
-        starts = _rounds({"one": _command(hconv_cmd + ["one", "--H", "1,2,3", "--I", "2,3,4,0,0,0"]),
+        starts = rounds({"one": _command(hconv_cmd + ["one", "--H", "1,2,3", "--I", "2,3,4,0,0,0"]),
                           "numpy": _command([sys.executable, "-c", "import numpy"])}, 10)
         one_s, numpy_s = starts["one"], starts["numpy"]
         res.baselines = {"io_roofline_rows_per_s": roof, "plain_script_s": plain_s, "hconv_convert_cli_s": hconv_cli_s,
