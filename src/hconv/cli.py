@@ -14,7 +14,7 @@ import os
 import signal
 import sys
 from enum import Enum
-from typing import List, Optional
+from typing import TYPE_CHECKING, Any, List, Optional
 
 import typer
 
@@ -34,18 +34,32 @@ app = typer.Typer(
 
 
 
-def _choices(name: str, values) -> type:
-    """A typer choice type whose values are the library's own tuple."""
+def _choices(name: str, values) -> Any:
+    """A typer choice type whose values are the library's own tuple. Its members are ``str``
+    subclasses; :func:`_value` gives the plain string."""
     return Enum(name, {str(v): str(v) for v in values}, type=str)
 
 
-MethodName = _choices("MethodName", METHODS)
-Fmt = _choices("Fmt", FORMATS)
-Frame = _choices("Frame", options.FRAMES)
-About = _choices("About", options.ABOUT)
-Products = _choices("Products", options.PRODUCTS)
-Degenerate = _choices("Degenerate", options.DEGENERATE_MODES)
-QuatOrder = _choices("QuatOrder", options.QUAT_ORDERS)
+def _value(choice: Optional[str]) -> Optional[str]:
+    return choice.value if isinstance(choice, Enum) else choice
+
+
+if TYPE_CHECKING:  # for type checkers the choices are strings; typer needs the Enum at run time
+    MethodName = str
+    Fmt = str
+    Frame = str
+    About = str
+    Products = str
+    Degenerate = str
+    QuatOrder = str
+else:
+    MethodName = _choices("MethodName", METHODS)
+    Fmt = _choices("Fmt", FORMATS)
+    Frame = _choices("Frame", options.FRAMES)
+    About = _choices("About", options.ABOUT)
+    Products = _choices("Products", options.PRODUCTS)
+    Degenerate = _choices("Degenerate", options.DEGENERATE_MODES)
+    QuatOrder = _choices("QuatOrder", options.QUAT_ORDERS)
 
 #: Every option of the run configuration (hconv.tables.job.Job), as the command line spells it:
 #: Job field (or Conventions field) -> (type, typer option). Commands take theirs through
@@ -114,7 +128,7 @@ def job_options(*names: str, help: Optional[dict] = None, **fixed):
 def _make_job(given: dict, fixed: dict):
     from hconv.tables.job import Job
 
-    values = {n: (v.value if isinstance(v, Enum) else v) for n, v in given.items()}
+    values: dict[str, Any] = {n: _value(v) for n, v in given.items()}
     if "mapping" in values:
         values["mapping"] = _pairs("--map", values["mapping"])
     if "unit_options" in values:
@@ -213,6 +227,8 @@ def one(
 
     i = _numbers("--I", I, tuple(sorted({f.count for f in forms.FORMS.values()})))
     form = forms.by_count(len(i))
+    if form is None:  # _numbers let through only the counts of registered forms
+        raise UsageError(f"--I takes {forms.counts_text()} values")
     sets = {"H": _numbers("--H", H, (3,)), "I": i}
     for name, text, k in (("r", r, 3), ("q", q, 4), ("v", v, 3)):
         if text is not None:
@@ -231,7 +247,8 @@ def one(
     res = bodies.solve(sets, form.name, job.method, job.precision, job.conventions)
     unit_out, scale = job.unit, job.omega_scale
     w = [float(x) * scale for x in res.w[0]]
-    residual, cond, state = float(res.residual[0]), float(res.cond[0]), str(res.status[0])
+    residual = float(res.residual[0]) if res.residual is not None else float("nan")
+    cond, state = float(res.cond[0]), str(res.status[0])
     axis = None if res.null_axis is None or not np.isfinite(res.null_axis[0]).all() else [float(x) for x in res.null_axis[0]]
     if as_json:
         clean = _json_number
@@ -271,7 +288,7 @@ def convert_cmd(
     from hconv import report
     from hconv.tables import pipeline
 
-    kwargs = dict(job=job, src_format=from_ and from_.value, dst_format=to and to.value, force=force, strict=strict,
+    kwargs = dict(job=job, src_format=_value(from_), dst_format=_value(to), force=force, strict=strict,
                   threads=threads)
     if sys.stderr.isatty() and dst != "-" and not quiet:
         with report.ProgressBar(f"converting {src}") as bar:
@@ -295,7 +312,7 @@ def diagnose_cmd(
     """Find which convention explains the ω your engine produced (columns wx_obs, wy_obs, wz_obs)."""
     from hconv.tools import diagnose
 
-    d = diagnose.diagnose_file(src, src_format=from_ and from_.value, tol=tol, job=job)
+    d = diagnose.diagnose_file(src, src_format=_value(from_), tol=tol, job=job)
     if as_json:
         clean = _json_number
         print(json.dumps([{"hypothesis": s.hypothesis, "median_residual": clean(s.residual.median),
@@ -322,7 +339,7 @@ def compare_cmd(
     from hconv import report
     from hconv.tools import compare
 
-    c = compare.compare_file(src, dst, src_format=from_ and from_.value, dst_format=to and to.value, force=force, job=job)
+    c = compare.compare_file(src, dst, src_format=_value(from_), dst_format=_value(to), force=force, job=job)
     from rich.console import Console
 
     report.comparison_tables(c, Console(stderr=True) if dst == "-" else None)
@@ -343,7 +360,7 @@ def generate_cmd(
     from hconv.tools import generate
 
     seconds = generate.generate_file(dst, rows, scene=scene, cond_max=cond_max, seed=seed,
-                                     dst_format=to and to.value, force=force)
+                                     dst_format=_value(to), force=force)
     rate = f", {rows / seconds:,.0f} rows/s" if seconds > 0 and rows else ""
     print(f"hconv generate: {rows:,} rows to {dst} in {seconds:.2f} s{rate}", file=sys.stderr)
 
@@ -438,10 +455,11 @@ def main() -> None:
     except Exception as exc:  # click's usage errors: one line, like every other hconv error
         if not (hasattr(exc, "format_message") and hasattr(exc, "exit_code")):
             raise
-        if type(exc).__name__ == "NoArgsIsHelpError":
-            print(exc.ctx.get_help())
+        ctx = getattr(exc, "ctx", None)
+        if type(exc).__name__ == "NoArgsIsHelpError" and ctx is not None:
+            print(ctx.get_help())
             sys.exit(0)
-        command = getattr(getattr(exc, "ctx", None), "command_path", "hconv")
+        command = getattr(ctx, "command_path", "hconv")
         print(f"hconv: error: {' '.join(exc.format_message().split())} (see '{command} --help')", file=sys.stderr)
         sys.exit(exc.exit_code)
     sys.exit(rv if isinstance(rv, int) else 0)

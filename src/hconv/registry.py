@@ -13,7 +13,7 @@ from hconv.errors import UsageError
 T = TypeVar("T")
 
 
-class Registry(dict):
+class Registry(dict[str, T]):
     """Named variants of one concept, in the order they were added."""
 
     def __init__(self, what: str):
@@ -27,7 +27,7 @@ class Registry(dict):
         self[name] = entry
         return entry
 
-    def get_checked(self, name: str):
+    def get_checked(self, name: str) -> T:
         """The entry called ``name``; UsageError (a ValueError) naming the choices otherwise."""
         try:
             return self[name]

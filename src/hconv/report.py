@@ -139,9 +139,9 @@ def diagnosis_tables(d, console: Optional[Console] = None) -> None:
     console.print(f"[bold]hconv diagnose[/bold] · {d.rows:,} rows · a row is explained when "
                   f"|ω - ω_obs| / |ω_obs| <= {d.tol:g}")
     t = Table(show_header=True, header_style="bold")
-    for col, just in (("rank", "right"), ("hypothesis", "left"), ("explains", "right"), ("median residual", "right"),
-                      ("median angle °", "right"), ("worst residual", "right")):
-        t.add_column(col, justify=just, no_wrap=True)
+    for col, at_left in (("rank", False), ("hypothesis", True), ("explains", False), ("median residual", False),
+                         ("median angle °", False), ("worst residual", False)):
+        t.add_column(col, justify="left" if at_left else "right", no_wrap=True)
     ranking = d.ranking()
     for k, s in enumerate(ranking, 1):
         share = s.residual.share_within

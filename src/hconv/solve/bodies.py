@@ -20,6 +20,7 @@ not include the (few-ulp) rounding of the rotations.
 from __future__ import annotations
 
 import dataclasses
+from typing import Optional
 
 import numpy as np
 
@@ -32,6 +33,13 @@ from hconv.solve.options import Conventions
 
 #: Rounding a vector through a rotation costs about this many cond(I)·eps in ω.
 ROTATION_K = 2.0
+
+
+def _given(value: Optional[np.ndarray], name: str) -> np.ndarray:
+    """A set the conventions need (``Conventions.needs``), which must be there."""
+    if value is None:
+        raise UsageError(f"this conversion needs the set {name!r}")
+    return value
 
 
 def _pivot_shift(form: forms.Form, I_C: np.ndarray, m: np.ndarray, r_B: np.ndarray) -> tuple[str, np.ndarray]:
@@ -76,7 +84,7 @@ def _solve(sets: dict, form: forms.Form, method, precision, conv: Conventions, d
         R_WB, bad_q = frames.quaternion_matrix(q)
         bad |= bad_q
     rotate_in = R_WB is not None and conv.frame == "world"
-    if rotate_in:  # with q, the tensor is in the body frame: bring H (and r, v) there
+    if R_WB is not None and rotate_in:  # with q, the tensor is in the body frame: bring H (and r, v) there
         H_P_B = frames.to_body(R_WB, H_P_F)
         r_B = None if r_F is None else frames.to_body(R_WB, r_F)
         v_B = None if v_F is None else frames.to_body(R_WB, v_F)
@@ -85,15 +93,17 @@ def _solve(sets: dict, form: forms.Form, method, precision, conv: Conventions, d
     # the tensor and momentum that are solved: about one point, in one frame
     solved_form, I_solved, H_solved = form, I_given, H_P_B
     if conv.about != "same":
-        bad |= ~(np.isfinite(m) & (m >= 0))
+        m_C, r_CP = _given(m, "m"), _given(r_B, "r")
+        bad |= ~(np.isfinite(m_C) & (m_C >= 0))
         if conv.about == "pivot":  # I is about C, H about the pivot P: shift I to P
-            name, I_solved = _pivot_shift(form, I_given, m, r_B)
+            name, I_solved = _pivot_shift(form, I_given, m_C, r_CP)
             solved_form = forms.get(name)
         else:  # H is about an origin P: take out the orbital term, leaving H about C
-            H_solved = frames.momentum_about_com(H_P_B, m, r_B, v_B)
+            H_solved = frames.momentum_about_com(H_P_B, m_C, r_CP, _given(v_B, "v"))
     if bad.any():
         H_solved = np.where(bad, np.nan, H_solved)  # status invalid_input, through core
-    res = core.convert_columns(H_solved, *solved_form.as_sym3(I_solved), solved_form.diagonal, r_B, method=method,
+    I_sym, asym = solved_form.as_sym3(I_solved)
+    res = core.convert_columns(H_solved, I_sym, asym, solved_form.diagonal, r_B, method=method,
                                precision=precision, diagnostics=diagnostics, degenerate=conv.degenerate,
                                degenerate_rtol=conv.degenerate_rtol, extra_k=ROTATION_K if rotate_in else 0.0)
     w_B, axis_B, code = res.w, res.null_axis, res.status_code

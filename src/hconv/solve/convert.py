@@ -110,7 +110,8 @@ def convert(H, I, r=None, *, method: str = "exact", precision: int = 64,
     elif m.needs_r:
         raise ValueError(f"method {method!r} needs the offset r [m]; pass r=...")
     form, values = forms.from_array(I)
-    res = convert_columns(H.T, *form.as_sym3(values), form.diagonal, None if r is None else r.T, method=method,
+    I_sym, asym = form.as_sym3(values)
+    res = convert_columns(H.T, I_sym, asym, form.diagonal, None if r is None else r.T, method=method,
                           precision=precision, diagnostics=diagnostics, degenerate=degenerate,
                           degenerate_rtol=degenerate_rtol, extra_k=extra_k)
     if single:
@@ -236,7 +237,7 @@ def _convert_block(o: _BlockOptions, I: Sym3, asym, H, r, w_out, cond_out, code_
     if o.diagonal and m.exact:
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             w = H.astype(dtype) / moments.astype(dtype)
-        own = {}
+        own: dict[str, np.ndarray] = {}
     else:
         w, own = m.kernel(I.astype(dtype), H.astype(dtype), None if r_used is None else r_used.astype(dtype))
     for name, mask in own.items():

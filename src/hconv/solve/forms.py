@@ -47,22 +47,22 @@ class Form:
     diagonal: bool  #: moments about the given axes only (no products): solved by division
     #: values per row in a list column ``I``; None when the form has no list spelling
     list_size: Optional[int]
+    #: ``(k, N)`` → the one internal representation: a :class:`Sym3` of contiguous ``(N,)``
+    #: columns, and the ``(N,)`` mask of rows whose nine numbers are not symmetric (those rows
+    #: keep the mean of the two entries, so that the arrays stay finite; the caller flags them)
+    as_sym3: Callable[[np.ndarray], tuple[Sym3, np.ndarray]]
+    #: ``(k, N)`` → the three diagonal entries and the three products ``(xy, xz, yz)`` as
+    #: :class:`Sym3`-ordered rows ``(6, N)``; products are averaged for a nine-number form
+    as_six: Callable[[np.ndarray], np.ndarray]
+    #: ``(k, N)`` with the products' sign flipped (``--products positive``)
+    flip_products: Callable[[np.ndarray], np.ndarray]
+    #: ``(k, N)`` + a parallel-axis shift :class:`Sym3` → (form name, ``(k', N)``) about the pivot
+    shifted: Callable[[np.ndarray, Sym3], tuple[str, np.ndarray]]
+
     #: the form this one extends: its columns must be present too (full9 extends sym6)
     extends: Optional[str] = None
     #: position in :attr:`columns` of each value, in value order; None when they coincide
     value_order: Optional[tuple] = None
-    #: ``(k, N)`` → the one internal representation: a :class:`Sym3` of contiguous ``(N,)``
-    #: columns, and the ``(N,)`` mask of rows whose nine numbers are not symmetric (those rows
-    #: keep the mean of the two entries, so that the arrays stay finite; the caller flags them)
-    as_sym3: Callable = None
-    #: ``(k, N)`` → the three diagonal entries and the three products ``(xy, xz, yz)`` as
-    #: :class:`Sym3`-ordered rows ``(6, N)``; products are averaged for a nine-number form
-    as_six: Callable = None
-    #: ``(k, N)`` with the products' sign flipped (``--products positive``)
-    flip_products: Callable = None
-    #: ``(k, N)`` + a parallel-axis shift :class:`Sym3` → (form name, ``(k', N)``) about the pivot
-    shifted: Callable = None
-
     @property
     def count(self) -> int:
         """Numbers per row."""
@@ -90,7 +90,7 @@ class Form:
         return np.fmax(np.fmax(ratios[0], ratios[1]), ratios[2])
 
 
-FORMS: Registry = Registry("inertia form")
+FORMS: Registry[Form] = Registry("inertia form")
 
 
 def register(form: Form) -> Form:
@@ -136,7 +136,7 @@ def _either(items: list) -> str:
 
 def counts_text() -> str:
     """``1 (isotropic), 3 (principal), ... or 9 (row-major)``: what ``hconv one --I`` takes."""
-    return _either([f"{f.count} ({f.note})" for f in FORMS.values() if by_count(f.count) is f])
+    return _either([f"{f.count} ({f.note})" for f in FORMS.values() if by_count(f.count) is f])  # first per count
 
 
 def list_sizes_text() -> str:
@@ -166,12 +166,13 @@ def _six_of_diagonal(diag: np.ndarray) -> np.ndarray:
 
 def _sym3_of_diagonal(diag: np.ndarray) -> tuple[Sym3, np.ndarray]:
     n = diag.shape[1]
-    return Sym3(*(np.ascontiguousarray(d, dtype=np.float64) for d in diag), np.zeros(n), np.zeros(n),
-                np.zeros(n)), np.zeros(n, dtype=bool)
+    xx, yy, zz = (np.ascontiguousarray(d, dtype=np.float64) for d in diag)
+    return Sym3(xx, yy, zz, np.zeros(n), np.zeros(n), np.zeros(n)), np.zeros(n, dtype=bool)
 
 
 def _sym3_of_six(I: np.ndarray) -> tuple[Sym3, np.ndarray]:
-    return Sym3(*(np.ascontiguousarray(c, dtype=np.float64) for c in I)), np.zeros(I.shape[1], dtype=bool)
+    xx, yy, zz, xy, xz, yz = (np.ascontiguousarray(c, dtype=np.float64) for c in I)
+    return Sym3(xx, yy, zz, xy, xz, yz), np.zeros(I.shape[1], dtype=bool)
 
 
 def _sym3_of_nine(I: np.ndarray) -> tuple[Sym3, np.ndarray]:

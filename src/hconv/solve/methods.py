@@ -53,13 +53,13 @@ class Method:
         return ILL_CONDITIONED_TOL / (k * eps)
 
 
-METHODS: Registry = Registry("method")
+METHODS: Registry[Method] = Registry("method")
 
 
 def register(name: str, *, unit: str, exact: bool, summary: str, cost: str, fails: str,
              needs_r: bool = False, nan_on: Optional[set] = None, error_k: Optional[dict] = None):
     def deco(kernel: Kernel) -> Kernel:
-        kw = {"error_k": error_k}
+        kw: dict = {"error_k": error_k}
         if nan_on is not None:
             kw["nan_on"] = frozenset(nan_on)
         METHODS.add(name, Method(name, kernel, unit, exact, needs_r, summary, cost, fails, **kw))

@@ -76,7 +76,7 @@ def convert_table(data, method: str = "exact", precision: int = 64, diagnostics:
     columns.append(pa.array(res.cond))
     columns.append(pa.DictionaryArray.from_arrays(
         pa.array(res.status_code.astype(np.int8), type=pa.int8()), pa.array(status.STATUSES)))
-    if job.conventions.degenerate != "error":
+    if res.null_axis is not None:  # degenerate pinv or lock
         columns += [pa.array(res.null_axis[:, k]) for k in range(3)]
         columns.append(pa.array(res.null_dim, type=pa.int8()))
     meta = dict(data.schema.metadata or {})

@@ -30,7 +30,8 @@ def _pairs(what: str, value) -> tuple:
 def _check_mapping(pairs: tuple) -> None:
     """--map names hconv's own columns, each once, each at its own column."""
     names = all_names()
-    given, seen = {}, {}
+    given: dict[str, str] = {}
+    seen: dict[str, str] = {}
     for name, column in pairs:
         if name not in names:
             raise UsageError(f"--map {name}={column}: hconv has no column {name!r}; map one of {', '.join(names)}")

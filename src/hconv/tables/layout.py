@@ -135,12 +135,14 @@ def _list_form(k: int, g: Group, source: str) -> forms.Form:
 def _list_values(col, g: Group, n: int, source: str) -> np.ndarray:
     """The list column's values ``(k, n)``, NaN for null rows; held to the group's size (set)."""
     size = g.size
+    if size is None:
+        raise ValueError(f"the size of list column {g.columns[0]!r} must be set before reading it")
     if col is None:
         return np.empty((size, 0))
     k = _list_size(col, g, source)
     if k is None:
         return np.full((size, n), np.nan)
-    if size is not None and k != size:
+    if k != size:
         raise InputError(f"{source}: list column {g.columns[0]!r} must hold {size} values per row, "
                          f"but holds {k}")
     values = np.full((n, k), np.nan)
@@ -266,12 +268,12 @@ def _inertia_group(schema, has, src, source: str) -> tuple[Optional[str], Group]
             found[form.name] = got
     for form in forms.FORMS.values():  # a form that extends another replaces it
         if form.extends and form.name in found:
-            parent = forms.get(form.extends)
-            if parent.name not in found:
-                raise InputError(f"{source}: has {', '.join(found[form.name])} but not {', '.join(parent.columns)}; "
-                                 f"the {form.count}-number form is the {parent.count} plus "
-                                 f"{', '.join(c for c in form.columns if c not in parent.columns)}")
-            del found[parent.name]
+            base = forms.get(form.extends)
+            if base.name not in found:
+                raise InputError(f"{source}: has {', '.join(found[form.name])} but not {', '.join(base.columns)}; "
+                                 f"the {form.count}-number form is the {base.count} plus "
+                                 f"{', '.join(c for c in form.columns if c not in base.columns)}")
+            del found[base.name]
     if len(found) > 1:
         desc = "; ".join(f"{form}: {', '.join(src(c) for c in cols)}" for form, cols in found.items())
         raise InputError(f"{source}: the inertia is given in more than one form ({desc}); keep one form, "

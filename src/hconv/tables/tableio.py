@@ -62,7 +62,7 @@ class Input:
     batches: Iterator[pa.RecordBatch]
     total: Optional[int]  #: rows (Parquet) or bytes (CSV); None if unknown
     position: Callable[[], int]  #: rows or bytes read so far
-    plan: Optional[layout.Layout] = None  #: the input's column sets
+    plan: layout.Layout  #: the input's column sets, planned for the Job
     _closers: list = field(default_factory=list)
 
     def close(self) -> None:
@@ -306,7 +306,7 @@ class Output:
 
     def __init__(self, path: str, fmt: str, *, force: bool = False, input_path: Optional[str] = None):
         self.path, self.fmt = path, fmt
-        self._writer = None
+        self._writer: Optional[_CsvWriter | _ParquetWriter] = None
         self._tmp: Optional[str] = None
         if path == "-":
             return
@@ -339,6 +339,8 @@ class Output:
 
     def write(self, table: pa.Table) -> None:
         """Append a converted table; the first call fixes the output schema."""
+        if self._tmp is None:
+            raise ValueError("write to an Output inside its with block")
         if self._writer is None:
             self._writer = (_CsvWriter if self.fmt == "csv" else _ParquetWriter)(self._tmp, table.schema)
         self._writer.write(table)
@@ -357,6 +359,8 @@ class Output:
                 os.unlink(self._tmp)
 
     def _commit(self) -> None:
+        if self._tmp is None:
+            return
         if self.path == "-":
             with open(self._tmp, "rb") as f:
                 try:

@@ -209,7 +209,7 @@ def yardstick(I: Sym3, H: np.ndarray, tmp: str, repeats: int) -> tuple[Optional[
     return statistics.median(got["compiled"]), statistics.median(got["exact"])
 
 
-def _command(args: list) -> Callable[[], None]:
+def _command(args: list) -> Callable[[], object]:
     return lambda: subprocess.run(args, check=True, capture_output=True)
 
 
@@ -277,8 +277,9 @@ def run(rows: int = 2_000_000, repeats: int = 3, seed: int = 0, memory_rows: int
         generate.generate_file(src, rows, seed=seed)
         log("end-to-end conversions")
         pipeline.convert_file(src, dst, force=True)  # warm-up: page cache and first-call costs
-        jobs = {f"{name}/{prec}": (lambda name=name, prec=prec: pipeline.convert_file(
-            src, dst, method=name, precision=prec, force=True)) for name in methods.METHODS for prec in PRECISIONS}
+        jobs: dict[str, Callable[[], object]] = {
+            f"{name}/{prec}": functools.partial(pipeline.convert_file, src, dst, method=name, precision=prec, force=True)
+            for name in methods.METHODS for prec in PRECISIONS}
         jobs["roofline"] = lambda: _roofline(src, dst)
         jobs["plain script"] = _command([sys.executable, "-c", _PLAIN_SCRIPT, src, dst])
         jobs["hconv convert"] = _command(hconv_cmd + ["convert", src, dst, "--force", "-q"])

@@ -129,32 +129,34 @@ def compare_file(src: str, dst: Optional[str] = None, *, src_format: Optional[st
     job = job or Job()
     fin = format_of(src, src_format, "--from")
     out = Output(dst, format_of(dst, dst_format, "--to"), force=force, input_path=src) if dst else None
-    with open_input(src, fin, job) as inp, (out or contextlib.nullcontext()):
-        writer = BackgroundWriter(out) if out else contextlib.nullcontext()
-        with writer:
-            comp = None
-            for batch in inp.batches:
-                table = pa.Table.from_batches([batch])
-                sets, form = inp.plan.read(table)
-                if comp is None:
-                    comp = Comparer(set(sets), job.conventions)
-                cols = comp.add(sets, form)
-                if out is not None:
-                    clash = [c for c in cols if c in table.column_names]
-                    if clash:
-                        from hconv.errors import InputError
+    with open_input(src, fin, job) as inp, contextlib.ExitStack() as stack:
+        writer = None
+        if out is not None:
+            stack.enter_context(out)
+            writer = stack.enter_context(BackgroundWriter(out))
+        comp = None
+        for batch in inp.batches:
+            table = pa.Table.from_batches([batch])
+            sets, form = inp.plan.read(table)
+            if comp is None:
+                comp = Comparer(set(sets), job.conventions)
+            cols = comp.add(sets, form)
+            if writer is not None:
+                clash = [c for c in cols if c in table.column_names]
+                if clash:
+                    from hconv.errors import InputError
 
-                        raise InputError(f"{inp.name}: already has column {clash[0]!r}; rename it (is this compare's own output?)")
-                    for name, values in cols.items():
-                        table = table.append_column(pa.field(name, pa.float64(), metadata={
-                            "unit": "deg" if name.startswith("angle_") else "1"}), pa.array(values))
-                    writer.write(table)
-            if comp is None:  # a header and no rows: still a valid (empty) output
-                comp = Comparer(set(inp.plan.groups), job.conventions)
-                if out is not None:
-                    table = inp.schema.empty_table()
-                    names = ["offdiag", "r_axis"] + [f"{k}_{s.method}" for s in comp.scores for k in ("diff", "angle")]
-                    for name in names:
-                        table = table.append_column(name, pa.array([], pa.float64()))
-                    writer.write(table)
+                    raise InputError(f"{inp.name}: already has column {clash[0]!r}; rename it (is this compare's own output?)")
+                for name, values in cols.items():
+                    table = table.append_column(pa.field(name, pa.float64(), metadata={
+                        "unit": "deg" if name.startswith("angle_") else "1"}), pa.array(values))
+                writer.write(table)
+        if comp is None:  # a header and no rows: still a valid (empty) output
+            comp = Comparer(set(inp.plan.groups), job.conventions)
+            if writer is not None:
+                table = inp.schema.empty_table()
+                names = ["offdiag", "r_axis"] + [f"{k}_{s.method}" for s in comp.scores for k in ("diff", "angle")]
+                for name in names:
+                    table = table.append_column(name, pa.array([], pa.float64()))
+                writer.write(table)
     return comp.result()

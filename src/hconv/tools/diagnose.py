@@ -139,10 +139,10 @@ class Score:
 
     hypothesis: str
     summary: str
+    residual: Summary
+    angle: Summary
     applicable: bool = True
     why_not: str = ""
-    residual: Summary = None
-    angle: Summary = None
 
 
 @dataclass
@@ -166,20 +166,19 @@ def _key(x: float) -> float:
 class Diagnoser:
     """Scores every hypothesis batch by batch; :meth:`result` gives the :class:`Diagnosis`."""
 
-    def __init__(self, present: set, form: str, tol: float = DEFAULT_TOL):
+    def __init__(self, present: set, tol: float = DEFAULT_TOL):
         self.tol = tol
-        self.form = form
         self.scores = []
         for h in HYPOTHESES:
             lacking = [s for s in h.needs if s not in present]
-            s = Score(h.name, h.summary, not lacking, f"needs {', '.join(lacking)}" if lacking else "",
-                      Summary(tol), Summary(0.0))
+            s = Score(h.name, h.summary, Summary(tol), Summary(0.0), applicable=not lacking,
+                      why_not=f"needs {', '.join(lacking)}" if lacking else "")
             self.scores.append(s)
         self.rows = 0
         self.unexplained = 0
-        self.examples = []
+        self.examples: list[tuple[int, str, float]] = []
 
-    def add(self, sets: dict) -> None:
+    def add(self, sets: dict, form: str) -> None:
         obs = sets["w_obs"]
         n = obs.shape[1]
         best = np.full(n, np.inf)
@@ -187,9 +186,9 @@ class Diagnoser:
         for h, s in zip(HYPOTHESES, self.scores):
             if not s.applicable:
                 continue
-            w = h.predict(sets, self.form)
+            w = h.predict(sets, form)
             if w is None:
-                s.applicable, s.why_not = False, f"same as exact for the {self.form} form"
+                s.applicable, s.why_not = False, f"same as exact for the {form} form"
                 continue
             w = w.astype(np.float64)
             res, ang = relative_error(w, obs), angle_deg(w, obs)
@@ -226,10 +225,10 @@ def diagnose_file(src: str, *, src_format: Optional[str] = None, tol: float = DE
         for batch in inp.batches:
             sets, form = plan.read(pa.Table.from_batches([batch]))
             if d is None:
-                d = Diagnoser(set(sets), form, tol)
-            d.add(sets)
+                d = Diagnoser(set(sets), tol)
+            d.add(sets, form)
             if progress is not None:
                 progress(inp.position(), inp.total)
         if d is None:
-            d = Diagnoser(set(plan.groups), plan.form, tol)
+            d = Diagnoser(set(plan.groups), tol)
     return d.result()

@@ -63,9 +63,9 @@ def ellipsoid_moments(m, a, b, c) -> np.ndarray:
 def _shapes(rng: np.random.Generator, kind: np.ndarray, m: np.ndarray, cond_max: float) -> np.ndarray:
     """Principal moments ``(n, 3)`` for bodies of the given kinds, each with a drawn target cond κ."""
     n = kind.shape[0]
-    kappa = 10.0 ** (rng.random(n) * np.log10(max(cond_max, 1.0)))
-    w = rng.uniform(0.05, 1.0, n)  # the body's cross-section size [m]
-    u = rng.uniform(0.5, 1.0, n)  # aspect of the cross-section
+    kappa = np.power(10.0, rng.random(n) * np.log10(max(cond_max, 1.0)))
+    w = np.asarray(rng.uniform(0.05, 1.0, n))  # the body's cross-section size [m]
+    u = np.asarray(rng.uniform(0.5, 1.0, n))  # aspect of the cross-section
     moments = np.empty((n, 3))
     # box / ellipsoid: cross-section a × b (a ≥ b), length L along z with cond = (a² + L²)/(a² + b²)
     a, b = w, w * u
