@@ -6,6 +6,7 @@ Only the method's own arithmetic, in blocks as `hconv.convert` runs it (`hconv.t
 on rotated bodies whose cond(I) is exactly ``cond`` (`hconv.tools.bench.cond_bodies`): the way to see how
 `refined` slows with cond. `hconv bench` measures refined against lapack at a few cond itself.
 """
+
 import sys
 
 import numpy as np

@@ -4,6 +4,7 @@
 
 A quick check, not the full benchmark: median of 5 repeats, one process, float64.
 """
+
 import sys
 import time
 
@@ -30,7 +31,7 @@ r = np.column_stack([cols[c] for c in ("rx", "ry", "rz")])
 rates = {}
 for diag in (False, True):
     for name in hconv.METHODS:
-        s = median_seconds(lambda: hconv.convert(H, I, r, method=name, diagnostics=diag))
+        s = median_seconds(lambda name=name, diag=diag: hconv.convert(H, I, r, method=name, diagnostics=diag))
         rates[(name, diag)] = n / s
 base = rates[("lapack", False)]
 print(f"{n:,} rows; ratios to lapack without diagnostics ({base / 1e6:.2f} M rows/s)")

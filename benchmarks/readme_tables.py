@@ -1,22 +1,31 @@
 """Print the README's benchmark tables (Markdown) from a `hconv bench --json` file.
 
-    python benchmarks/readme_tables.py docs/bench.json
+python benchmarks/readme_tables.py docs/bench.json
 """
+
 import json
 import sys
 
-res = json.load(open(sys.argv[1] if len(sys.argv) > 1 else "docs/bench.json"))
+with open(sys.argv[1] if len(sys.argv) > 1 else "docs/bench.json") as f:
+    res = json.load(f)
 conds = list(next(iter(res["accuracy"].values())))
 lapack = res["kernel"]["lapack/64"]
 
 
 def err(x):
     m, w = x
-    one = lambda v: "0" if v == 0 else f"{v:.0e}"
+
+    def one(v):
+        return "0" if v == 0 else f"{v:.0e}"
+
     return "flagged" if m is None or m != m else f"{one(m)} / {one(w)}"
 
 
-print("| method | prec | kernel Mrows/s | × lapack | convert Mrows/s | " + " | ".join(f"error at cond {float(c):g}, median / worst" for c in conds) + " |")
+print(
+    "| method | prec | kernel Mrows/s | × lapack | convert Mrows/s | "
+    + " | ".join(f"error at cond {float(c):g}, median / worst" for c in conds)
+    + " |"
+)
 print("|---" * (5 + len(conds)) + "|")
 for key, speed in res["kernel"].items():
     name, prec = key.split("/")
@@ -26,10 +35,15 @@ print()
 print("| target | measured | required | met |")
 print("|---|---|---|---|")
 for name, value, required, met in res["targets"]:
-    print(f"| {name} | {'skipped' if value is None else f'{value:.2f}'} | ≥ {required:g} | "
-          f"{'—' if met is None else ('yes' if met else '**no**')} |")
+    print(
+        f"| {name} | {'skipped' if value is None else f'{value:.2f}'} | ≥ {required:g} | "
+        f"{'—' if met is None else ('yes' if met else '**no**')} |"
+    )
 b = res["baselines"]
-print(f"\nroofline {b['io_roofline_rows_per_s'] / 1e6:.2f} M rows/s; plain script {b['plain_script_s']:.2f} s; "
-      f"hconv convert {b['hconv_convert_cli_s']:.2f} s; compiled loop {b['compiled_loop_rows_per_s'] / 1e6:.0f} M rows/s; "
-      f"exact kernel in a fresh process {b['exact_kernel_fresh_process_rows_per_s'] / 1e6:.1f} M rows/s; "
-      f"peak RSS {b.get('peak_rss_mb', float('nan')):.0f} MB on {b.get('memory_rows', 0):,} rows")
+print(
+    f"\nroofline {b['io_roofline_rows_per_s'] / 1e6:.2f} M rows/s; plain script {b['plain_script_s']:.2f} s; "
+    f"hconv convert {b['hconv_convert_cli_s']:.2f} s; "
+    f"compiled loop {b['compiled_loop_rows_per_s'] / 1e6:.0f} M rows/s; "
+    f"exact kernel in a fresh process {b['exact_kernel_fresh_process_rows_per_s'] / 1e6:.1f} M rows/s; "
+    f"peak RSS {b.get('peak_rss_mb', float('nan')):.0f} MB on {b.get('memory_rows', 0):,} rows"
+)

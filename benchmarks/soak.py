@@ -7,6 +7,7 @@ RSS is read from the kernel by a small wrapper process), then checks that every 
 a random sample of rows agrees with the ω that generated them and with numpy's own solve. It is
 not run in CI at full size; tests/test_soak.py runs it scaled down.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -24,10 +25,12 @@ RSS_LIMIT_MB = 400
 
 # A small wrapper process whose only child is the command: the child's peak RSS then cannot
 # include the memory of a big parent (ru_maxrss counts the pages a child shared before its exec).
-_WRAPPER = ("import resource, subprocess, sys, time; t = time.perf_counter(); "
-            "p = subprocess.run(sys.argv[1:], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE); "
-            "print(p.returncode, time.perf_counter() - t, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss); "
-            "sys.stderr.write(p.stderr.decode(errors='replace'))")
+_WRAPPER = (
+    "import resource, subprocess, sys, time; t = time.perf_counter(); "
+    "p = subprocess.run(sys.argv[1:], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE); "
+    "print(p.returncode, time.perf_counter() - t, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss); "
+    "sys.stderr.write(p.stderr.decode(errors='replace'))"
+)
 
 
 def _run(args: list[str]) -> tuple[float, float]:
@@ -48,8 +51,25 @@ def soak(rows: int, workdir: Path, sample: int = 2000, seed: int = 0) -> dict:
     picks = np.sort(rng.choice(rows, size=min(sample, rows), replace=False)) if rows else np.array([], int)
     f = pq.ParquetFile(dst)
     n_out, last_id, in_order, worst_true, worst_numpy, statuses = 0, 0, True, 0.0, 0.0, {}
-    cols = ["id", "Hx", "Hy", "Hz", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz", "w_true_x", "w_true_y", "w_true_z",
-            "wx", "wy", "wz", "status"]
+    cols = [
+        "id",
+        "Hx",
+        "Hy",
+        "Hz",
+        "Ixx",
+        "Iyy",
+        "Izz",
+        "Ixy",
+        "Ixz",
+        "Iyz",
+        "w_true_x",
+        "w_true_y",
+        "w_true_z",
+        "wx",
+        "wy",
+        "wz",
+        "status",
+    ]
     for batch in f.iter_batches(batch_size=1 << 20, columns=cols):
         ids = batch.column(0).to_numpy()
         in_order &= bool(ids.size == 0 or (ids[0] == last_id + 1 and np.all(np.diff(ids) == 1)))
@@ -73,12 +93,20 @@ def soak(rows: int, workdir: Path, sample: int = 2000, seed: int = 0) -> dict:
             worst_numpy = max(worst_numpy, float(rel(w, ref).max()))
         n_out += batch.num_rows
     return {
-        "rows_in": rows, "rows_out": n_out, "in_order": in_order, "statuses": statuses,
-        "sampled": int(picks.size), "worst_vs_true_omega": worst_true, "worst_vs_numpy_solve": worst_numpy,
-        "generate_seconds": round(gen_s, 2), "generate_peak_rss_mb": round(gen_mb, 1),
-        "convert_seconds": round(conv_s, 2), "convert_peak_rss_mb": round(conv_mb, 1),
+        "rows_in": rows,
+        "rows_out": n_out,
+        "in_order": in_order,
+        "statuses": statuses,
+        "sampled": int(picks.size),
+        "worst_vs_true_omega": worst_true,
+        "worst_vs_numpy_solve": worst_numpy,
+        "generate_seconds": round(gen_s, 2),
+        "generate_peak_rss_mb": round(gen_mb, 1),
+        "convert_seconds": round(conv_s, 2),
+        "convert_peak_rss_mb": round(conv_mb, 1),
         "convert_rows_per_second": round(rows / conv_s) if conv_s > 0 else None,
-        "input_mb": round(src.stat().st_size / 2**20, 1), "output_mb": round(dst.stat().st_size / 2**20, 1),
+        "input_mb": round(src.stat().st_size / 2**20, 1),
+        "output_mb": round(dst.stat().st_size / 2**20, 1),
     }
 
 
@@ -95,8 +123,12 @@ def main() -> None:
             for p in Path(tmp).iterdir():
                 p.rename(Path(a.dir or ".") / p.name)
     print(json.dumps(report, indent=1))
-    ok = (report["rows_out"] == report["rows_in"] and report["in_order"] and report["worst_vs_true_omega"] < 1e-9
-          and report["convert_peak_rss_mb"] <= RSS_LIMIT_MB)
+    ok = (
+        report["rows_out"] == report["rows_in"]
+        and report["in_order"]
+        and report["worst_vs_true_omega"] < 1e-9
+        and report["convert_peak_rss_mb"] <= RSS_LIMIT_MB
+    )
     print("soak: " + ("passed" if ok else "FAILED"), file=sys.stderr)
     sys.exit(0 if ok else 1)
 

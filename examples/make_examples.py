@@ -5,6 +5,7 @@
 Every file is deterministic (fixed seed) and holds bodies whose ω is known, so each README
 command can be checked by eye against the `w_true_*` columns.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -24,11 +25,14 @@ def quaternions(n):
     q /= np.linalg.norm(q, axis=1, keepdims=True)
     q *= np.where(q[:, :1] < 0, -1, 1)
     w, x, y, z = q.T
-    R = np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], 1)
+    R = np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        1,
+    )
     return q, R
 
 
@@ -54,21 +58,52 @@ def engine_bodies(n=8):
 def main():
     OUT.mkdir(exist_ok=True)
     m, moments, q, R, w_true, H = engine_bodies()
-    write_csv("engine-bodies.csv", {
-        "id": np.arange(1, len(m) + 1), "m": m, "I1": moments[:, 0], "I2": moments[:, 1], "I3": moments[:, 2],
-        "qw": q[:, 0], "qx": q[:, 1], "qy": q[:, 2], "qz": q[:, 3],
-        "Hx": H[:, 0], "Hy": H[:, 1], "Hz": H[:, 2],
-        "w_true_x": w_true[:, 0], "w_true_y": w_true[:, 1], "w_true_z": w_true[:, 2]})
+    write_csv(
+        "engine-bodies.csv",
+        {
+            "id": np.arange(1, len(m) + 1),
+            "m": m,
+            "I1": moments[:, 0],
+            "I2": moments[:, 1],
+            "I3": moments[:, 2],
+            "qw": q[:, 0],
+            "qx": q[:, 1],
+            "qy": q[:, 2],
+            "qz": q[:, 3],
+            "Hx": H[:, 0],
+            "Hy": H[:, 1],
+            "Hz": H[:, 2],
+            "w_true_x": w_true[:, 0],
+            "w_true_y": w_true[:, 1],
+            "w_true_z": w_true[:, 2],
+        },
+    )
 
     # An engine log whose ω came from the transposed rotation (world → body used as body → world),
     # in float32 as engines compute. `hconv diagnose` should name it.
     Rt = np.swapaxes(R, 1, 2)
     I_world_wrong = np.einsum("nij,nj,nkj->nik", Rt, moments, Rt)
     w_obs = np.linalg.solve(I_world_wrong, H[..., None])[..., 0].astype(np.float32)
-    write_csv("engine-log.csv", {
-        "id": np.arange(1, len(m) + 1), "m": m, "I1": moments[:, 0], "I2": moments[:, 1], "I3": moments[:, 2],
-        "qw": q[:, 0], "qx": q[:, 1], "qy": q[:, 2], "qz": q[:, 3], "Hx": H[:, 0], "Hy": H[:, 1], "Hz": H[:, 2],
-        "wx_obs": w_obs[:, 0], "wy_obs": w_obs[:, 1], "wz_obs": w_obs[:, 2]})
+    write_csv(
+        "engine-log.csv",
+        {
+            "id": np.arange(1, len(m) + 1),
+            "m": m,
+            "I1": moments[:, 0],
+            "I2": moments[:, 1],
+            "I3": moments[:, 2],
+            "qw": q[:, 0],
+            "qx": q[:, 1],
+            "qy": q[:, 2],
+            "qz": q[:, 3],
+            "Hx": H[:, 0],
+            "Hy": H[:, 1],
+            "Hz": H[:, 2],
+            "wx_obs": w_obs[:, 0],
+            "wy_obs": w_obs[:, 1],
+            "wz_obs": w_obs[:, 2],
+        },
+    )
 
     # Pendulums: solid cylinders along x swinging about the centre of one end face. I about the
     # centre of mass; r = centre of mass relative to the pivot; H about the pivot.
@@ -77,10 +112,24 @@ def main():
     across = mp * (3 * a * a + L * L) / 12
     about_end = mp * (a * a / 4 + L * L / 3)
     w_true = np.stack([np.zeros(n), np.zeros(n), RNG.uniform(-3, 3, n).round(2)], -1)
-    write_csv("pendulums.csv", {
-        "m": mp, "I1": mp * a * a / 2, "I2": across, "I3": across, "rx": L / 2, "ry": np.zeros(n), "rz": np.zeros(n),
-        "Hx": np.zeros(n), "Hy": np.zeros(n), "Hz": about_end * w_true[:, 2],
-        "w_true_x": w_true[:, 0], "w_true_y": w_true[:, 1], "w_true_z": w_true[:, 2]})
+    write_csv(
+        "pendulums.csv",
+        {
+            "m": mp,
+            "I1": mp * a * a / 2,
+            "I2": across,
+            "I3": across,
+            "rx": L / 2,
+            "ry": np.zeros(n),
+            "rz": np.zeros(n),
+            "Hx": np.zeros(n),
+            "Hy": np.zeros(n),
+            "Hz": about_end * w_true[:, 2],
+            "w_true_x": w_true[:, 0],
+            "w_true_y": w_true[:, 1],
+            "w_true_z": w_true[:, 2],
+        },
+    )
 
     # A CAD export: positive products of inertia (Pxy = +∫xy dm) in g·mm², H in g·mm²/s.
     n = 4
@@ -90,12 +139,25 @@ def main():
     I_gmm = np.einsum("nij,nj,nkj->nik", R2, box(m2, *dims.T), R2)
     w_true = RNG.normal(size=(n, 3)).round(3)
     H_gmm = np.einsum("nij,nj->ni", I_gmm, w_true)
-    write_csv("cad-export.csv", {
-        "part": [f"bracket-{k}" for k in range(1, n + 1)], "m": m2,
-        "Ixx": I_gmm[:, 0, 0], "Iyy": I_gmm[:, 1, 1], "Izz": I_gmm[:, 2, 2],
-        "Ixy": -I_gmm[:, 0, 1], "Ixz": -I_gmm[:, 0, 2], "Iyz": -I_gmm[:, 1, 2],
-        "Hx": H_gmm[:, 0], "Hy": H_gmm[:, 1], "Hz": H_gmm[:, 2],
-        "w_true_x": w_true[:, 0], "w_true_y": w_true[:, 1], "w_true_z": w_true[:, 2]})
+    write_csv(
+        "cad-export.csv",
+        {
+            "part": [f"bracket-{k}" for k in range(1, n + 1)],
+            "m": m2,
+            "Ixx": I_gmm[:, 0, 0],
+            "Iyy": I_gmm[:, 1, 1],
+            "Izz": I_gmm[:, 2, 2],
+            "Ixy": -I_gmm[:, 0, 1],
+            "Ixz": -I_gmm[:, 0, 2],
+            "Iyz": -I_gmm[:, 1, 2],
+            "Hx": H_gmm[:, 0],
+            "Hy": H_gmm[:, 1],
+            "Hz": H_gmm[:, 2],
+            "w_true_x": w_true[:, 0],
+            "w_true_y": w_true[:, 1],
+            "w_true_z": w_true[:, 2],
+        },
+    )
 
     # Ideal thin rods (axial moment exactly 0) along random axes, as a Parquet file with list columns.
     n = 4
@@ -105,11 +167,17 @@ def main():
     w_true = RNG.normal(size=(n, 3)).round(3)
     w_true -= np.einsum("ni,ni->n", w_true, R3[:, :, 0])[:, None] * R3[:, :, 0]  # no spin about the rod
     H = np.einsum("nij,nj,nkj,nk->ni", R3, moments, R3, w_true)
-    pq.write_table(pa.table({
-        "H": pa.FixedSizeListArray.from_arrays(pa.array(H.ravel()), 3),
-        "I": pa.FixedSizeListArray.from_arrays(pa.array(moments.ravel()), 3),
-        "q": pa.FixedSizeListArray.from_arrays(pa.array(q3.ravel()), 4),
-        "w_true": pa.FixedSizeListArray.from_arrays(pa.array(w_true.ravel()), 3)}), OUT / "rods.parquet")
+    pq.write_table(
+        pa.table(
+            {
+                "H": pa.FixedSizeListArray.from_arrays(pa.array(H.ravel()), 3),
+                "I": pa.FixedSizeListArray.from_arrays(pa.array(moments.ravel()), 3),
+                "q": pa.FixedSizeListArray.from_arrays(pa.array(q3.ravel()), 4),
+                "w_true": pa.FixedSizeListArray.from_arrays(pa.array(w_true.ravel()), 3),
+            }
+        ),
+        OUT / "rods.parquet",
+    )
 
 
 if __name__ == "__main__":

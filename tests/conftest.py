@@ -1,4 +1,5 @@
 """Fixtures; the shared helper functions are in helpers.py."""
+
 from __future__ import annotations
 
 import numpy as np

@@ -1,5 +1,6 @@
 """Shared test helpers: an independent 50-digit reference, random bodies and rotations built
 apart from hconv's own code, table shorthands, and the real CLI."""
+
 from __future__ import annotations
 
 import os
@@ -41,9 +42,11 @@ def random_rotations(rng: np.random.Generator, n: int) -> np.ndarray:
     q = rng.normal(size=(n, 4))
     q /= np.linalg.norm(q, axis=1, keepdims=True)
     w, x, y, z = q.T
-    rows = ((1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)),
-            (2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)),
-            (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)))
+    rows = (
+        (1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)),
+        (2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)),
+        (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)),
+    )
     return np.stack([np.stack(r, axis=-1) for r in rows], axis=1)
 
 
@@ -111,8 +114,9 @@ def vec(prefix, a, names="xyz"):
 def run_hconv(*args: str, input: bytes | None = None, cwd=None) -> subprocess.CompletedProcess:
     """Run the real command (``python -m hconv``) as a user would; bytes in, bytes out."""
     env = dict(os.environ, COLUMNS="200")
-    return subprocess.run([sys.executable, "-m", "hconv", *args], input=input, capture_output=True,
-                          cwd=cwd, env=env, timeout=120)
+    return subprocess.run(
+        [sys.executable, "-m", "hconv", *args], input=input, capture_output=True, cwd=cwd, env=env, timeout=120
+    )
 
 
 def run_inprocess(*args: str, capsys) -> tuple[int, str, str]:

@@ -1,4 +1,5 @@
 """The allocator settings of the hconv process (glibc's malloc thresholds)."""
+
 from __future__ import annotations
 
 import platform

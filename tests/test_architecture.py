@@ -1,6 +1,7 @@
 """The package's structure as a contract: the layers (import-linter) and no reaching into
 another module's private names. (``hconv one`` staying free of pyarrow and rich is tested in
 test_cli.py, and declared in pyproject.toml's contract too.)"""
+
 from __future__ import annotations
 
 import ast
@@ -36,9 +37,14 @@ def _private_uses(name: str, tree: ast.AST) -> list[str]:
                 if a.name.startswith("hconv"):
                     aliases[a.asname or a.name.split(".")[0]] = a.name
     for node in ast.walk(tree):
-        if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.attr.startswith("_")
-                and not node.attr.startswith("__") and node.value.id in aliases
-                and aliases[node.value.id] != name):
+        if (
+            isinstance(node, ast.Attribute)
+            and isinstance(node.value, ast.Name)
+            and node.attr.startswith("_")
+            and not node.attr.startswith("__")
+            and node.value.id in aliases
+            and aliases[node.value.id] != name
+        ):
             found.append(f"{name}: {node.value.id}.{node.attr}")
     return found
 
@@ -51,11 +57,15 @@ def test_modules_use_no_other_modules_private_names():
 def test_private_name_check_finds_a_planted_reach():
     planted = ast.parse("from hconv.kernels import eft\nfrom hconv.solve.methods import _x\ny = eft._split()\n")
     assert _private_uses("hconv.tools.bench", planted) == [
-        "hconv.tools.bench: from hconv.solve.methods import _x", "hconv.tools.bench: eft._split"]
+        "hconv.tools.bench: from hconv.solve.methods import _x",
+        "hconv.tools.bench: eft._split",
+    ]
 
 
-@pytest.mark.skipif(shutil.which("lint-imports", path=str(Path(sys.executable).parent)) is None,
-                    reason="import-linter is installed with the test extra")
+@pytest.mark.skipif(
+    shutil.which("lint-imports", path=str(Path(sys.executable).parent)) is None,
+    reason="import-linter is installed with the test extra",
+)
 def test_layers_contract_holds():
     exe = shutil.which("lint-imports", path=str(Path(sys.executable).parent))
     proc = subprocess.run([exe], capture_output=True, text=True, cwd=SRC.parent.parent, timeout=120)

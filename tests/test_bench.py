@@ -1,9 +1,11 @@
 """`hconv bench` on a small run: every method and precision measured, targets computed, chart drawn."""
+
 from __future__ import annotations
 
 import json
 
 from helpers import run_hconv
+
 import hconv
 
 
@@ -21,7 +23,7 @@ def test_bench_command_small_run_writes_tables_json_and_chart(tmp_path):
     assert res["accuracy"]["document/64"]["10000"][0] > 0.1
     names = [t[0] for t in res["targets"]]
     assert "exact kernel / lapack kernel" in names and "convert exact / I/O roofline" in names
-    for name, value, required, met in res["targets"]:
+    for _name, value, required, met in res["targets"]:
         assert met is None or met == (value >= required)
     out = proc.stdout.decode()
     assert "targets" in out and "document-principal" in out

@@ -1,12 +1,13 @@
 """Reference points: the parallel-axis shift to a pivot and a free body's orbital momentum,
 against bodies whose inertia about the pivot is known in closed form."""
+
 from __future__ import annotations
 
 import numpy as np
 import pyarrow as pa
 import pytest
-
 from helpers import axis_angle, mp_solve, physical_bodies, quats, rel_err, rodrigues, six, vec, w_of
+
 import hconv
 from hconv.errors import InputError
 from hconv.solve.options import Conventions
@@ -20,7 +21,11 @@ def box_about_corner(m, a, b, c):
     """A box a×b×c with a corner at the pivot and edges along the axes: about the corner,
     Ixx = m(b²+c²)/3 and the products are -m·a·b/4, -m·a·c/4, -m·b·c/4 (tensor entries)."""
     corner = np.zeros((len(m), 3, 3))
-    corner[:, 0, 0], corner[:, 1, 1], corner[:, 2, 2] = m * (b**2 + c**2) / 3, m * (a**2 + c**2) / 3, m * (a**2 + b**2) / 3
+    corner[:, 0, 0], corner[:, 1, 1], corner[:, 2, 2] = (
+        m * (b**2 + c**2) / 3,
+        m * (a**2 + c**2) / 3,
+        m * (a**2 + b**2) / 3,
+    )
     corner[:, 0, 1] = corner[:, 1, 0] = -m * a * b / 4
     corner[:, 0, 2] = corner[:, 2, 0] = -m * a * c / 4
     corner[:, 1, 2] = corner[:, 2, 1] = -m * b * c / 4
@@ -34,8 +39,18 @@ def test_convert_pivot_cylinder_about_its_end_matches_closed_form(rng):
     m, a, L = rng.uniform(0.5, 5, n), rng.uniform(0.01, 0.2, n), rng.uniform(0.5, 3, n)
     across_com = m * (3 * a**2 + L**2) / 12
     H = rng.normal(size=(n, 3))
-    t = pa.table({**vec("H", H), "I1": m * a**2 / 2, "I2": across_com, "I3": across_com, "m": m,
-                  "rx": L / 2, "ry": np.zeros(n), "rz": np.zeros(n)})
+    t = pa.table(
+        {
+            **vec("H", H),
+            "I1": m * a**2 / 2,
+            "I2": across_com,
+            "I3": across_com,
+            "m": m,
+            "rx": L / 2,
+            "ry": np.zeros(n),
+            "rz": np.zeros(n),
+        }
+    )
     got = w_of(hconv.convert_table(t, job=PIVOT))
     about_end = np.stack([m * a**2 / 2, m * (a**2 / 4 + L**2 / 3), m * (a**2 / 4 + L**2 / 3)], axis=1)
     np.testing.assert_allclose(got, H / about_end, rtol=1e-14)
@@ -61,8 +76,17 @@ def test_convert_pivot_turned_box_in_world_frame(rng):
     R = rodrigues(u, th)
     H = rng.normal(size=(n, 3))
     r_world = np.einsum("nij,nj->ni", R, np.stack([a, b, c], axis=1) / 2)
-    t = pa.table({**vec("H", H), "I1": m * (b**2 + c**2) / 12, "I2": m * (a**2 + c**2) / 12,
-                  "I3": m * (a**2 + b**2) / 12, "m": m, **vec("r", r_world), **vec("q", quats(u, th), "wxyz")})
+    t = pa.table(
+        {
+            **vec("H", H),
+            "I1": m * (b**2 + c**2) / 12,
+            "I2": m * (a**2 + c**2) / 12,
+            "I3": m * (a**2 + b**2) / 12,
+            "m": m,
+            **vec("r", r_world),
+            **vec("q", quats(u, th), "wxyz"),
+        }
+    )
     want = mp_solve(R @ box_about_corner(m, a, b, c) @ np.swapaxes(R, 1, 2), H)
     assert rel_err(w_of(hconv.convert_table(t, job=PIVOT)), want).max() < 1e-13
 
@@ -83,15 +107,35 @@ def test_convert_free_body_removes_orbital_momentum(rng):
 
 @pytest.mark.parametrize("about, missing", [("pivot", "m"), ("free", "vx, vy, vz")])
 def test_convert_pivot_and_free_name_what_they_need(about, missing):
-    t = pa.table({"Hx": [1.0], "Hy": [0.0], "Hz": [0.0], "I": [1.0], "rx": [1.0], "ry": [0.0], "rz": [0.0],
-                  **({"m": [1.0]} if about == "free" else {})})
+    t = pa.table(
+        {
+            "Hx": [1.0],
+            "Hy": [0.0],
+            "Hz": [0.0],
+            "I": [1.0],
+            "rx": [1.0],
+            "ry": [0.0],
+            "rz": [0.0],
+            **({"m": [1.0]} if about == "free" else {}),
+        }
+    )
     with pytest.raises(InputError, match=f"missing columns? {missing}"):
         hconv.convert_table(t, job=Job(conventions=Conventions(about=about)))
 
 
 def test_convert_pivot_bad_mass_row_is_invalid_input():
-    t = pa.table({"Hx": [1.0] * 3, "Hy": [0.0] * 3, "Hz": [0.0] * 3, "I": [1.0] * 3, "m": [1.0, -1.0, np.nan],
-                  "rx": [0.0] * 3, "ry": [1.0] * 3, "rz": [0.0] * 3})
+    t = pa.table(
+        {
+            "Hx": [1.0] * 3,
+            "Hy": [0.0] * 3,
+            "Hz": [0.0] * 3,
+            "I": [1.0] * 3,
+            "m": [1.0, -1.0, np.nan],
+            "rx": [0.0] * 3,
+            "ry": [1.0] * 3,
+            "rz": [0.0] * 3,
+        }
+    )
     got = hconv.convert_table(t, job=PIVOT)
     assert got.column("status").to_pylist() == ["ok", "invalid_input", "invalid_input"]
     assert got.column("wx").to_pylist()[0] == 0.5  # 1 / (1 + 1·1²)

@@ -1,4 +1,5 @@
 """The real `hconv` command on real files, through real pipes, including bad input on purpose."""
+
 from __future__ import annotations
 
 import csv
@@ -13,8 +14,8 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 import pytest
-
 from helpers import run_hconv
+
 import hconv
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples" / "data"
@@ -44,6 +45,7 @@ def write_csv(path: Path, header: list[str], rows: list[list[str]]) -> Path:
 
 
 # --- conversions that work -------------------------------------------------------------------
+
 
 def test_convert_example_parquet_keeps_rows_columns_and_units(tmp_path):
     out = tmp_path / "out.parquet"
@@ -76,10 +78,10 @@ def test_convert_csv_document_carries_unit_column(tmp_path):
 def test_convert_csv_passthrough_text_is_exact(tmp_path):
     src = tmp_path / "in.csv"
     src.write_text(
-        'id,label,Hx,Hy,Hz,Ixx,Iyy,Izz,Ixy,Ixz,Iyz,note\n'
+        "id,label,Hx,Hy,Hz,Ixx,Iyy,Izz,Ixy,Ixz,Iyz,note\n"
         '007,"a,b",1,2,3,2,3,4,0,0,0,"say ""hi"""\n'
-        '1e3,,1,0,0,1,1,1,0,0,0,é ü\n'
-        'x,plain,0,0,1,1,2,2.5,0,0,0,\n'
+        "1e3,,1,0,0,1,1,1,0,0,0,é ü\n"
+        "x,plain,0,0,1,1,2,2.5,0,0,0,\n"
     )
     out = tmp_path / "out.csv"
     assert run_hconv("convert", str(src), str(out)).returncode == 0
@@ -103,13 +105,15 @@ def test_convert_csv_float_values_round_trip_exactly(tmp_path, rng):
 
 def test_convert_parquet_passthrough_types(tmp_path):
     n = 5
-    t = pa.table({
-        "t": pa.array(np.arange(n).astype("datetime64[ms]")),
-        "flag": [True, False, True, False, None],
-        "tags": pa.array([[1], [], None, [2, 3], [4]], type=pa.list_(pa.int32())),
-        **{c: np.full(n, v) for c, v in zip(CONTRACT[:9], [1, 2, 3, 2, 3, 4, 0, 0, 0], strict=True)},
-        "name": ["a", "b", None, "d", "e"],
-    })
+    t = pa.table(
+        {
+            "t": pa.array(np.arange(n).astype("datetime64[ms]")),
+            "flag": [True, False, True, False, None],
+            "tags": pa.array([[1], [], None, [2, 3], [4]], type=pa.list_(pa.int32())),
+            **{c: np.full(n, v) for c, v in zip(CONTRACT[:9], [1, 2, 3, 2, 3, 4, 0, 0, 0], strict=True)},
+            "name": ["a", "b", None, "d", "e"],
+        }
+    )
     src, out = tmp_path / "in.parquet", tmp_path / "out.parquet"
     pq.write_table(t, src)
     assert run_hconv("convert", str(src), str(out)).returncode == 0
@@ -118,8 +122,10 @@ def test_convert_parquet_passthrough_types(tmp_path):
 
 
 def test_convert_pipeline_csv_stdin_to_stdout(tmp_path):
-    cmd = (f'cat "{EXAMPLES / "scene.csv"}" | "{sys.executable}" -m hconv convert - - --from csv --to csv -q'
-           ' | cut -d, -f1,24,25 | tail -n 2')
+    cmd = (
+        f'cat "{EXAMPLES / "scene.csv"}" | "{sys.executable}" -m hconv convert - - --from csv --to csv -q'
+        " | cut -d, -f1,24,25 | tail -n 2"
+    )
     proc = subprocess.run(cmd, shell=True, capture_output=True, timeout=120)
     assert proc.returncode == 0
     assert proc.stdout.decode().splitlines() == ["399,ok,rad/s", "400,ok,rad/s"]
@@ -146,10 +152,12 @@ def test_convert_empty_tables_give_empty_outputs(tmp_path):
 
 
 def test_convert_flagged_rows_keep_place_and_summary_counts(tmp_path):
-    rows = [["1", "2", "3", "2", "3", "4", "0", "0", "0"],
-            ["1", "2", "3", "0", "2", "2", "0", "0", "0"],  # rod: singular
-            ["", "2", "3", "2", "3", "4", "0", "0", "0"],  # blank H: invalid_input
-            ["1", "2", "3", "1", "1", "3", "0", "0", "0"]]  # breaks the triangle inequality
+    rows = [
+        ["1", "2", "3", "2", "3", "4", "0", "0", "0"],
+        ["1", "2", "3", "0", "2", "2", "0", "0", "0"],  # rod: singular
+        ["", "2", "3", "2", "3", "4", "0", "0", "0"],  # blank H: invalid_input
+        ["1", "2", "3", "1", "1", "3", "0", "0", "0"],
+    ]  # breaks the triangle inequality
     src = write_csv(tmp_path / "in.csv", CONTRACT[:9], rows)
     out = tmp_path / "out.csv"
     proc = run_hconv("convert", str(src), str(out))
@@ -186,6 +194,7 @@ def test_convert_refuses_to_overwrite_without_force(tmp_path):
 
 # --- bad input on purpose --------------------------------------------------------------------
 
+
 def test_convert_missing_column_names_it(tmp_path):
     src = write_csv(tmp_path / "in.csv", ["Hx", "Hy", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz"], [["1"] * 8])
     proc = run_hconv("convert", str(src), str(tmp_path / "out.csv"))
@@ -216,12 +225,15 @@ def test_convert_non_numeric_parquet_column(tmp_path):
     assert_one_line_error(proc, 3, "column 'Izz' has type string", "must be numeric")
 
 
-@pytest.mark.parametrize("name,content,needle", [
-    ("empty.csv", b"", "the file is empty"),
-    ("empty.parquet", b"", "the file is empty"),
-    ("junk.parquet", b"this is not parquet at all, just text\n" * 20, "not a readable Parquet file"),
-    ("binary.csv", bytes(range(256)) * 4, "in.csv" if False else "binary.csv"),
-])
+@pytest.mark.parametrize(
+    "name,content,needle",
+    [
+        ("empty.csv", b"", "the file is empty"),
+        ("empty.parquet", b"", "the file is empty"),
+        ("junk.parquet", b"this is not parquet at all, just text\n" * 20, "not a readable Parquet file"),
+        ("binary.csv", bytes(range(256)) * 4, "in.csv" if False else "binary.csv"),
+    ],
+)
 def test_convert_unreadable_or_empty_file(tmp_path, name, content, needle):
     src = tmp_path / name
     src.write_bytes(content)
@@ -274,6 +286,7 @@ def test_convert_failure_midway_leaves_no_partial_output(tmp_path):
 
 # --- hconv one and hconv methods -------------------------------------------------------------
 
+
 def test_one_prints_w_unit_residual_cond_status():
     proc = run_hconv("one", "--H", "1,2,3", "--I", "2,3,4,0,0,0", "--r", "0.1,0.2,0.3")
     out = proc.stdout.decode()
@@ -284,7 +297,9 @@ def test_one_prints_w_unit_residual_cond_status():
 
 
 def test_one_json_has_the_documented_keys():
-    proc = run_hconv("one", "--H", "-1,2,3", "--I", "2,3,4,0,0,0", "--r", "0.1,0.2,0.3", "--method", "document", "--json")
+    proc = run_hconv(
+        "one", "--H", "-1,2,3", "--I", "2,3,4,0,0,0", "--r", "0.1,0.2,0.3", "--method", "document", "--json"
+    )
     obj = json.loads(proc.stdout)
     assert set(obj) == {"w", "unit", "residual", "cond", "status", "method"}
     assert obj["unit"] == "m^2/s" and obj["method"] == "document" and obj["status"] == "ok"
@@ -305,20 +320,25 @@ def test_one_singular_json_has_null_w_and_inf_cond():
     assert obj["cond"] is None and obj["residual"] is None  # infinite and absent: null, valid JSON
 
 
-@pytest.mark.parametrize("args,needle", [
-    (["--H", "1,2", "--I", "1,1,1"], "--H takes 3"),
-    (["--H", "1,2,x", "--I", "1,1,1"], "comma-separated numbers"),
-    (["--H", "1,2,3", "--I", "1,1,1,1"], "--I takes 1, 3, 6 or 9"),
-    (["--H", "1,2,3", "--I", "1,1,1", "--method", "document"], "--r rx,ry,rz"),
-])
+@pytest.mark.parametrize(
+    "args,needle",
+    [
+        (["--H", "1,2", "--I", "1,1,1"], "--H takes 3"),
+        (["--H", "1,2,x", "--I", "1,1,1"], "comma-separated numbers"),
+        (["--H", "1,2,3", "--I", "1,1,1,1"], "--I takes 1, 3, 6 or 9"),
+        (["--H", "1,2,3", "--I", "1,1,1", "--method", "document"], "--r rx,ry,rz"),
+    ],
+)
 def test_one_bad_arguments_one_line_exit_2(args, needle):
     assert_one_line_error(run_hconv("one", *args), 2, needle)
 
 
 def test_one_does_not_import_pyarrow_or_rich():
-    code = ("import sys; sys.argv = ['hconv', 'one', '--H', '1,2,3', '--I', '1,2,2.5'];"
-            "from hconv.cli import main\ntry: main()\nexcept SystemExit: pass\n"
-            "print(sorted(m for m in ('pyarrow', 'rich') if m in sys.modules))")
+    code = (
+        "import sys; sys.argv = ['hconv', 'one', '--H', '1,2,3', '--I', '1,2,2.5'];"
+        "from hconv.cli import main\ntry: main()\nexcept SystemExit: pass\n"
+        "print(sorted(m for m in ('pyarrow', 'rich') if m in sys.modules))"
+    )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=60)
     assert proc.stdout.decode().splitlines()[-1] == "[]"
 
@@ -344,13 +364,16 @@ def test_convert_table_accepts_record_batch():
     assert got.column_names == CONTRACT[:9] + ["id"] + OUT_COLS
 
 
-@pytest.mark.parametrize("args,needle", [
-    (["convert", "in.csv", "out.csv", "--method", "nope"], "'nope' is not one of"),
-    (["convert", "in.csv", "out.csv", "--precision", "16"], "must be 64 or 32"),
-    (["convert", "in.csv", "out.csv", "--threads", "0"], "--threads must be 1 or more"),
-    (["convert", "in.csv"], "Missing argument 'OUT'"),
-    (["bogus"], "No such command 'bogus'"),
-])
+@pytest.mark.parametrize(
+    "args,needle",
+    [
+        (["convert", "in.csv", "out.csv", "--method", "nope"], "'nope' is not one of"),
+        (["convert", "in.csv", "out.csv", "--precision", "16"], "must be 64 or 32"),
+        (["convert", "in.csv", "out.csv", "--threads", "0"], "--threads must be 1 or more"),
+        (["convert", "in.csv"], "Missing argument 'OUT'"),
+        (["bogus"], "No such command 'bogus'"),
+    ],
+)
 def test_cli_usage_errors_are_one_line_exit_2(args, needle):
     assert_one_line_error(run_hconv(*args), 2, needle)
 
@@ -366,8 +389,7 @@ def test_convert_file_write_failure_midway_leaves_nothing(tmp_path, monkeypatch,
     """A full disk on the writer thread: the error reaches the caller and no file is left."""
     import errno
 
-    from hconv.tables import pipeline
-    from hconv.tables import tableio
+    from hconv.tables import pipeline, tableio
 
     n = 300_000
     t = pa.table({c: rng.normal(size=n) + (3.0 if c in ("Ixx", "Iyy", "Izz") else 0.0) for c in CONTRACT[:9]})

@@ -4,6 +4,7 @@ clear one-line error with the right exit code, or per-row statuses with every ro
 The command runs in-process here (cli.main, as the console script calls it), so that 50 files
 take a second; tests/test_cli.py runs the real process for the same kinds of error.
 """
+
 from __future__ import annotations
 
 import csv
@@ -12,9 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from helpers import mp_solve, rel_err, run_inprocess
-
 
 FILES = Path(__file__).resolve().parent / "corpus" / "files"
 
@@ -109,9 +108,13 @@ def test_convert_corpus_file_gives_per_row_statuses(name, tmp_path, capsys):
     assert [r["status"] for r in rows] == STATUSES[name]
     for r in rows:  # every ok row's ω against a 50-digit solve of the same numbers
         if r["status"] == "ok":
-            I = np.array([[float(r["Ixx"]), float(r["Ixy"]), float(r["Ixz"])],
-                          [float(r.get("Iyx") or r["Ixy"]), float(r["Iyy"]), float(r["Iyz"])],
-                          [float(r.get("Izx") or r["Ixz"]), float(r.get("Izy") or r["Iyz"]), float(r["Izz"])]])
+            I = np.array(
+                [
+                    [float(r["Ixx"]), float(r["Ixy"]), float(r["Ixz"])],
+                    [float(r.get("Iyx") or r["Ixy"]), float(r["Iyy"]), float(r["Iyz"])],
+                    [float(r.get("Izx") or r["Ixz"]), float(r.get("Izy") or r["Iyz"]), float(r["Izz"])],
+                ]
+            )
             H = np.array([float(r["Hx"]), float(r["Hy"]), float(r["Hz"])])
             want = mp_solve(I[None], H[None])  # 50 digits: no range trouble at 1e308
             w = np.array([[float(r["wx"]), float(r["wy"]), float(r["wz"])]])
@@ -122,8 +125,12 @@ def test_convert_corpus_file_gives_per_row_statuses(name, tmp_path, capsys):
 def test_convert_bad_output_path_is_one_clear_line(case, tmp_path, capsys, monkeypatch):
     src = tmp_path / "in.csv"
     src.write_text((FILES / "crlf.csv").read_text())
-    dst = {"same_as_input": src, "missing_directory": tmp_path / "nope" / "out.csv",
-           "is_a_directory": tmp_path / "dir.csv", "unwritable_directory": tmp_path / "out.csv"}[case]
+    dst = {
+        "same_as_input": src,
+        "missing_directory": tmp_path / "nope" / "out.csv",
+        "is_a_directory": tmp_path / "dir.csv",
+        "unwritable_directory": tmp_path / "out.csv",
+    }[case]
     if case == "is_a_directory":
         dst.mkdir()
     if case == "unwritable_directory":  # root ignores directory permissions, so refuse like the OS would
@@ -134,7 +141,13 @@ def test_convert_bad_output_path_is_one_clear_line(case, tmp_path, capsys, monke
 
         monkeypatch.setattr(tempfile, "mkstemp", refuse)
     code, _, err = run("convert", str(src), str(dst), "--force" if case == "same_as_input" else "-q", capsys=capsys)
-    needle = {"same_as_input": "is the input file", "missing_directory": "does not exist",
-              "is_a_directory": "is a directory", "unwritable_directory": "cannot write in"}[case]
+    needle = {
+        "same_as_input": "is the input file",
+        "missing_directory": "does not exist",
+        "is_a_directory": "is a directory",
+        "unwritable_directory": "cannot write in",
+    }[case]
     assert code == 4 and len(err.strip().splitlines()) == 1 and needle in err, err
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["in.csv"] + (["dir.csv"] if case == "is_a_directory" else []))
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        ["in.csv"] + (["dir.csv"] if case == "is_a_directory" else [])
+    )

@@ -1,11 +1,12 @@
 """Degenerate bodies: zero or near-zero principal moments (thin rods, point masses)."""
+
 from __future__ import annotations
 
 import numpy as np
 import pyarrow as pa
 import pytest
-
 from helpers import axis_angle, rel_err, rodrigues, vec, w_of
+
 import hconv
 from hconv.solve.options import Conventions
 from hconv.tables.job import Job
@@ -75,12 +76,19 @@ def test_convert_negative_moment_beyond_threshold_stays_not_positive_definite():
 
 def test_summary_counts_degenerate_rows(tmp_path):
     import pyarrow.parquet as pq
-
     from helpers import run_hconv
 
-    pq.write_table(pa.table({"Hx": [1.0, 1.0], "Hy": [0.0, 1.0], "Hz": [0.0, 0.0], "I1": [0.0, 1.0], "I2": [1.0] * 2,
-                             "I3": [1.0] * 2}), tmp_path / "rod.parquet")
+    pq.write_table(
+        pa.table(
+            {"Hx": [1.0, 1.0], "Hy": [0.0, 1.0], "Hz": [0.0, 0.0], "I1": [0.0, 1.0], "I2": [1.0] * 2, "I3": [1.0] * 2}
+        ),
+        tmp_path / "rod.parquet",
+    )
     proc = run_hconv("convert", str(tmp_path / "rod.parquet"), str(tmp_path / "out.parquet"), "--degenerate", "pinv")
     assert proc.returncode == 0, proc.stderr.decode()
-    rows = {ln.split("│")[1].strip(): ln.split("│")[2].strip() for ln in proc.stderr.decode().splitlines() if ln.count("│") == 3}
+    rows = {
+        ln.split("│")[1].strip(): ln.split("│")[2].strip()
+        for ln in proc.stderr.decode().splitlines()
+        if ln.count("│") == 3
+    }
     assert rows == {"ok": "1", "degenerate": "1", "total": "2"}

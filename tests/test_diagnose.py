@@ -3,6 +3,7 @@
 Each convention is planted with independent numpy code (numpy.linalg.solve on the tensor that
 convention builds), never with hconv's own hypothesis functions.
 """
+
 from __future__ import annotations
 
 import json
@@ -11,8 +12,8 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
-
 from helpers import axis_angle, physical_bodies, quats, rodrigues, run_hconv, six, vec
+
 from hconv.tools import diagnose
 from hconv.tools.stats import Summary
 
@@ -24,8 +25,9 @@ def scene(rng):
     I = physical_bodies(rng, N)  # body-frame tensors with products
     u, th = axis_angle(rng, N)
     R = rodrigues(u, th)
-    return dict(I=I, R=R, q=quats(u, th), H=rng.normal(size=(N, 3)), r=rng.normal(size=(N, 3)),
-                m=rng.uniform(0.5, 3, N))
+    return dict(
+        I=I, R=R, q=quats(u, th), H=rng.normal(size=(N, 3)), r=rng.normal(size=(N, 3)), m=rng.uniform(0.5, 3, N)
+    )
 
 
 def solve(T, H):
@@ -80,8 +82,16 @@ def plant(s, name):
 
 
 def scene_table(s, w_obs) -> pa.Table:
-    return pa.table({**vec("H", s["H"]), **dict(zip(SIX, six(s["I"]).T)), **vec("q", s["q"], "wxyz"),
-                     **vec("r", s["r"]), "m": s["m"], **{f"w{c}_obs": w_obs[:, k] for k, c in enumerate("xyz")}})
+    return pa.table(
+        {
+            **vec("H", s["H"]),
+            **dict(zip(SIX, six(s["I"]).T)),
+            **vec("q", s["q"], "wxyz"),
+            **vec("r", s["r"]),
+            "m": s["m"],
+            **{f"w{c}_obs": w_obs[:, k] for k, c in enumerate("xyz")},
+        }
+    )
 
 
 @pytest.mark.parametrize("name", diagnose.NAMES)
@@ -132,7 +142,7 @@ def test_summary_median_within_half_a_bin(rng):
     values = 10.0 ** rng.uniform(-12, 2, 10001)
     s = Summary(1e-6)
     for k in range(0, 10001, 999):
-        s.add(values[k:k + 999], k)
+        s.add(values[k : k + 999], k)
     assert abs(s.median / np.median(values) - 1) < 0.012
     assert s.maximum == values.max() and s.max_row == int(np.argmax(values))
     assert s.within == int((values <= 1e-6).sum())

@@ -1,5 +1,6 @@
 """Error-free transformations: every sum and product split exactly, checked with exact rational
 arithmetic (fractions) over floats spread across many binades."""
+
 from __future__ import annotations
 
 from fractions import Fraction
@@ -27,10 +28,12 @@ def test_two_prod_split_is_exact(dtype, rng):
     a, b = _wide(rng, 2000, spread).astype(dtype), _wide(rng, 2000, spread).astype(dtype)
     (ah, al), (bh, bl) = eft.split(a), eft.split(b)
     p, e = eft.two_prod_split(a, ah, al, b, bh, bl)
-    assert all(Fraction(float(x)) * Fraction(float(y)) == Fraction(float(u)) + Fraction(float(v))
-               for x, y, u, v in zip(a, b, p, e))
+    assert all(
+        Fraction(float(x)) * Fraction(float(y)) == Fraction(float(u)) + Fraction(float(v))
+        for x, y, u, v in zip(a, b, p, e)
+    )
 
 
 def test_splitter_halves_the_significand():
     # 2**27 + 1 for float64's 53 bits, 2**12 + 1 for float32's 24
-    assert eft.splitter(np.float64) == 2.0 ** 27 + 1 and eft.splitter(np.float32) == 2.0 ** 12 + 1
+    assert eft.splitter(np.float64) == 2.0**27 + 1 and eft.splitter(np.float32) == 2.0**12 + 1

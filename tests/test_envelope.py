@@ -1,10 +1,11 @@
 """Each method's documented stability envelope, as tests against a 50-digit reference."""
+
 from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from helpers import EPS, mp_solve, physical_bodies, rel_err, slender_bodies, spd_bodies
+
 import hconv
 from hconv.solve.status import ILL_CONDITIONED_TOL
 
@@ -81,8 +82,12 @@ def test_ill_conditioned_threshold_matches_method_limit(method):
         limit = m.cond_limit(precision)
         if np.isfinite(limit):
             # Six numbers, so that the method's own solver runs (three take the division path).
-            below = hconv.convert([1, 1, 1], [1, 1, 2 / limit, 0, 0, 0], method=method, precision=precision)  # cond = limit/2
-            above = hconv.convert([1, 1, 1], [1, 1, 0.5 / limit, 0, 0, 0], method=method, precision=precision)  # cond = 2·limit
+            below = hconv.convert(
+                [1, 1, 1], [1, 1, 2 / limit, 0, 0, 0], method=method, precision=precision
+            )  # cond = limit/2
+            above = hconv.convert(
+                [1, 1, 1], [1, 1, 0.5 / limit, 0, 0, 0], method=method, precision=precision
+            )  # cond = 2·limit
             assert below.status == "ok"
             assert above.status == "ill_conditioned"
 

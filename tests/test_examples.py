@@ -1,5 +1,6 @@
 """The README's scene examples, run as a user would on the shipped files, checked against the
 true ω stored in each file (w_true_*), which was chosen before H was computed."""
+
 from __future__ import annotations
 
 import json
@@ -10,9 +11,7 @@ import numpy as np
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 import pytest
-
 from helpers import rel_err, run_hconv
-
 
 DATA = Path(__file__).resolve().parent.parent / "examples" / "data"
 
@@ -21,12 +20,29 @@ def omega(t, names=("wx", "wy", "wz")):
     return np.column_stack([t.column(c).to_numpy().astype(float) for c in names])
 
 
-@pytest.mark.parametrize("src, args, scale", [
-    ("engine-bodies.csv", [], 1.0),
-    ("pendulums.csv", ["--about", "pivot"], 1.0),
-    ("cad-export.csv", ["--products", "positive", "--unit", "I=g*mm**2", "--unit", "H=g*mm**2/s", "--unit", "m=g",
-                        "--omega-unit", "deg/s"], 180 / math.pi),
-])
+@pytest.mark.parametrize(
+    "src, args, scale",
+    [
+        ("engine-bodies.csv", [], 1.0),
+        ("pendulums.csv", ["--about", "pivot"], 1.0),
+        (
+            "cad-export.csv",
+            [
+                "--products",
+                "positive",
+                "--unit",
+                "I=g*mm**2",
+                "--unit",
+                "H=g*mm**2/s",
+                "--unit",
+                "m=g",
+                "--omega-unit",
+                "deg/s",
+            ],
+            180 / math.pi,
+        ),
+    ],
+)
 def test_readme_scene_examples_recover_the_true_omega(tmp_path, src, args, scale):
     proc = run_hconv("convert", str(DATA / src), str(tmp_path / "out.csv"), *args)
     assert proc.returncode == 0, proc.stderr.decode()
@@ -54,11 +70,17 @@ def test_readme_engine_log_diagnosis(tmp_path):
     assert json.loads(proc.stdout)[0]["hypothesis"] == "transposed-rotation"
 
 
-@pytest.mark.parametrize("args, want", [
-    (["--H", "0,1,0", "--I", "1,2,3", "--q", "0.5,0.5,0.5,0.5"], [0.0, 1.0, 0.0]),
-    (["--H", "0,0,1", "--I", "0.02,0.02,0.02", "--m", "0.5", "--r", "0.6,0,0", "--about", "pivot"], [0.0, 0.0, 5.0]),
-    (["--H", "1,1,0", "--I", "0,1,1", "--degenerate", "pinv"], [0.0, 1.0, 0.0]),
-])
+@pytest.mark.parametrize(
+    "args, want",
+    [
+        (["--H", "0,1,0", "--I", "1,2,3", "--q", "0.5,0.5,0.5,0.5"], [0.0, 1.0, 0.0]),
+        (
+            ["--H", "0,0,1", "--I", "0.02,0.02,0.02", "--m", "0.5", "--r", "0.6,0,0", "--about", "pivot"],
+            [0.0, 0.0, 5.0],
+        ),
+        (["--H", "1,1,0", "--I", "0,1,1", "--degenerate", "pinv"], [0.0, 1.0, 0.0]),
+    ],
+)
 def test_readme_one_examples(args, want):
     proc = run_hconv("one", *args, "--json")
     assert proc.returncode == 0, proc.stderr.decode()

@@ -3,13 +3,14 @@
 References: a 50-digit mpmath solve of the full world-frame tensor, rotations built from
 axis and angle by Rodrigues' formula (not from hconv's quaternion code), and analytic bodies.
 """
+
 from __future__ import annotations
 
 import numpy as np
 import pyarrow as pa
 import pytest
-
 from helpers import axis_angle, mp_solve, physical_bodies, quats, rel_err, rodrigues, six, table, vec, w_of
+
 import hconv
 from hconv.errors import InputError, UsageError
 from hconv.solve.options import Conventions
@@ -25,6 +26,7 @@ def principal_scene(rng, n):
 
 
 # --- every form gives the six-number form's answer ----------------------------------------
+
 
 def test_convert_principal_with_quaternion_matches_world_tensor(rng):
     moments, R, q, H = principal_scene(rng, 200)
@@ -74,8 +76,12 @@ def test_convert_list_columns_match_named_columns(rng):
     H = rng.normal(size=(40, 3))
     named = hconv.convert_table(table(**vec("H", H), **dict(zip(["Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz"], six(I).T))))
     for size, values in ((6, six(I)), (9, I.reshape(40, 9))):
-        t = pa.table({"H": pa.FixedSizeListArray.from_arrays(pa.array(H.ravel()), 3),
-                      "I": pa.FixedSizeListArray.from_arrays(pa.array(values.ravel()), size)})
+        t = pa.table(
+            {
+                "H": pa.FixedSizeListArray.from_arrays(pa.array(H.ravel()), 3),
+                "I": pa.FixedSizeListArray.from_arrays(pa.array(values.ravel()), size),
+            }
+        )
         np.testing.assert_allclose(w_of(hconv.convert_table(t)), w_of(named), rtol=1e-15, atol=0)
     # variable-length lists of a constant length work too
     t = pa.table({"H": pa.array(H.tolist()), "I": pa.array(six(I).tolist())})
@@ -87,9 +93,13 @@ def test_convert_quaternion_list_order_option(rng, order):
     moments, R, q, H = principal_scene(rng, 30)
     want = mp_solve(np.einsum("nij,nj,nkj->nik", R, moments, R), H)
     qlist = q if order == "wxyz" else q[:, [1, 2, 3, 0]]
-    t = pa.table({"H": pa.FixedSizeListArray.from_arrays(pa.array(H.ravel()), 3),
-                  "I": pa.FixedSizeListArray.from_arrays(pa.array(moments.ravel()), 3),
-                  "q": pa.FixedSizeListArray.from_arrays(pa.array(qlist.ravel()), 4)})
+    t = pa.table(
+        {
+            "H": pa.FixedSizeListArray.from_arrays(pa.array(H.ravel()), 3),
+            "I": pa.FixedSizeListArray.from_arrays(pa.array(moments.ravel()), 3),
+            "q": pa.FixedSizeListArray.from_arrays(pa.array(qlist.ravel()), 4),
+        }
+    )
     got = hconv.convert_table(t, job=Job(quat_order=order))
     assert rel_err(w_of(got), want).max() < 1e-14
 
@@ -103,14 +113,17 @@ def test_convert_map_reads_other_column_names(rng):
     assert rel_err(w_of(got), mp_solve(I, H)).max() < 1e-14
 
 
-@pytest.mark.parametrize("cols, needle", [
-    ({"I1": 1, "I2": 1, "I3": 1, "Ixx": 1, "Iyy": 1, "Izz": 1, "Ixy": 0, "Ixz": 0, "Iyz": 0}, "more than one form"),
-    ({"I": 1, "I1": 1, "I2": 1, "I3": 1}, "more than one form"),
-    ({"I1": 1, "I2": 1}, "not I3"),
-    ({"Ixx": 1, "Iyy": 1, "Izz": 1, "Ixy": 0, "Ixz": 0, "Iyz": 0, "Iyx": 0}, "not Izx, Izy"),
-    ({"Hq": 1}, "missing the inertia"),
-    ({"I": 1, "qw": 1, "qx": 0}, "not qy, qz"),
-])
+@pytest.mark.parametrize(
+    "cols, needle",
+    [
+        ({"I1": 1, "I2": 1, "I3": 1, "Ixx": 1, "Iyy": 1, "Izz": 1, "Ixy": 0, "Ixz": 0, "Iyz": 0}, "more than one form"),
+        ({"I": 1, "I1": 1, "I2": 1, "I3": 1}, "more than one form"),
+        ({"I1": 1, "I2": 1}, "not I3"),
+        ({"Ixx": 1, "Iyy": 1, "Izz": 1, "Ixy": 0, "Ixz": 0, "Iyz": 0, "Iyx": 0}, "not Izx, Izy"),
+        ({"Hq": 1}, "missing the inertia"),
+        ({"I": 1, "qw": 1, "qx": 0}, "not qy, qz"),
+    ],
+)
 def test_plan_ambiguous_or_partial_inertia_is_one_clear_error(cols, needle):
     t = table(Hx=[1.0], Hy=[0.0], Hz=[0.0], **{k: [float(v)] for k, v in cols.items()})
     with pytest.raises(InputError, match=needle):
@@ -135,6 +148,7 @@ def test_plan_map_to_missing_column_is_named():
 
 
 # --- frames -------------------------------------------------------------------------------
+
 
 def test_convert_rotated_scene_gives_rotated_answer(rng):
     # One body tensor, seen from two world frames that differ by a rotation Q: ω turns with Q.
@@ -166,8 +180,16 @@ def test_convert_body_frame_input_and_world_frame_output(rng):
 
 
 def test_convert_bad_quaternion_row_is_invalid_input_others_kept():
-    t = table(Hx=[1.0, 1.0, 1.0], Hy=[0.0] * 3, Hz=[0.0] * 3, I=[2.0] * 3,
-              qw=[1.0, 0.0, np.nan], qx=[0.0] * 3, qy=[0.0] * 3, qz=[0.0] * 3)
+    t = table(
+        Hx=[1.0, 1.0, 1.0],
+        Hy=[0.0] * 3,
+        Hz=[0.0] * 3,
+        I=[2.0] * 3,
+        qw=[1.0, 0.0, np.nan],
+        qx=[0.0] * 3,
+        qy=[0.0] * 3,
+        qz=[0.0] * 3,
+    )
     got = hconv.convert_table(t)
     assert got.column("status").to_pylist() == ["ok", "invalid_input", "invalid_input"]
     assert got.column("wx").to_pylist()[0] == 0.5
@@ -191,6 +213,7 @@ def test_convert_positive_products_are_negated(rng):
 
 
 # --- the forms registry ----------------------------------------------------------------------
+
 
 def _form_values(name: str, M: np.ndarray) -> np.ndarray:
     """Independent spellings of tensors ``M`` ``(N, 3, 3)`` in each of hconv's forms, ``(k, N)``
@@ -272,7 +295,9 @@ def test_form_shifted_is_the_parallel_axis_theorem(name, rng):
     zero = np.zeros(n)
     new_name, I_P = forms.get(name).shifted(_form_values(name, M), shift_to_pivot(Sym3(*[zero] * 6), m, r.T))
     # I_P = I_C + m·(|r|²·E − r·rᵀ), written out independently
-    expect = M + m[:, None, None] * (np.einsum("ni,ni->n", r, r)[:, None, None] * np.eye(3) - np.einsum("ni,nj->nij", r, r))
+    expect = M + m[:, None, None] * (
+        np.einsum("ni,ni->n", r, r)[:, None, None] * np.eye(3) - np.einsum("ni,nj->nij", r, r)
+    )
     np.testing.assert_allclose(_form_values(new_name, expect), I_P, rtol=1e-14, atol=1e-14)
 
 
@@ -292,8 +317,13 @@ def test_register_one_entry_is_read_mapped_and_named(monkeypatch, rng):
 
     from hconv.solve import forms
 
-    urdf = dataclasses.replace(forms.get("sym6"), name="urdf", columns=("ixx", "iyy", "izz", "ixy", "ixz", "iyz"),
-                               description="ixx, iyy, izz, ixy, ixz, iyz (URDF)", note="URDF")
+    urdf = dataclasses.replace(
+        forms.get("sym6"),
+        name="urdf",
+        columns=("ixx", "iyy", "izz", "ixy", "ixz", "iyz"),
+        description="ixx, iyy, izz, ixy, ixz, iyz (URDF)",
+        note="URDF",
+    )
     monkeypatch.setitem(forms.FORMS, "urdf", urdf)
     M, H = physical_bodies(rng, 20), rng.normal(size=(20, 3))
     upper = table(**vec("H", H), **dict(zip(forms.SIX, six(M).T)))

@@ -4,6 +4,7 @@ error (exit 2 or 3) or a correct result with every row kept. Never exit 1 (an in
 CI runs HCONV_FUZZ_EXAMPLES cases per test (default 120); a longer run for the notes:
     HCONV_FUZZ_EXAMPLES=5000 .venv/bin/python -m pytest tests/test_fuzz.py
 """
+
 from __future__ import annotations
 
 import csv
@@ -14,23 +15,72 @@ import os
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
+from helpers import mp_solve, rel_err, run_inprocess
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from helpers import mp_solve, rel_err, run_inprocess
-
-
 EXAMPLES = int(os.environ.get("HCONV_FUZZ_EXAMPLES", "120"))
-FUZZ = settings(max_examples=EXAMPLES, deadline=None, derandomize=True,
-                suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+FUZZ = settings(
+    max_examples=EXAMPLES,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
 
-NAMES = ["Hx", "Hy", "Hz", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz", "I", "I1", "I2", "I3", "rx", "ry", "rz",
-         "qw", "qx", "qy", "qz", "m", "wx", "id", "note", "Iyx", "H", ""]
+NAMES = [
+    "Hx",
+    "Hy",
+    "Hz",
+    "Ixx",
+    "Iyy",
+    "Izz",
+    "Ixy",
+    "Ixz",
+    "Iyz",
+    "I",
+    "I1",
+    "I2",
+    "I3",
+    "rx",
+    "ry",
+    "rz",
+    "qw",
+    "qx",
+    "qy",
+    "qz",
+    "m",
+    "wx",
+    "id",
+    "note",
+    "Iyx",
+    "H",
+    "",
+]
 CELLS = st.one_of(
     st.floats(allow_nan=True, allow_infinity=True).map(repr),
-    st.integers(-10**20, 10**20).map(str),
-    st.sampled_from(["", "nan", "NaN", "inf", "-inf", "1e309", "1e-320", "0x10", "1_000", "1,5", '"2"', " 3 ",
-                     "true", "null", "N/A", "—", "１", "\t"]),
+    st.integers(-(10**20), 10**20).map(str),
+    st.sampled_from(
+        [
+            "",
+            "nan",
+            "NaN",
+            "inf",
+            "-inf",
+            "1e309",
+            "1e-320",
+            "0x10",
+            "1_000",
+            "1,5",
+            '"2"',
+            " 3 ",
+            "true",
+            "null",
+            "N/A",
+            "—",
+            "１",
+            "\t",
+        ]
+    ),
     st.text(alphabet=st.characters(blacklist_categories=("Cs",)), max_size=8),
 )
 
@@ -43,9 +93,12 @@ def outcome_is_clean(code: int, err: str) -> None:
 
 
 @FUZZ
-@given(header=st.lists(st.sampled_from(NAMES), min_size=1, max_size=14),
-       rows=st.lists(st.lists(CELLS, min_size=0, max_size=16), max_size=6),
-       crlf=st.booleans(), bom=st.booleans())
+@given(
+    header=st.lists(st.sampled_from(NAMES), min_size=1, max_size=14),
+    rows=st.lists(st.lists(CELLS, min_size=0, max_size=16), max_size=6),
+    crlf=st.booleans(),
+    bom=st.booleans(),
+)
 def test_fuzz_csv_reader(tmp_path, capsys, header, rows, crlf, bom):
     buf = io.StringIO()
     csv.writer(buf, lineterminator="\r\n" if crlf else "\n").writerows([header] + rows)
@@ -85,8 +138,11 @@ def column(kind: str, n: int, rng) -> pa.Array:
 
 
 @FUZZ
-@given(cols=st.dictionaries(st.sampled_from(NAMES[:-1]), COLUMN_TYPES, min_size=1, max_size=12),
-       n=st.integers(0, 5), seed=st.integers(0, 2**16))
+@given(
+    cols=st.dictionaries(st.sampled_from(NAMES[:-1]), COLUMN_TYPES, min_size=1, max_size=12),
+    n=st.integers(0, 5),
+    seed=st.integers(0, 2**16),
+)
 def test_fuzz_parquet_reader(tmp_path, capsys, cols, n, seed):
     rng = np.random.default_rng(seed)
     src = tmp_path / "fuzz.parquet"
@@ -103,15 +159,21 @@ def test_fuzz_parquet_reader(tmp_path, capsys, cols, n, seed):
 
 ARG = st.one_of(
     st.lists(st.floats(allow_nan=True, allow_infinity=True, width=64), min_size=0, max_size=10).map(
-        lambda v: ",".join(repr(x) for x in v)),
+        lambda v: ",".join(repr(x) for x in v)
+    ),
     st.text(max_size=20),
     st.sampled_from(["1,2,3", "1,,2,3", ",", "1;2;3", "1 2 3", "1e999,0,0", "--H", "-1,-2,-3", "0,0,0"]),
 )
 
 
 @FUZZ
-@given(H=ARG, I=ARG, r=st.one_of(st.none(), ARG), q=st.one_of(st.none(), ARG),
-       method=st.sampled_from(["exact", "refined", "document", "diagonal", "bogus"]))
+@given(
+    H=ARG,
+    I=ARG,
+    r=st.one_of(st.none(), ARG),
+    q=st.one_of(st.none(), ARG),
+    method=st.sampled_from(["exact", "refined", "document", "diagonal", "bogus"]),
+)
 def test_fuzz_one_arguments(capsys, H, I, r, q, method):
     args = ["one", f"--H={H}", f"--I={I}", "-m", method, "--json"]
     args += [] if r is None else [f"--r={r}"]
@@ -124,9 +186,12 @@ def test_fuzz_one_arguments(capsys, H, I, r, q, method):
         if res["status"] == "ok" and method in ("exact", "refined") and q is None:
             h = np.array([float(x) for x in H.split(",")])  # the CLI took them, so float() must too
             i = np.array([float(x) for x in I.split(",")])
-            tensor = {1: lambda: np.eye(3) * i[0], 3: lambda: np.diag(i),
-                      6: lambda: np.array([[i[0], i[3], i[4]], [i[3], i[1], i[5]], [i[4], i[5], i[2]]]),
-                      9: lambda: i.reshape(3, 3)}[len(i)]()
+            tensor = {
+                1: lambda: np.eye(3) * i[0],
+                3: lambda: np.diag(i),
+                6: lambda: np.array([[i[0], i[3], i[4]], [i[3], i[1], i[5]], [i[4], i[5], i[2]]]),
+                9: lambda: i.reshape(3, 3),
+            }[len(i)]()
             want = mp_solve(tensor[None], h[None])
             got = np.array([res["w"]], dtype=float)
             if not want.any():

@@ -1,12 +1,13 @@
 """`hconv generate`: physically valid bodies, the requested cond spread, a known ω that is right."""
+
 from __future__ import annotations
 
 import numpy as np
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 import pytest
-
 from helpers import EPS, rel_err, run_hconv
+
 import hconv
 from hconv.tools.scene import KINDS, make_scene
 
@@ -24,7 +25,11 @@ def test_generate_bodies_are_physical_with_requested_cond(scene):
     H, I, w_true = _arrays(cols)
     res = hconv.convert(H, I)
     assert (res.status == "ok").all()  # positive definite, triangle inequality, well inside range
-    lam = np.linalg.eigvalsh(np.stack([[I[:, 0], I[:, 3], I[:, 4]], [I[:, 3], I[:, 1], I[:, 5]], [I[:, 4], I[:, 5], I[:, 2]]]).transpose(2, 0, 1))
+    lam = np.linalg.eigvalsh(
+        np.stack([[I[:, 0], I[:, 3], I[:, 4]], [I[:, 3], I[:, 1], I[:, 5]], [I[:, 4], I[:, 5], I[:, 2]]]).transpose(
+            2, 0, 1
+        )
+    )
     cond = lam[:, 2] / lam[:, 0]
     assert cond.max() <= 1e4 * (1 + 1e-9)
     if scene == "sphere":

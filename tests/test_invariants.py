@@ -1,6 +1,7 @@
 """Nothing lost: rows in equal rows out, in order, for every method, format, batch size and
 number of threads; pass-through columns unchanged; a full disk, an interrupt or --strict leave no
 partial output."""
+
 from __future__ import annotations
 
 import csv
@@ -16,8 +17,8 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 import pytest
-
 from helpers import run_inprocess
+
 from hconv import METHODS
 from hconv.tables import tableio
 from hconv.tools.scene import make_scene
@@ -54,11 +55,18 @@ def test_convert_rows_in_equal_rows_out_at_any_batch_size(inputs, tmp_path, caps
         monkeypatch.setattr(tableio, "PARQUET_BATCH_ROWS", rows)
         monkeypatch.setattr(tableio, "CSV_BLOCK_BYTES", block)
         dst = tmp_path / f"out-{rows}.{fmt}"
-        code, _, err = run_inprocess("convert", str(d / f"in.{fmt}"), str(dst), "-m", method, "-q",
-                                     "--threads", str(threads), capsys=capsys)
+        code, _, err = run_inprocess(
+            "convert", str(d / f"in.{fmt}"), str(dst), "-m", method, "-q", "--threads", str(threads), capsys=capsys
+        )
         assert code == 0, err
-        outs.append(pq.read_table(dst) if fmt == "parquet" else pacsv.read_csv(dst, convert_options=pacsv.ConvertOptions(
-            column_types={"label": pa.string()}, strings_can_be_null=False)))
+        outs.append(
+            pq.read_table(dst)
+            if fmt == "parquet"
+            else pacsv.read_csv(
+                dst,
+                convert_options=pacsv.ConvertOptions(column_types={"label": pa.string()}, strings_can_be_null=False),
+            )
+        )
     for out in outs:
         assert out.num_rows == t.num_rows
         np.testing.assert_array_equal(out.column("id").to_numpy(), t.column("id").to_numpy())  # in order
@@ -131,7 +139,9 @@ def big_file(tmp_path_factory):
     return big
 
 
-@pytest.mark.parametrize("sig, dst", [(signal.SIGINT, "out.parquet"), (signal.SIGTERM, "out.csv"), (signal.SIGINT, "-")])
+@pytest.mark.parametrize(
+    "sig, dst", [(signal.SIGINT, "out.parquet"), (signal.SIGTERM, "out.csv"), (signal.SIGINT, "-")]
+)
 def test_convert_interrupted_leaves_no_output_and_no_temporary(big_file, tmp_path, sig, dst):
     big = big_file
     args = [sys.executable, "-m", "hconv", "convert", str(big), dst if dst == "-" else str(tmp_path / dst), "-q"]

@@ -1,4 +1,5 @@
 """The run configuration: checked once when made, from Python or the CLI alike."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -22,13 +23,16 @@ def test_job_is_immutable():
         Job().method = "lapack"
 
 
-@pytest.mark.parametrize("kwargs, needle", [
-    ({"method": "exakt"}, "unknown method 'exakt'; choose one of: exact"),
-    ({"quat_order": "zyxw"}, "--quat-order must be one of wxyz, xyzw, got 'zyxw'"),
-    ({"omega_unit": "parsecs"}, "--omega-unit: 'parsecs'"),
-    ({"method": "document", "omega_unit": "deg/s"}, r"gives m\^2/s, which is not an angular velocity"),
-    ({"conventions": "world"}, "conventions must be a Conventions, got str"),
-])
+@pytest.mark.parametrize(
+    "kwargs, needle",
+    [
+        ({"method": "exakt"}, "unknown method 'exakt'; choose one of: exact"),
+        ({"quat_order": "zyxw"}, "--quat-order must be one of wxyz, xyzw, got 'zyxw'"),
+        ({"omega_unit": "parsecs"}, "--omega-unit: 'parsecs'"),
+        ({"method": "document", "omega_unit": "deg/s"}, r"gives m\^2/s, which is not an angular velocity"),
+        ({"conventions": "world"}, "conventions must be a Conventions, got str"),
+    ],
+)
 def test_job_bad_option_is_refused_when_made(kwargs, needle):
     with pytest.raises(UsageError, match=needle):
         Job(**kwargs)
@@ -48,13 +52,16 @@ def test_job_set_factor_reads_whole_set_units():
     assert job.set_factor("H") == 1.0  # a single column's unit is the planner's business, not a set's
 
 
-@pytest.mark.parametrize("kwargs, needle", [
-    ({"mapping": {"Hw": "Lx"}}, "--map Hw=Lx: hconv has no column 'Hw'; map one of"),
-    ({"mapping": (("Hx", "a"), ("Hx", "b"))}, r"--map gives Hx twice \(a and b\)"),
-    ({"mapping": {"Hx": "a", "Hy": "a"}}, "--map points both Hx and Hy at column 'a'"),
-    ({"unit_options": {"I": "furlongs"}}, r"--unit I=furlongs: .furlongs. is not a unit of inertia"),
-    ({"unit_options": {"Hx": "kg"}}, r"--unit Hx=kg: 'kg' is not a unit of angular momentum"),
-])
+@pytest.mark.parametrize(
+    "kwargs, needle",
+    [
+        ({"mapping": {"Hw": "Lx"}}, "--map Hw=Lx: hconv has no column 'Hw'; map one of"),
+        ({"mapping": (("Hx", "a"), ("Hx", "b"))}, r"--map gives Hx twice \(a and b\)"),
+        ({"mapping": {"Hx": "a", "Hy": "a"}}, "--map points both Hx and Hy at column 'a'"),
+        ({"unit_options": {"I": "furlongs"}}, r"--unit I=furlongs: .furlongs. is not a unit of inertia"),
+        ({"unit_options": {"Hx": "kg"}}, r"--unit Hx=kg: 'kg' is not a unit of angular momentum"),
+    ],
+)
 def test_job_map_and_units_checked_when_made_without_the_data(kwargs, needle):
     with pytest.raises(UsageError, match=needle):
         Job(**kwargs)

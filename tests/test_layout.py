@@ -1,5 +1,6 @@
 """Column plans: a pure function of (schema, job), an immutable layout, and list columns whose
 length one batch fixes for the whole file."""
+
 from __future__ import annotations
 
 import dataclasses

@@ -1,14 +1,15 @@
 """The solvers' building blocks: the double-double residual (held to the same bits as
 :mod:`hconv.kernels.eft`'s functions, tested in test_eft.py) and when the adaptive refinement
 stops. References are exact rational arithmetic (fractions) and 50 digits."""
+
 from __future__ import annotations
 
 from fractions import Fraction
 
 import numpy as np
 import pytest
-
 from helpers import EPS, mp_solve, random_rotations, rel_err
+
 from hconv.kernels import eft, linsolve
 from hconv.kernels.inertia import Sym3
 from hconv.tools.scene import rotate_tensors
@@ -19,10 +20,7 @@ BLOCK = 16384
 def _bodies(rng, n, cond, middle="log"):
     """n rotated tensors with cond(I) exactly ``cond``; the middle moment spread log-uniformly,
     or just above the smallest (two small moments: the hardest case for the stopping rule)."""
-    if middle == "log":
-        m2 = 10 ** (-np.log10(cond) * rng.random(n))
-    else:
-        m2 = (1 + 1e-3 * rng.random(n)) / cond
+    m2 = 10 ** (-np.log10(cond) * rng.random(n)) if middle == "log" else (1 + 0.001 * rng.random(n)) / cond
     M = rotate_tensors(random_rotations(rng, n), np.stack([np.ones(n), m2, np.full(n, 1 / cond)], axis=1))
     return M, Sym3(*(np.ascontiguousarray(M[:, i, j]) for i, j in ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))))
 
@@ -62,7 +60,7 @@ def test_residual_dd_within_eps_squared_of_the_exact_residual(rng):
             exact = Fraction(h[k, n]) - sum(Fraction(M[n, k, j]) * Fraction(x[j, n]) for j in range(3))
             scale = abs(h[k, n]) + sum(abs(M[n, k, j] * x[j, n]) for j in range(3))
             # the value rounded once, plus the error sum's own rounding (a few eps² of the terms)
-            assert abs(Fraction(r[k, n]) - exact) <= EPS * abs(exact) + 8 * EPS ** 2 * Fraction(scale)
+            assert abs(Fraction(r[k, n]) - exact) <= EPS * abs(exact) + 8 * EPS**2 * Fraction(scale)
 
 
 def _counting(monkeypatch):
@@ -86,7 +84,7 @@ def test_refine_adaptive_stop_as_good_as_ten_steps(cond, middle, rng):
     h = rng.normal(size=(3, 2 * BLOCK))
     got, ten = [], []
     for lo in range(0, 2 * BLOCK, BLOCK):
-        Ib, hb = I.take(slice(lo, lo + BLOCK)), h[:, lo:lo + BLOCK]
+        Ib, hb = I.take(slice(lo, lo + BLOCK)), h[:, lo : lo + BLOCK]
         got.append(linsolve.solve_refined(Ib, hb))
         ten.append(linsolve.solve_refined(Ib, hb, steps=10))
     got, ten = np.concatenate(got, axis=1), np.concatenate(ten, axis=1)

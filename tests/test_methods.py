@@ -1,13 +1,14 @@
 """Every method against references that do not share its code: 50-digit solves, hand-worked
 values from the seed's formulas, analytic bodies and rotation covariance."""
+
 from __future__ import annotations
 
 from fractions import Fraction
 
 import numpy as np
 import pytest
-
 from helpers import EPS, mp_solve, physical_bodies, random_rotations, rel_err, six, spd_bodies
+
 import hconv
 from hconv.tools.scene import box_moments, rotate_tensors, sphere_moments
 
@@ -89,7 +90,7 @@ def test_convert_box_spinning_about_principal_axis(method, rng):
         axis = R[:, :, k]
         H = 5.0 * axis
         w = hconv.convert(H, I, method=method).w
-        np.testing.assert_allclose(w, axis * (5.0 / moments[:, k:k + 1]), rtol=1e-13, atol=1e-13)
+        np.testing.assert_allclose(w, axis * (5.0 / moments[:, k : k + 1]), rtol=1e-13, atol=1e-13)
 
 
 def test_box_moments_match_point_mass_integration():

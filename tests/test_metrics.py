@@ -1,11 +1,12 @@
 """Relative error and angle against 50-digit arithmetic, at every scale a float64 reaches."""
+
 from __future__ import annotations
 
 import mpmath
 import numpy as np
 import pytest
-
 from helpers import EPS
+
 from hconv.kernels.metrics import angle_deg, relative_error
 
 

@@ -1,12 +1,13 @@
 """Each option has one check and one message, wherever it comes in: hconv.convert, Conventions,
 Job, and the command line."""
+
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import run_hconv
 
 import hconv
-from helpers import run_hconv
 from hconv.errors import UsageError
 from hconv.solve import options
 from hconv.solve.options import Conventions
@@ -27,8 +28,10 @@ def test_check_precision_one_message_from_every_entry(tmp_path):
     assert _message(lambda: Job(precision=16)) == want
     src = tmp_path / "in.csv"
     src.write_text("Hx,Hy,Hz,I\n1,2,3,4\n")
-    for args in (["convert", str(src), str(tmp_path / "o.csv"), "--precision", "16"],
-                 ["one", "--H", "1,2,3", "--I", "1", "--precision", "16"]):
+    for args in (
+        ["convert", str(src), str(tmp_path / "o.csv"), "--precision", "16"],
+        ["one", "--H", "1,2,3", "--I", "1", "--precision", "16"],
+    ):
         proc = run_hconv(*args)
         assert proc.returncode == 2 and proc.stderr.decode().strip() == f"hconv: error: {want}"
 
@@ -38,13 +41,25 @@ def test_check_degenerate_only_for_the_exact_family():
     r = np.ones(3)
     assert _message(lambda: hconv.convert(H, I, r, method="document", degenerate="pinv")) == want
     assert _message(lambda: Job("document", conventions=Conventions(degenerate="pinv"))) == want
-    assert _message(lambda: Conventions(degenerate_rtol=1.0)) == "--degenerate-rtol must be at least 0 and below 1, got 1.0"
-    assert _message(lambda: hconv.convert(H, I, degenerate_rtol=-1e-3)).startswith("--degenerate-rtol must be at least 0")
+    assert (
+        _message(lambda: Conventions(degenerate_rtol=1.0))
+        == "--degenerate-rtol must be at least 0 and below 1, got 1.0"
+    )
+    assert _message(lambda: hconv.convert(H, I, degenerate_rtol=-1e-3)).startswith(
+        "--degenerate-rtol must be at least 0"
+    )
 
 
-@pytest.mark.parametrize("field, value, option", [("frame", "sideways", "--frame"), ("omega_frame", "up", "--omega-frame"),
-                                                  ("about", "corner", "--about"), ("products", "minus", "--products"),
-                                                  ("degenerate", "drop", "--degenerate")])
+@pytest.mark.parametrize(
+    "field, value, option",
+    [
+        ("frame", "sideways", "--frame"),
+        ("omega_frame", "up", "--omega-frame"),
+        ("about", "corner", "--about"),
+        ("products", "minus", "--products"),
+        ("degenerate", "drop", "--degenerate"),
+    ],
+)
 def test_conventions_bad_choice_names_the_option_and_choices(field, value, option):
     msg = _message(lambda: Conventions(**{field: value}))
     assert msg.startswith(f"{option} must be one of ") and msg.endswith(f"got {value!r}")

@@ -1,5 +1,6 @@
 """The machinery under `hconv convert`'s speed: ordered parallel batches and the Parquet writer's
 encodings (the allocator settings are in test_allocator.py)."""
+
 from __future__ import annotations
 
 import threading

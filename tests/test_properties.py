@@ -1,11 +1,12 @@
 """Property-based tests (hypothesis) over physically valid random bodies."""
+
 from __future__ import annotations
 
 import numpy as np
+from helpers import EPS, rel_err
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from helpers import EPS, rel_err
 import hconv
 
 EXACT_FAMILY = [m.name for m in hconv.METHODS.values() if m.exact]
@@ -25,9 +26,13 @@ def bodies(draw):
     if np.linalg.norm(q) < 1e-3:
         q = np.array([1.0, 0.0, 0.0, 0.0])
     w_, x, y, z = q / np.linalg.norm(q)
-    R = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w_ * z), 2 * (x * z + w_ * y)],
-                  [2 * (x * y + w_ * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w_ * x)],
-                  [2 * (x * z - w_ * y), 2 * (y * z + w_ * x), 1 - 2 * (x * x + y * y)]])
+    R = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w_ * z), 2 * (x * z + w_ * y)],
+            [2 * (x * y + w_ * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w_ * x)],
+            [2 * (x * z - w_ * y), 2 * (y * z + w_ * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
     scale = 10.0 ** draw(st.integers(min_value=-12, max_value=12))
     I = scale * (R @ np.diag(moments) @ R.T)
     I = 0.5 * (I + I.T)
@@ -57,9 +62,13 @@ def test_property_rotation_covariance(body, method, qv):
     H = I @ omega
     q = np.array(qv) if np.linalg.norm(qv) > 1e-3 else np.array([1.0, 0, 0, 0])
     w_, x, y, z = q / np.linalg.norm(q)
-    R = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w_ * z), 2 * (x * z + w_ * y)],
-                  [2 * (x * y + w_ * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w_ * x)],
-                  [2 * (x * z - w_ * y), 2 * (y * z + w_ * x), 1 - 2 * (x * x + y * y)]])
+    R = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w_ * z), 2 * (x * z + w_ * y)],
+            [2 * (x * y + w_ * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w_ * x)],
+            [2 * (x * z - w_ * y), 2 * (y * z + w_ * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
     a = hconv.convert(R @ H, R @ I @ R.T, method=method).w
     b = R @ hconv.convert(H, I, method=method).w
     if np.any(b):

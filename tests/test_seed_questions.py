@@ -6,11 +6,12 @@
    that factor out again (the |r|² that question 2 lost) leaves H_i / I_ii, which is I⁻¹H exactly in
    principal axes. So the formula agrees with I⁻¹H only when every |r⊥i|² happens to be 1 m².
 """
+
 from __future__ import annotations
 
 import numpy as np
-
 from helpers import EPS, physical_bodies, rel_err
+
 import hconv
 
 

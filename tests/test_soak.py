@@ -1,4 +1,5 @@
 """The soak test of benchmarks/soak.py, scaled down for CI (the full 50M-row run is by hand)."""
+
 from __future__ import annotations
 
 import importlib.util

@@ -1,10 +1,11 @@
 """The fast principal moments against LAPACK's eigvalsh: cond and every status decision agree."""
+
 from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from helpers import physical_bodies, random_rotations, six, slender_bodies, spd_bodies
+
 from hconv.kernels.inertia import Sym3
 from hconv.kernels.spectrum import eigenvalues
 from hconv.solve.status import TRIANGLE_RTOL
@@ -39,7 +40,9 @@ def _bodies(name, rng, n=3000):
     raise ValueError(name)
 
 
-@pytest.mark.parametrize("name", ["physical", "rods", "ill", "cylinders", "plates", "spheres", "indefinite", "tiny", "huge"])
+@pytest.mark.parametrize(
+    "name", ["physical", "rods", "ill", "cylinders", "plates", "spheres", "indefinite", "tiny", "huge"]
+)
 def test_eigenvalues_agree_with_lapack_where_statuses_need_it(name, rng):
     M = _bodies(name, rng)
     lam, ref = eigenvalues(_sym(M)).T, np.linalg.eigvalsh(M)

@@ -1,12 +1,13 @@
 """`hconv stability`: its exact reference, its sweeps, and the real command writing real charts."""
+
 from __future__ import annotations
 
 import json
 
 import numpy as np
 import pytest
-
 from helpers import EPS, mp_solve, physical_bodies, rel_err, run_hconv, spd_bodies
+
 import hconv
 from hconv.tools import stability
 
@@ -33,7 +34,9 @@ def test_stability_run_covers_every_sweep_method_and_precision(points):
 
 
 def test_stability_run_refined_at_rounding_through_cond_1e12(points):
-    refined = [p for p in points if p.sweep == "cond" and p.method == "refined" and p.precision == 64 and p.param <= 1e12]
+    refined = [
+        p for p in points if p.sweep == "cond" and p.method == "refined" and p.precision == 64 and p.param <= 1e12
+    ]
     assert len(refined) == 13
     assert max(p.worst_error for p in refined) <= 2 * EPS
 

@@ -1,10 +1,11 @@
 """Every status, its precedence, and what each method answers on a flagged row."""
+
 from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from helpers import mp_solve
+
 import hconv
 from hconv.solve.methods import _seed_formula
 
@@ -40,9 +41,15 @@ def test_status_not_symmetric_for_asymmetric_matrix():
     assert np.isnan(res.w).all()
 
 
-@pytest.mark.parametrize("method,answer", [
-    ("exact", None), ("lapack", None), ("cholesky", None), ("eigen", [0.0, 1.0, 1.5]),
-])
+@pytest.mark.parametrize(
+    "method,answer",
+    [
+        ("exact", None),
+        ("lapack", None),
+        ("cholesky", None),
+        ("eigen", [0.0, 1.0, 1.5]),
+    ],
+)
 def test_status_singular_rod(method, answer):
     res = hconv.convert([1.0, 2.0, 3.0], ROD_I, method=method)
     assert res.status == "singular"

@@ -1,4 +1,5 @@
 """Units in and out: any unit pint understands, SI without pint, and the unit-slip status."""
+
 from __future__ import annotations
 
 import math
@@ -7,8 +8,8 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
-
 from helpers import mp_solve, physical_bodies, rel_err, run_hconv, six, vec, w_of
+
 import hconv
 from hconv.errors import UsageError
 from hconv.solve import units
@@ -27,8 +28,14 @@ def test_factor_known_conversions():
     assert units.omega_factor("rpm") == pytest.approx(60 / (2 * math.pi), rel=1e-15)
 
 
-@pytest.mark.parametrize("bad, needle", [("g*cm", "not a unit of inertia"), ("furlongs_per_blob", "does not understand"),
-                                         ("degC*m**2", "offset|not a unit")])
+@pytest.mark.parametrize(
+    "bad, needle",
+    [
+        ("g*cm", "not a unit of inertia"),
+        ("furlongs_per_blob", "does not understand"),
+        ("degC*m**2", "offset|not a unit"),
+    ],
+)
 def test_factor_bad_unit_is_a_usage_error(bad, needle):
     with pytest.raises(UsageError, match=needle):
         units.factor("I", bad, "--unit I")
@@ -54,7 +61,9 @@ def test_convert_parquet_unit_metadata_is_read(tmp_path, rng):
     fields += [pa.field(c, pa.float64(), metadata={"unit": "g*cm**2"}) for c in SIX]
     t = pa.Table.from_arrays([pa.array(x) for x in np.concatenate([H.T, six(I).T]) * 1e7], schema=pa.schema(fields))
     pq.write_table(t, tmp_path / "cgs.parquet")
-    proc = run_hconv("convert", str(tmp_path / "cgs.parquet"), str(tmp_path / "out.parquet"), "--omega-unit", "deg/s", "-q")
+    proc = run_hconv(
+        "convert", str(tmp_path / "cgs.parquet"), str(tmp_path / "out.parquet"), "--omega-unit", "deg/s", "-q"
+    )
     assert proc.returncode == 0, proc.stderr.decode()
     out = pq.read_table(tmp_path / "out.parquet")
     assert out.schema.field("wx").metadata[b"unit"] == b"deg/s"
@@ -73,13 +82,24 @@ def test_status_unit_suspect_catches_gram_centimetre_slip():
     # A 1 m water cube (1000 kg, moments 1000·2/12): plausible. Its g·cm² numbers read as kg·m²,
     # or its mass given in grams, are not.
     ok_I = 1000 * 2 / 12
-    t = pa.table({"Hx": [1.0] * 4, "Hy": [0.0] * 4, "Hz": [0.0] * 4, "I": [ok_I, ok_I * 1e7, ok_I, ok_I * 1e-7],
-                  "m": [1000.0, 1000.0, 1e6, 1000.0]})
+    t = pa.table(
+        {
+            "Hx": [1.0] * 4,
+            "Hy": [0.0] * 4,
+            "Hz": [0.0] * 4,
+            "I": [ok_I, ok_I * 1e7, ok_I, ok_I * 1e-7],
+            "m": [1000.0, 1000.0, 1e6, 1000.0],
+        }
+    )
     got = hconv.convert_table(t).column("status").to_pylist()
     # row 2 (I 1e7 too big) could be inertia about a far pivot, so without --about only the
     # "too dense" rows are certain; about the centre of mass every slip is caught.
     assert got == ["ok", "ok", "unit_suspect", "unit_suspect"]
-    t2 = t.append_column("rx", pa.array([0.0] * 4)).append_column("ry", pa.array([0.0] * 4)).append_column("rz", pa.array([0.0] * 4))
+    t2 = (
+        t.append_column("rx", pa.array([0.0] * 4))
+        .append_column("ry", pa.array([0.0] * 4))
+        .append_column("rz", pa.array([0.0] * 4))
+    )
     from hconv.solve.options import Conventions
 
     got = hconv.convert_table(t2, job=Job(conventions=Conventions(about="pivot"))).column("status").to_pylist()
@@ -87,8 +107,20 @@ def test_status_unit_suspect_catches_gram_centimetre_slip():
 
 
 def test_one_units_and_omega_unit():
-    proc = run_hconv("one", "--H", "1e7,0,0", "--I", "2e7", "--unit", "H=g*cm**2/s", "--unit", "I=g*cm**2",
-                     "--omega-unit", "deg/s", "--json")
+    proc = run_hconv(
+        "one",
+        "--H",
+        "1e7,0,0",
+        "--I",
+        "2e7",
+        "--unit",
+        "H=g*cm**2/s",
+        "--unit",
+        "I=g*cm**2",
+        "--omega-unit",
+        "deg/s",
+        "--json",
+    )
     assert proc.returncode == 0, proc.stderr.decode()
     import json
 

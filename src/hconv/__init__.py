@@ -5,6 +5,7 @@ RecordBatches (pyarrow is imported only when that is called), with a :class:`Job
 conventions, units and column names. Conventions: :mod:`hconv.kernels.inertia`; the package's
 layers: docs/architecture.md.
 """
+
 from __future__ import annotations
 
 __version__ = "0.1.0"

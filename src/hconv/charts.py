@@ -1,7 +1,6 @@
 """Charts, drawn with matplotlib (the optional extra ``hconv[plot]``, imported only here)."""
-from __future__ import annotations
 
-from typing import Optional
+from __future__ import annotations
 
 import numpy as np
 
@@ -22,7 +21,7 @@ def _pyplot():
     return plt
 
 
-def requested(out: Optional[str], no_chart: bool) -> Optional[str]:
+def requested(out: str | None, no_chart: bool) -> str | None:
     """The chart path a command should write, or None; UsageError now, before a long run, if the
     name is not .png/.svg or matplotlib is missing. matplotlib itself (slow to import) is
     loaded only when a chart is drawn."""
@@ -56,13 +55,22 @@ def stability_chart(points, sweeps, path: str) -> None:
                 x = np.array([p.param if p.param > 0 else zero_at for p in pts])
                 y = np.array([max(p.worst_error, FLOOR) if np.isfinite(p.worst_error) else np.nan for p in pts])
                 flagged = np.array([p.flagged >= 0.5 for p in pts])
-                ax.plot(x, y, style, color=colours[name], lw=1.4, alpha=0.9,
-                        label=f"{name} ({'float64' if prec == 64 else 'float32'})")
+                ax.plot(
+                    x,
+                    y,
+                    style,
+                    color=colours[name],
+                    lw=1.4,
+                    alpha=0.9,
+                    label=f"{name} ({'float64' if prec == 64 else 'float32'})",
+                )
                 ax.scatter(x[~flagged], y[~flagged], s=16, color=colours[name], zorder=3)
                 ax.scatter(x[flagged], y[flagged], s=22, facecolors="none", edgecolors=[colours[name]], zorder=3)
         for level, text in ((2.2e-16, "float64 eps"), (1.2e-7, "float32 eps"), (1e-6, "1e-6: flag beyond")):
             ax.axhline(level, color="grey", lw=0.8, ls=":")
-            ax.text(0.99, level, text, transform=ax.get_yaxis_transform(), ha="right", va="bottom", fontsize=8, color="grey")
+            ax.text(
+                0.99, level, text, transform=ax.get_yaxis_transform(), ha="right", va="bottom", fontsize=8, color="grey"
+            )
         if sw.log_x:
             ax.set_xscale("log")
         ax.set_yscale("log")
@@ -78,8 +86,13 @@ def stability_chart(points, sweeps, path: str) -> None:
         ax.set_ylabel("worst relative error vs I⁻¹H")
         ax.grid(True, which="major", alpha=0.3)
     handles, labels = axes.flat[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside right center", fontsize=9,
-               title="solid float64, dashed float32\nhollow: most rows flagged\nat the floor: correctly rounded")
+    fig.legend(
+        handles,
+        labels,
+        loc="outside right center",
+        fontsize=9,
+        title="solid float64, dashed float32\nhollow: most rows flagged\nat the floor: correctly rounded",
+    )
     fig.suptitle("hconv stability: where each method stops being trustworthy", fontsize=14)
     fig.savefig(path, dpi=90)
     plt.close(fig)
@@ -101,20 +114,43 @@ def speed_accuracy_chart(res, path: str, cond: str = "10000") -> None:
     fig, ax = plt.subplots(figsize=(12, 7.5), constrained_layout=True)
     # neighbours in error alternate their labels above and below, so close points stay readable
     for k, (speed, err, name, prec) in enumerate(sorted(pts, key=lambda p: (round(np.log10(p[1])), p[0]))):
-        ax.scatter(speed, err, s=90, marker="o" if prec == 64 else "s", color=colours[name],
-                   edgecolors="black", linewidths=0.6, zorder=3)
-        ax.annotate(f"{name} f{prec}", (speed, err), textcoords="offset points",
-                    xytext=(7, 6) if k % 2 == 0 else (7, -14), fontsize=9)
+        ax.scatter(
+            speed,
+            err,
+            s=90,
+            marker="o" if prec == 64 else "s",
+            color=colours[name],
+            edgecolors="black",
+            linewidths=0.6,
+            zorder=3,
+        )
+        ax.annotate(
+            f"{name} f{prec}",
+            (speed, err),
+            textcoords="offset points",
+            xytext=(7, 6) if k % 2 == 0 else (7, -14),
+            fontsize=9,
+        )
     front, best = [], np.inf
-    for speed, err, name, prec in sorted(pts, key=lambda p: -p[0]):
+    for speed, err, _name, _prec in sorted(pts, key=lambda p: -p[0]):
         if err < best:
             front.append((speed, err))
             best = err
     fx, fy = zip(*front)
-    ax.step(fx, fy, where="post", color="black", lw=1.2, ls="--", label="Pareto front: nothing is both faster and more accurate")
+    ax.step(
+        fx,
+        fy,
+        where="post",
+        color="black",
+        lw=1.2,
+        ls="--",
+        label="Pareto front: nothing is both faster and more accurate",
+    )
     for level, text in ((2.2e-16, "float64 eps"), (1.2e-7, "float32 eps"), (1e-6, "1e-6")):
         ax.axhline(level, color="grey", lw=0.8, ls=":")
-        ax.text(0.995, level, text, transform=ax.get_yaxis_transform(), ha="right", va="bottom", fontsize=8, color="grey")
+        ax.text(
+            0.995, level, text, transform=ax.get_yaxis_transform(), ha="right", va="bottom", fontsize=8, color="grey"
+        )
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("kernel throughput, rows per second (median of repeats, one core)")

@@ -3,6 +3,7 @@
 ``one`` imports neither pyarrow nor rich, so that a quick check starts about as fast as numpy.
 Errors print one line, ``hconv: error: ...``, and exit with the codes in :mod:`hconv.errors`.
 """
+
 from __future__ import annotations
 
 import copy
@@ -14,7 +15,7 @@ import os
 import signal
 import sys
 from enum import Enum
-from typing import TYPE_CHECKING, Any, List, Optional
+from typing import TYPE_CHECKING, Any
 
 import typer
 
@@ -33,14 +34,13 @@ app = typer.Typer(
 )
 
 
-
 def _choices(name: str, values) -> Any:
     """A typer choice type whose values are the library's own tuple. Its members are ``str``
     subclasses; :func:`_value` gives the plain string."""
     return Enum(name, {str(v): str(v) for v in values}, type=str)
 
 
-def _value(choice: Optional[str]) -> Optional[str]:
+def _value(choice: str | None) -> str | None:
     return choice.value if isinstance(choice, Enum) else choice
 
 
@@ -67,25 +67,67 @@ else:
 JOB_OPTIONS = {
     "method": (MethodName, typer.Option("exact", "--method", "-m", help="see `hconv methods`")),
     "precision": (int, typer.Option(64, "--precision", help="64 or 32: the dtype the method computes in")),
-    "frame": (Frame, typer.Option("world", "--frame", help="the frame of H (and r, v): world, or body (the frame of q's body)")),
-    "omega_frame": (Optional[Frame], typer.Option(None, "--omega-frame", help="the frame of ω; default: the frame of H "
-                                                  "(another needs q)")),
-    "about": (About, typer.Option("same", "--about", help="same: I and H about one point; pivot: I about the centre of "
-                                  "mass, H about a fixed pivot (needs m, r); free: H about an origin (needs m, r, v)")),
-    "products": (Products, typer.Option("tensor", "--products", help="tensor: Ixy = -∫xy dm (hconv, URDF, engines); "
-                                        "positive: Pxy = +∫xy dm (CAD reports)")),
-    "degenerate": (Degenerate, typer.Option("error", "--degenerate", help="zero principal moments (rods, point masses): "
-                                            "error (status singular), pinv or lock (no rotation about the dropped axis)")),
-    "degenerate_rtol": (Optional[float], typer.Option(None, "--degenerate-rtol", help="a principal moment <= this × the "
-                                                      "trace counts as zero; default: singular in the working precision "
-                                                      "(about 1e-15 in float64)")),
-    "mapping": (Optional[List[str]], typer.Option(None, "--map", help="NAME=COLUMN: read hconv's NAME from COLUMN "
-                                                  "(repeatable, or comma-separated)")),
-    "unit_options": (Optional[List[str]], typer.Option(None, "--unit", help="COLUMN=UNIT or SET=UNIT (H, I, r, m, v, "
-                                                       "w_obs), e.g. I=g*cm**2 (repeatable; non-SI units need pint)")),
+    "frame": (
+        Frame,
+        typer.Option("world", "--frame", help="the frame of H (and r, v): world, or body (the frame of q's body)"),
+    ),
+    "omega_frame": (
+        Frame | None,
+        typer.Option(None, "--omega-frame", help="the frame of ω; default: the frame of H (another needs q)"),
+    ),
+    "about": (
+        About,
+        typer.Option(
+            "same",
+            "--about",
+            help="same: I and H about one point; pivot: I about the centre of "
+            "mass, H about a fixed pivot (needs m, r); free: H about an origin (needs m, r, v)",
+        ),
+    ),
+    "products": (
+        Products,
+        typer.Option(
+            "tensor",
+            "--products",
+            help="tensor: Ixy = -∫xy dm (hconv, URDF, engines); positive: Pxy = +∫xy dm (CAD reports)",
+        ),
+    ),
+    "degenerate": (
+        Degenerate,
+        typer.Option(
+            "error",
+            "--degenerate",
+            help="zero principal moments (rods, point masses): "
+            "error (status singular), pinv or lock (no rotation about the dropped axis)",
+        ),
+    ),
+    "degenerate_rtol": (
+        float | None,
+        typer.Option(
+            None,
+            "--degenerate-rtol",
+            help="a principal moment <= this × the "
+            "trace counts as zero; default: singular in the working precision "
+            "(about 1e-15 in float64)",
+        ),
+    ),
+    "mapping": (
+        list[str] | None,
+        typer.Option(None, "--map", help="NAME=COLUMN: read hconv's NAME from COLUMN (repeatable, or comma-separated)"),
+    ),
+    "unit_options": (
+        list[str] | None,
+        typer.Option(
+            None,
+            "--unit",
+            help="COLUMN=UNIT or SET=UNIT (H, I, r, m, v, w_obs), e.g. I=g*cm**2 (repeatable; non-SI units need pint)",
+        ),
+    ),
     "omega_unit": (str, typer.Option("rad/s", "--omega-unit", help="unit of ω: rad/s, deg/s, rpm, ...")),
-    "quat_order": (QuatOrder, typer.Option("wxyz", "--quat-order", help="order of a 4-value list column q "
-                                           "(named columns need none)")),
+    "quat_order": (
+        QuatOrder,
+        typer.Option("wxyz", "--quat-order", help="order of a 4-value list column q (named columns need none)"),
+    ),
 }
 _CONVENTIONS = ("frame", "omega_frame", "about", "products", "degenerate", "degenerate_rtol")
 SCENE = ("frame", "omega_frame", "about", "products")
@@ -93,7 +135,7 @@ DEGENERATE = ("degenerate", "degenerate_rtol")
 COLUMNS = ("mapping", "unit_options", "quat_order")
 
 
-def job_options(*names: str, help: Optional[dict] = None, **fixed):
+def job_options(*names: str, help: dict | None = None, **fixed):
     """Give a command the Job options ``names``, shown in that order where its ``job`` parameter
     stands, and call it with the :class:`~hconv.tables.job.Job` they make as ``job``. ``help``
     rewords an option for this command; ``fixed`` sets Job fields the command does not offer.
@@ -110,7 +152,7 @@ def job_options(*names: str, help: Optional[dict] = None, **fixed):
         sig = inspect.signature(fn)
         params = list(sig.parameters.values())
         at = [p.name for p in params].index("job")
-        params = params[:at] + [option(n) for n in names] + params[at + 1:]
+        params = params[:at] + [option(n) for n in names] + params[at + 1 :]
         kinds = [p.replace(kind=inspect.Parameter.KEYWORD_ONLY) if k > at else p for k, p in enumerate(params)]
 
         @functools.wraps(fn)
@@ -155,7 +197,7 @@ def friendly(fn):
             _fail("interrupted; no output was written", 130)
         except BrokenPipeError:  # the reader stopped early (`| head`): its choice, not a failure
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-            raise typer.Exit(0)
+            raise typer.Exit(0) from None
         except OSError as exc:
             _fail(f"{exc.filename or 'output'}: {exc.strerror or exc}; nothing was written", 4)
         except (typer.Exit, typer.Abort):
@@ -163,7 +205,11 @@ def friendly(fn):
         except Exception as exc:  # noqa: BLE001 - the promise is: no traceback
             if os.environ.get("HCONV_DEBUG"):
                 raise
-            _fail(f"internal error: {type(exc).__name__}: {exc} (set HCONV_DEBUG=1 for the traceback, and please report it)", 1)
+            _fail(
+                f"internal error: {type(exc).__name__}: {exc} "
+                "(set HCONV_DEBUG=1 for the traceback, and please report it)",
+                1,
+            )
 
     return wrapper
 
@@ -187,7 +233,7 @@ def _json_number(x: float):
     return x if math.isfinite(x) else None
 
 
-def _pairs(option: str, items: Optional[List[str]]) -> tuple:
+def _pairs(option: str, items: list[str] | None) -> tuple:
     """``NAME=VALUE`` items (repeatable, each possibly comma-separated) as a tuple of pairs."""
     pairs = []
     for item in items or ():
@@ -207,16 +253,28 @@ ONE_UNIT_SETS = ("H", "I", "r", "m", "v")
 
 @app.command()
 @friendly
-@job_options("method", "precision", *SCENE, *DEGENERATE, "unit_options", "omega_unit",
-             help={"unit_options": f"SET=UNIT for {', '.join(ONE_UNIT_SETS)}, e.g. I=g*cm**2 (repeatable; non-SI "
-                                   "units need pint)"})
+@job_options(
+    "method",
+    "precision",
+    *SCENE,
+    *DEGENERATE,
+    "unit_options",
+    "omega_unit",
+    help={
+        "unit_options": f"SET=UNIT for {', '.join(ONE_UNIT_SETS)}, e.g. I=g*cm**2 (repeatable; non-SI units need pint)"
+    },
+)
 def one(
     H: str = typer.Option(..., "--H", help="Hx,Hy,Hz (kg·m²/s)"),
     I: str = typer.Option(..., "--I", help=f"{forms.counts_text()} values (kg·m²)"),
-    r: Optional[str] = typer.Option(None, "--r", help="rx,ry,rz (m): the document methods' offset; for --about, the centre of mass relative to the point of H"),
-    q: Optional[str] = typer.Option(None, "--q", help="qw,qx,qy,qz: the body's orientation (body → world)"),
-    mass: Optional[float] = typer.Option(None, "--m", help="mass (kg), for --about pivot|free and the unit check"),
-    v: Optional[str] = typer.Option(None, "--v", help="vx,vy,vz (m/s): velocity of the centre of mass, for --about free"),
+    r: str | None = typer.Option(
+        None,
+        "--r",
+        help="rx,ry,rz (m): the document methods' offset; for --about, the centre of mass relative to the point of H",
+    ),
+    q: str | None = typer.Option(None, "--q", help="qw,qx,qy,qz: the body's orientation (body → world)"),
+    mass: float | None = typer.Option(None, "--m", help="mass (kg), for --about pivot|free and the unit check"),
+    v: str | None = typer.Option(None, "--v", help="vx,vy,vz (m/s): velocity of the centre of mass, for --about free"),
     job=None,  # the run options go here (job_options)
     as_json: bool = typer.Option(False, "--json", help="print one JSON object"),
 ) -> None:
@@ -249,11 +307,21 @@ def one(
     w = [float(x) * scale for x in res.w[0]]
     residual = float(res.residual[0]) if res.residual is not None else float("nan")
     cond, state = float(res.cond[0]), str(res.status[0])
-    axis = None if res.null_axis is None or not np.isfinite(res.null_axis[0]).all() else [float(x) for x in res.null_axis[0]]
+    axis = (
+        None
+        if res.null_axis is None or not np.isfinite(res.null_axis[0]).all()
+        else [float(x) for x in res.null_axis[0]]
+    )
     if as_json:
         clean = _json_number
-        out = {"w": [clean(x) for x in w], "unit": unit_out, "residual": clean(residual),
-               "cond": clean(cond), "status": state, "method": job.method}
+        out = {
+            "w": [clean(x) for x in w],
+            "unit": unit_out,
+            "residual": clean(residual),
+            "cond": clean(cond),
+            "status": state,
+            "method": job.method,
+        }
         if res.null_dim is not None:
             out.update(null_axis=axis, null_dim=int(res.null_dim[0]))
         print(json.dumps(out))
@@ -276,20 +344,23 @@ def convert_cmd(
     src: str = typer.Argument(..., metavar="IN", help="input .csv or .parquet, or - for stdin"),
     dst: str = typer.Argument(..., metavar="OUT", help="output .csv or .parquet, or - for stdout"),
     job=None,  # the run options go here (job_options)
-    from_: Optional[Fmt] = typer.Option(None, "--from", help="input format; needed when IN is -"),
-    to: Optional[Fmt] = typer.Option(None, "--to", help="output format; needed when OUT is -"),
+    from_: Fmt | None = typer.Option(None, "--from", help="input format; needed when IN is -"),
+    to: Fmt | None = typer.Option(None, "--to", help="output format; needed when OUT is -"),
     force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no summary on stderr"),
     strict: bool = typer.Option(False, "--strict", help="fail (exit 5, nothing written) if any row's status is not ok"),
-    threads: Optional[int] = typer.Option(None, "--threads", help="batches converted at once; default: the cores available, "
-                                          "at most 4 (the output is the same for any number)"),
+    threads: int | None = typer.Option(
+        None,
+        "--threads",
+        help="batches converted at once; default: the cores available, "
+        "at most 4 (the output is the same for any number)",
+    ),
 ) -> None:
     """Convert every row of a CSV or Parquet table; OUT gets the input columns, ω and diagnostics."""
     from hconv import report
     from hconv.tables import pipeline
 
-    kwargs = dict(job=job, src_format=_value(from_), dst_format=_value(to), force=force, strict=strict,
-                  threads=threads)
+    kwargs = dict(job=job, src_format=_value(from_), dst_format=_value(to), force=force, strict=strict, threads=threads)
     if sys.stderr.isatty() and dst != "-" and not quiet:
         with report.ProgressBar(f"converting {src}") as bar:
             tally = pipeline.convert_file(src, dst, progress=bar, **kwargs)
@@ -305,7 +376,7 @@ def convert_cmd(
 def diagnose_cmd(
     src: str = typer.Argument(..., metavar="IN", help="input .csv or .parquet with H, I and wx_obs, wy_obs, wz_obs"),
     tol: float = typer.Option(1e-3, "--tol", help="a row is explained when |ω - ω_obs| / |ω_obs| <= this"),
-    from_: Optional[Fmt] = typer.Option(None, "--from", help="input format; needed when IN is -"),
+    from_: Fmt | None = typer.Option(None, "--from", help="input format; needed when IN is -"),
     as_json: bool = typer.Option(False, "--json", help="print the ranking as JSON, best first"),
     job=None,  # the run options go here (job_options)
 ) -> None:
@@ -315,9 +386,20 @@ def diagnose_cmd(
     d = diagnose.diagnose_file(src, src_format=_value(from_), tol=tol, job=job)
     if as_json:
         clean = _json_number
-        print(json.dumps([{"hypothesis": s.hypothesis, "median_residual": clean(s.residual.median),
-                           "share_explained": clean(s.residual.share_within),
-                           "median_angle_deg": clean(s.angle.median)} for s in d.ranking()], indent=1))
+        print(
+            json.dumps(
+                [
+                    {
+                        "hypothesis": s.hypothesis,
+                        "median_residual": clean(s.residual.median),
+                        "share_explained": clean(s.residual.share_within),
+                        "median_angle_deg": clean(s.angle.median),
+                    }
+                    for s in d.ranking()
+                ],
+                indent=1,
+            )
+        )
         return
     from hconv import report
 
@@ -329,9 +411,11 @@ def diagnose_cmd(
 @job_options(*SCENE, *COLUMNS)
 def compare_cmd(
     src: str = typer.Argument(..., metavar="IN", help="input .csv or .parquet"),
-    dst: Optional[str] = typer.Argument(None, metavar="[OUT]", help="also write per-row figures here (.csv or .parquet, - for stdout)"),
-    from_: Optional[Fmt] = typer.Option(None, "--from", help="input format; needed when IN is -"),
-    to: Optional[Fmt] = typer.Option(None, "--to", help="output format; needed when OUT is -"),
+    dst: str | None = typer.Argument(
+        None, metavar="[OUT]", help="also write per-row figures here (.csv or .parquet, - for stdout)"
+    ),
+    from_: Fmt | None = typer.Option(None, "--from", help="input format; needed when IN is -"),
+    to: Fmt | None = typer.Option(None, "--to", help="output format; needed when OUT is -"),
     force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
     job=None,  # the run options go here (job_options)
 ) -> None:
@@ -351,16 +435,19 @@ def generate_cmd(
     dst: str = typer.Argument(..., metavar="OUT", help="output .csv or .parquet, or - for stdout"),
     rows: int = typer.Option(..., "--rows", "-n", help="number of bodies"),
     scene: str = typer.Option("mix", "--scene", help=f"{', '.join(SCENES[:-1])} or {SCENES[-1]}"),
-    cond_max: float = typer.Option(1e3, "--cond-max", help="cond(I) is log-uniform from 1 to this (as the body kind allows)"),
+    cond_max: float = typer.Option(
+        1e3, "--cond-max", help="cond(I) is log-uniform from 1 to this (as the body kind allows)"
+    ),
     seed: int = typer.Option(0, "--seed"),
-    to: Optional[Fmt] = typer.Option(None, "--to", help="output format; needed when OUT is -"),
+    to: Fmt | None = typer.Option(None, "--to", help="output format; needed when OUT is -"),
     force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
 ) -> None:
     """Write a synthetic scene of physically valid bodies with their known ω (w_true_x, ...)."""
     from hconv.tools import generate
 
-    seconds = generate.generate_file(dst, rows, scene=scene, cond_max=cond_max, seed=seed,
-                                     dst_format=_value(to), force=force)
+    seconds = generate.generate_file(
+        dst, rows, scene=scene, cond_max=cond_max, seed=seed, dst_format=_value(to), force=force
+    )
     rate = f", {rows / seconds:,.0f} rows/s" if seconds > 0 and rows else ""
     print(f"hconv generate: {rows:,} rows to {dst} in {seconds:.2f} s{rate}", file=sys.stderr)
 
@@ -371,20 +458,23 @@ def bench_cmd(
     rows: int = typer.Option(2_000_000, "--rows", "-n", help="rows per measurement"),
     repeats: int = typer.Option(3, "--repeats", min=1, help="each speed is the median of this many runs"),
     memory_rows: int = typer.Option(0, "--memory-rows", help="also measure peak RSS converting this many rows"),
-    out: Optional[str] = typer.Option("speed-vs-accuracy.png", "--out", "-o", help="chart file, .png or .svg"),
+    out: str | None = typer.Option("speed-vs-accuracy.png", "--out", "-o", help="chart file, .png or .svg"),
     no_chart: bool = typer.Option(False, "--no-chart", help="print the tables only"),
-    json_out: Optional[str] = typer.Option(None, "--json", help="also write every figure to this JSON file"),
+    json_out: str | None = typer.Option(None, "--json", help="also write every figure to this JSON file"),
     seed: int = typer.Option(0, "--seed"),
 ) -> None:
     """Measure speed and accuracy of every method and precision, and the speed targets."""
-    from hconv import report
+    from hconv import charts, report
     from hconv.tools import bench
 
-    from hconv import charts
-
     chart = charts.requested(out, no_chart)
-    res = bench.run(rows=rows, repeats=repeats, seed=seed, memory_rows=memory_rows,
-                    log=lambda s: print(f"bench: {s}", file=sys.stderr))
+    res = bench.run(
+        rows=rows,
+        repeats=repeats,
+        seed=seed,
+        memory_rows=memory_rows,
+        log=lambda s: print(f"bench: {s}", file=sys.stderr),
+    )
     report.bench_tables(res)
     if json_out:
         with open(json_out, "w") as f:
@@ -399,12 +489,29 @@ def bench_cmd(
 def methods_cmd(as_json: bool = typer.Option(False, "--json", help="print a JSON list")) -> None:
     """List the methods: the unit of each result, whether it is exact, its cost and when it fails."""
     if as_json:
+
         def limit(m, p):  # JSON has no Infinity: null means "up to the singular threshold"
             return m.cond_limit(p) if m.exact and math.isfinite(m.cond_limit(p)) else None
 
-        print(json.dumps([{"name": m.name, "unit": m.unit, "exact": m.exact, "needs_r": m.needs_r,
-                           "cond_limit_float64": limit(m, 64), "cond_limit_float32": limit(m, 32),
-                           "summary": m.summary, "cost": m.cost, "fails": m.fails} for m in METHODS.values()], indent=1))
+        print(
+            json.dumps(
+                [
+                    {
+                        "name": m.name,
+                        "unit": m.unit,
+                        "exact": m.exact,
+                        "needs_r": m.needs_r,
+                        "cond_limit_float64": limit(m, 64),
+                        "cond_limit_float32": limit(m, 32),
+                        "summary": m.summary,
+                        "cost": m.cost,
+                        "fails": m.fails,
+                    }
+                    for m in METHODS.values()
+                ],
+                indent=1,
+            )
+        )
         return
     from hconv import report
 
@@ -414,16 +521,15 @@ def methods_cmd(as_json: bool = typer.Option(False, "--json", help="print a JSON
 @app.command("stability")
 @friendly
 def stability_cmd(
-    out: Optional[str] = typer.Option("stability.png", "--out", "-o", help="chart file, .png or .svg"),
+    out: str | None = typer.Option("stability.png", "--out", "-o", help="chart file, .png or .svg"),
     no_chart: bool = typer.Option(False, "--no-chart", help="print the tables only"),
     rows: int = typer.Option(48, "--rows", min=4, help="bodies per sweep point"),
     seed: int = typer.Option(0, "--seed"),
     as_json: bool = typer.Option(False, "--json", help="print every sweep point as JSON instead of tables"),
 ) -> None:
     """Sweep every method over hard inputs and show where each stops being trustworthy."""
-    from hconv.tools import stability
-
     from hconv import charts
+    from hconv.tools import stability
 
     chart = charts.requested(out, no_chart)
     points = stability.run(rows=rows, seed=seed)

@@ -4,6 +4,7 @@ Exit codes (the CLI's contract): 0 success, even when some rows carry non-ok sta
 internal error; 2 a usage error; 3 an input that cannot be read; 4 an output that cannot be
 written; 5 rows that are not ok under ``--strict``; 130 interrupted (Ctrl-C or SIGTERM).
 """
+
 from __future__ import annotations
 
 

@@ -4,6 +4,7 @@ A :class:`Registry` is a dict in registration order, so ``list(r)``, ``r.values(
 ``name in r`` work as usual; :meth:`Registry.get_checked` is the one lookup that fails with a
 :class:`~hconv.errors.UsageError` naming the choices, in the same words for every concept.
 """
+
 from __future__ import annotations
 
 from typing import TypeVar

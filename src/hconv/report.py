@@ -2,19 +2,17 @@
 
 rich is imported here only, so that ``hconv one`` does not pay for it.
 """
+
 from __future__ import annotations
 
-from typing import Optional
-
 import numpy as np
-
 from rich.console import Console
 from rich.table import Table
 
 from hconv.solve.methods import METHODS
 
 
-def summary(tally, console: Optional[Console] = None) -> None:
+def summary(tally, console: Console | None = None) -> None:
     """Print a run's summary: rows, rows per status, the worst residual and the time taken."""
     console = console or Console(stderr=True)
     rate = f"{tally.rows / tally.seconds:,.0f} rows/s" if tally.seconds > 0 and tally.rows else "-"
@@ -27,22 +25,27 @@ def summary(tally, console: Optional[Console] = None) -> None:
     t.add_row("total", f"{tally.rows:,}", style="bold")
     console.print(t)
     if tally.worst_row is not None:
-        console.print(f"worst residual {tally.worst_residual:.3g} (data row {tally.worst_row}), "
-                      "relative to I⁻¹H")
+        console.print(f"worst residual {tally.worst_residual:.3g} (data row {tally.worst_row}), relative to I⁻¹H")
     console.print(f"time {tally.seconds:.3f} s ({rate})")
 
 
 class ProgressBar:
     """A transient rich progress bar; call it as ``bar(done, total)``."""
 
-    def __init__(self, description: str, console: Optional[Console] = None):
+    def __init__(self, description: str, console: Console | None = None):
         from rich.progress import BarColumn, Progress, TaskProgressColumn, TimeRemainingColumn
 
-        self._p = Progress("[progress.description]{task.description}", BarColumn(), TaskProgressColumn(),
-                           TimeRemainingColumn(), console=console or Console(stderr=True), transient=True)
+        self._p = Progress(
+            "[progress.description]{task.description}",
+            BarColumn(),
+            TaskProgressColumn(),
+            TimeRemainingColumn(),
+            console=console or Console(stderr=True),
+            transient=True,
+        )
         self._task = self._p.add_task(description, total=None)
 
-    def __call__(self, done: int, total: Optional[int]) -> None:
+    def __call__(self, done: int, total: int | None) -> None:
         self._p.update(self._task, completed=done, total=total)
 
     def __enter__(self):
@@ -57,11 +60,13 @@ def envelope(m) -> str:
     """The cond(I) up to which a method's error stays within 1e-6, per precision, as text."""
     if not m.exact:
         return "n/a: not I⁻¹H"
-    return " · ".join(f"{'singular' if lim == float('inf') else f'{lim:.1e}'} (f{p})"
-                      for p, lim in ((64, m.cond_limit(64)), (32, m.cond_limit(32))))
+    return " · ".join(
+        f"{'singular' if lim == float('inf') else f'{lim:.1e}'} (f{p})"
+        for p, lim in ((64, m.cond_limit(64)), (32, m.cond_limit(32)))
+    )
 
 
-def methods_table(console: Optional[Console] = None) -> None:
+def methods_table(console: Console | None = None) -> None:
     """Print the registered methods: unit, exactness, cost and when each fails."""
     console = console or Console()
     t = Table(show_lines=True)
@@ -72,7 +77,7 @@ def methods_table(console: Optional[Console] = None) -> None:
     console.print(t)
 
 
-def stability_tables(points, sweeps, console: Optional[Console] = None) -> None:
+def stability_tables(points, sweeps, console: Console | None = None) -> None:
     """Per sweep and precision, a table of worst errors: rows are sweep points, columns methods;
     a trailing * marks a cell where most rows are flagged, — one where no row had an answer."""
     console = console or Console()
@@ -87,8 +92,11 @@ def stability_tables(points, sweeps, console: Optional[Console] = None) -> None:
 
     for sw in sweeps:
         for prec in (64, 32):
-            t = Table(title=f"{sw.title}, float{prec}: worst relative error vs I⁻¹H (* most rows flagged)",
-                      title_justify="left", header_style="bold")
+            t = Table(
+                title=f"{sw.title}, float{prec}: worst relative error vs I⁻¹H (* most rows flagged)",
+                title_justify="left",
+                header_style="bold",
+            )
             t.add_column(sw.xlabel, justify="right")
             for n in names:
                 t.add_column(n, justify="right")
@@ -98,7 +106,7 @@ def stability_tables(points, sweeps, console: Optional[Console] = None) -> None:
             console.print(t)
 
 
-def bench_tables(res, console: Optional[Console] = None) -> None:
+def bench_tables(res, console: Console | None = None) -> None:
     """The benchmark: a row per method and precision, then the targets as measured ratios."""
     console = console or Console()
     console.print(f"[bold]hconv bench[/bold] · {res.rows:,} rows · {res.machine}")
@@ -112,42 +120,67 @@ def bench_tables(res, console: Optional[Console] = None) -> None:
     for key, speed in res.kernel.items():
         name, prec = key.split("/")
         errs = [res.accuracy[key][c] for c in conds]
-        t.add_row(name, prec, f"{speed / 1e6:.2f}", f"{speed / lapack:.2f}", f"{res.convert[key] / 1e6:.2f}",
-                  *(f"{m:.0e} / {w:.0e}" for m, w in errs))
+        t.add_row(
+            name,
+            prec,
+            f"{speed / 1e6:.2f}",
+            f"{speed / lapack:.2f}",
+            f"{res.convert[key] / 1e6:.2f}",
+            *(f"{m:.0e} / {w:.0e}" for m, w in errs),
+        )
     console.print(t)
     g = Table(title="targets (ratios of rates measured in this run)", title_justify="left", header_style="bold")
     for col in ("target", "measured", "required", "met"):
         g.add_column(col, justify="left" if col == "target" else "right")
     for name, value, required, met in res.targets:
-        g.add_row(name, "skipped" if value is None else f"{value:.2f}", f"≥ {required:g}",
-                  "—" if met is None else ("[green]yes[/green]" if met else "[red]no[/red]"))
+        g.add_row(
+            name,
+            "skipped" if value is None else f"{value:.2f}",
+            f"≥ {required:g}",
+            "—" if met is None else ("[green]yes[/green]" if met else "[red]no[/red]"),
+        )
     console.print(g)
     b = res.baselines
     if "plain_script_ceiling" in b:
-        console.print(f"An hconv that computed nothing (start-up {b['hconv_startup_s']:.2f} s plus the I/O roofline "
-                      f"{res.rows / b['io_roofline_rows_per_s']:.2f} s) would be {b['plain_script_ceiling']:.2f}× "
-                      f"faster than the plain script ({b['plain_script_s']:.2f} s).")
+        console.print(
+            f"An hconv that computed nothing (start-up {b['hconv_startup_s']:.2f} s plus the I/O roofline "
+            f"{res.rows / b['io_roofline_rows_per_s']:.2f} s) would be {b['plain_script_ceiling']:.2f}× "
+            f"faster than the plain script ({b['plain_script_s']:.2f} s)."
+        )
 
 
 def _g(x: float) -> str:
     return "-" if x is None or not np.isfinite(x) else f"{x:.3g}"
 
 
-def diagnosis_tables(d, console: Optional[Console] = None) -> None:
+def diagnosis_tables(d, console: Console | None = None) -> None:
     """Print ``hconv diagnose``'s ranking, what was left out, and the rows nothing explains."""
     console = console or Console()
-    console.print(f"[bold]hconv diagnose[/bold] · {d.rows:,} rows · a row is explained when "
-                  f"|ω - ω_obs| / |ω_obs| <= {d.tol:g}")
+    console.print(
+        f"[bold]hconv diagnose[/bold] · {d.rows:,} rows · a row is explained when |ω - ω_obs| / |ω_obs| <= {d.tol:g}"
+    )
     t = Table(show_header=True, header_style="bold")
-    for col, at_left in (("rank", False), ("hypothesis", True), ("explains", False), ("median residual", False),
-                         ("median angle °", False), ("worst residual", False)):
+    for col, at_left in (
+        ("rank", False),
+        ("hypothesis", True),
+        ("explains", False),
+        ("median residual", False),
+        ("median angle °", False),
+        ("worst residual", False),
+    ):
         t.add_column(col, justify="left" if at_left else "right", no_wrap=True)
     ranking = d.ranking()
     for k, s in enumerate(ranking, 1):
         share = s.residual.share_within
-        t.add_row(str(k), s.hypothesis, "-" if not np.isfinite(share) else f"{100 * share:.1f} %",
-                  _g(s.residual.median), _g(s.angle.median), _g(s.residual.maximum),
-                  style="bold green" if k == 1 and share > 0 else None)
+        t.add_row(
+            str(k),
+            s.hypothesis,
+            "-" if not np.isfinite(share) else f"{100 * share:.1f} %",
+            _g(s.residual.median),
+            _g(s.angle.median),
+            _g(s.residual.maximum),
+            style="bold green" if k == 1 and share > 0 else None,
+        )
     console.print(t)
     if ranking:
         console.print(f"best: [bold]{ranking[0].hypothesis}[/bold]: {ranking[0].summary}")
@@ -161,29 +194,41 @@ def diagnosis_tables(d, console: Optional[Console] = None) -> None:
         console.print("every row is explained by at least one hypothesis")
 
 
-def comparison_tables(c, console: Optional[Console] = None) -> None:
+def comparison_tables(c, console: Console | None = None) -> None:
     """Print ``hconv compare``: each method against exact, and where the shortcuts fail."""
     from hconv.tools.compare import OFFDIAG_BINS, R_AXIS_BINS, SHORTCUTS
 
     console = console or Console()
-    console.print(f"[bold]hconv compare[/bold] · {c.rows:,} rows · difference from the exact ω, "
-                  "|ω_m - ω_exact| / |ω_exact| (bare numbers for m²/s methods)")
+    console.print(
+        f"[bold]hconv compare[/bold] · {c.rows:,} rows · difference from the exact ω, "
+        "|ω_m - ω_exact| / |ω_exact| (bare numbers for m²/s methods)"
+    )
     t = Table(show_header=True, header_style="bold")
     nan_col = any(s.diff.missing for s in c.scores)
     for col in ("method", "med diff", "max diff", "max row", "med °", "max °") + (("NaN",) if nan_col else ()):
         t.add_column(col, justify="left" if col == "method" else "right", no_wrap=True)
+
     def g2(x: float) -> str:  # short, so that the table fits 80 columns
         return "-" if not np.isfinite(x) else (f"{x:.3g}" if x == 0 or 0.01 <= abs(x) < 1000 else f"{x:.1e}")
+
     for s in c.scores:
-        t.add_row(s.method + (" (m²/s)" if s.unit != "rad/s" else ""), g2(s.diff.median), g2(s.diff.maximum),
-                  "-" if s.diff.max_row is None or not s.diff.maximum > 0 else str(s.diff.max_row + 1),
-                  g2(s.angle.median), g2(s.angle.maximum), *((f"{s.diff.missing:,}",) if nan_col else ()))
+        t.add_row(
+            s.method + (" (m²/s)" if s.unit != "rad/s" else ""),
+            g2(s.diff.median),
+            g2(s.diff.maximum),
+            "-" if s.diff.max_row is None or not s.diff.maximum > 0 else str(s.diff.max_row + 1),
+            g2(s.angle.median),
+            g2(s.angle.maximum),
+            *((f"{s.diff.missing:,}",) if nan_col else ()),
+        )
     console.print(t)
     if c.skipped:
         console.print("not run: " + "; ".join(f"{m} ({why})" for m, why in c.skipped))
     shortcuts = [s for s in c.scores if s.method in SHORTCUTS]
-    for title, edges, attr in (("off-diagonal ratio max|Iij|/√(Iii·Ijj)", OFFDIAG_BINS, "by_offdiag"),
-                               ("offset geometry min (|r|² - r_i²)/|r|² (0: r on an axis)", R_AXIS_BINS, "by_r_axis")):
+    for title, edges, attr in (
+        ("off-diagonal ratio max|Iij|/√(Iii·Ijj)", OFFDIAG_BINS, "by_offdiag"),
+        ("offset geometry min (|r|² - r_i²)/|r|² (0: r on an axis)", R_AXIS_BINS, "by_r_axis"),
+    ):
         if not shortcuts or all(sum(b.rows for b in getattr(s, attr)) == 0 for s in shortcuts):
             continue
         t = Table(title=f"median diff of the shortcuts by {title}", show_header=True, header_style="bold")
@@ -194,8 +239,9 @@ def comparison_tables(c, console: Optional[Console] = None) -> None:
         for b in range(len(edges) - 1):
             n = getattr(shortcuts[0], attr)[b].rows
             if n:
-                t.add_row(f"[{edges[b]:g}, {edges[b + 1]:g})", f"{n:,}",
-                          *(_g(getattr(s, attr)[b].median) for s in shortcuts))
+                t.add_row(
+                    f"[{edges[b]:g}, {edges[b + 1]:g})", f"{n:,}", *(_g(getattr(s, attr)[b].median) for s in shortcuts)
+                )
         console.print(t)
     for s in shortcuts:
         if s.worst:

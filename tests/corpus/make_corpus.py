@@ -5,6 +5,7 @@
 The expected outcome of each file (a one-line error with its exit code, or per-row statuses) is
 in tests/test_corpus.py. The files are committed; this script documents how each was made.
 """
+
 from __future__ import annotations
 
 import os
@@ -29,8 +30,17 @@ def table(**cols) -> pa.Table:
 
 
 def good(n=3) -> dict:
-    return {"Hx": [1.0] * n, "Hy": [2.0] * n, "Hz": [3.0] * n, "Ixx": [2.0] * n, "Iyy": [3.0] * n,
-            "Izz": [4.0] * n, "Ixy": [-0.5] * n, "Ixz": [0.0] * n, "Iyz": [0.0] * n}
+    return {
+        "Hx": [1.0] * n,
+        "Hy": [2.0] * n,
+        "Hz": [3.0] * n,
+        "Ixx": [2.0] * n,
+        "Iyy": [3.0] * n,
+        "Izz": [4.0] * n,
+        "Ixy": [-0.5] * n,
+        "Ixz": [0.0] * n,
+        "Iyz": [0.0] * n,
+    }
 
 
 def main() -> None:
@@ -71,8 +81,11 @@ def main() -> None:
     text("nan_and_blank.csv", HEAD + "\n" + ROW + "\nnan,2,3,2,3,4,-0.5,0,0\n1,,3,2,3,4,-0.5,0,0\n")
     text("infinities.csv", HEAD + "\ninf,2,3,2,3,4,-0.5,0,0\n1,2,3,-inf,3,4,-0.5,0,0\n" + ROW + "\n")
     text("subnormal.csv", HEAD + "\n1e-310,2e-310,3e-310,2,3,4,-0.5,0,0\n1,2,3,2e-310,3e-310,4e-310,0,0,0\n")
-    text("near_max.csv", HEAD + "\n1e308,1e308,1e308,2,3,4,-0.5,0,0\n1e308,2,3,1e-10,1e-10,1e-10,0,0,0\n"
-         "1,2,3,1.7e308,1.7e308,1.7e308,0,0,0\n")
+    text(
+        "near_max.csv",
+        HEAD + "\n1e308,1e308,1e308,2,3,4,-0.5,0,0\n1e308,2,3,1e-10,1e-10,1e-10,0,0,0\n"
+        "1,2,3,1.7e308,1.7e308,1.7e308,0,0,0\n",
+    )
     text("asymmetric_nine.csv", HEAD + ",Iyx,Izx,Izy\n" + ROW + ",-0.7,0,0\n" + ROW + ",-0.5,0,0\n")
     text("negative_moments.csv", HEAD + "\n1,2,3,-2,3,4,0,0,0\n1,2,3,-2,-3,-4,0,0,0\n" + ROW + "\n")
     text("not_physical.csv", HEAD + "\n1,2,3,1,1,5,0,0,0\n" + ROW + "\n")
@@ -85,19 +98,27 @@ def main() -> None:
     text("corrupt_footer.parquet", raw[:-12] + b"\x00" * 8 + raw[-4:])
     text("csv_named_parquet.parquet", HEAD + "\n" + ROW + "\n")
     os.remove(HERE / "good.parquet")
-    pq.write_table(pa.table({"H": pa.array([[1.0, 2.0, 3.0]]), "I": pa.array([[1.0, 2.0, 3.0, 4.0]])}),
-                   HERE / "list_wrong_length.parquet")
-    pq.write_table(pa.table({"H": pa.array([[1.0, 2.0, 3.0], [1.0, 2.0]]), "I": pa.array([[1.0, 2.0, 3.0]] * 2)}),
-                   HERE / "list_ragged.parquet")
-    pq.write_table(pa.table({"H": pa.array([{"x": 1.0, "y": 2.0, "z": 3.0}]), "I": pa.array([2.0])}),
-                   HERE / "struct_column.parquet")
-    pq.write_table(pa.table({"H": pa.array([[[1.0], [2.0], [3.0]]]), "I": pa.array([2.0])}),
-                   HERE / "list_of_lists.parquet")
+    pq.write_table(
+        pa.table({"H": pa.array([[1.0, 2.0, 3.0]]), "I": pa.array([[1.0, 2.0, 3.0, 4.0]])}),
+        HERE / "list_wrong_length.parquet",
+    )
+    pq.write_table(
+        pa.table({"H": pa.array([[1.0, 2.0, 3.0], [1.0, 2.0]]), "I": pa.array([[1.0, 2.0, 3.0]] * 2)}),
+        HERE / "list_ragged.parquet",
+    )
+    pq.write_table(
+        pa.table({"H": pa.array([{"x": 1.0, "y": 2.0, "z": 3.0}]), "I": pa.array([2.0])}),
+        HERE / "struct_column.parquet",
+    )
+    pq.write_table(
+        pa.table({"H": pa.array([[[1.0], [2.0], [3.0]]]), "I": pa.array([2.0])}), HERE / "list_of_lists.parquet"
+    )
     pq.write_table(pa.table({**good(1), "Hx": pa.array(["1"])}), HERE / "string_column.parquet")
     pq.write_table(pa.table({**good(1), "Hx": pa.array([True])}), HERE / "bool_column.parquet")
     pq.write_table(pa.table({**good(3), "Hy": pa.array([2.0, None, 2.0])}), HERE / "nulls.parquet")
-    pq.write_table(pa.Table.from_arrays([pa.array([1.0])] * 10, names=HEAD.split(",") + ["Hx"]),
-                   HERE / "duplicate_column.parquet")
+    pq.write_table(
+        pa.Table.from_arrays([pa.array([1.0])] * 10, names=HEAD.split(",") + ["Hx"]), HERE / "duplicate_column.parquet"
+    )
     pq.write_table(pa.table({k: pa.array([], pa.float64()) for k in good(0)}), HERE / "zero_rows.parquet")
 
 

@@ -10,6 +10,7 @@ the two thresholds keeps freed temporaries in the heap for the next block, at th
 The ``hconv`` command calls :func:`tune` at start-up. A program that uses hconv as a library may
 call it too; hconv never calls it on import, since it changes the whole process's allocator.
 """
+
 from __future__ import annotations
 
 import ctypes

@@ -11,6 +11,7 @@ These are the readable statement of the arithmetic. :func:`hconv.kernels.linsolv
 ``split_sym`` write the same operations out in place over scratch buffers (a third faster), and
 ``tests/test_linsolve.py`` holds the two to the same bits and these to exactness.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -36,8 +37,9 @@ def split(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return hi, a - hi
 
 
-def two_prod_split(a: np.ndarray, ah: np.ndarray, al: np.ndarray,
-                   b: np.ndarray, bh: np.ndarray, bl: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def two_prod_split(
+    a: np.ndarray, ah: np.ndarray, al: np.ndarray, b: np.ndarray, bh: np.ndarray, bl: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """``a·b = p + e`` exactly, from ``a``, ``b`` and their splits (so a fixed factor is split once)."""
     p = a * b
     return p, ((ah * bh - p) + ah * bl + al * bh) + al * bl

@@ -14,6 +14,7 @@ Conventions (stated once, here):
 Vectors are component-major, shape ``(3, N)``; a rotation is a ``(3, 3, N)`` array, so that every
 entry is one contiguous column.
 """
+
 from __future__ import annotations
 
 import numpy as np

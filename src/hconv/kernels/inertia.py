@@ -12,6 +12,7 @@ Conventions (stated once, here; every other module relies on them):
 A batch of N symmetric tensors is held as a :class:`Sym3` of six arrays of shape ``(N,)``
 (structure of arrays), so that the kernels run on contiguous columns.
 """
+
 from __future__ import annotations
 
 from typing import NamedTuple
@@ -29,10 +30,10 @@ class Sym3(NamedTuple):
     xz: np.ndarray
     yz: np.ndarray
 
-    def astype(self, dtype) -> "Sym3":
+    def astype(self, dtype) -> Sym3:
         return Sym3(*(np.asarray(c, dtype=dtype) for c in self))
 
-    def take(self, rows) -> "Sym3":
+    def take(self, rows) -> Sym3:
         return Sym3(*(c[rows] for c in self))
 
     def matrices(self) -> np.ndarray:

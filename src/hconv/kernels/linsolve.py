@@ -5,9 +5,10 @@ Shapes: tensors are :class:`hconv.kernels.inertia.Sym3` of ``(N,)`` columns; vec
 run about twice as fast as strided ones). Units pass straight through: with I in kg·m² and H in
 kg·m²/s, ω comes out in rad/s. Rows that cannot be solved come back as NaN; callers set statuses.
 """
+
 from __future__ import annotations
 
-from typing import NamedTuple, Optional
+from typing import NamedTuple
 
 import numpy as np
 
@@ -226,8 +227,7 @@ MAX_REFINE_STEPS = 6
 STOP_TOL = 1.0
 
 
-def solve_refined(I: Sym3, h: np.ndarray, steps: Optional[int] = None,
-                  x0: Optional[np.ndarray] = None) -> np.ndarray:
+def solve_refined(I: Sym3, h: np.ndarray, steps: int | None = None, x0: np.ndarray | None = None) -> np.ndarray:
     """ω = I⁻¹H to within about one rounding for cond(I) up to ~1e14; h and ω are ``(3, N)``.
 
     LDLᵀ (LU where I is not positive definite) gives a first answer x₀, unless the caller
@@ -252,14 +252,16 @@ def solve_refined(I: Sym3, h: np.ndarray, steps: Optional[int] = None,
     # solution sits near the end of the range while the residual is split and multiplied.
     big = np.maximum(np.maximum(np.abs(hs[0]), np.abs(hs[1])), np.abs(hs[2]))
     emax = np.finfo(h.dtype).maxexp - 24  # t itself must stay finite, even for subnormal rows
-    t = np.where((big > 0) & np.isfinite(big), np.ldexp(1.0, np.clip(-np.frexp(big)[1], -emax, emax)), 1.0).astype(h.dtype)
+    t = np.where((big > 0) & np.isfinite(big), np.ldexp(1.0, np.clip(-np.frexp(big)[1], -emax, emax)), 1.0).astype(
+        h.dtype
+    )
     with np.errstate(over="ignore", invalid="ignore"):
         # ω of the scaled system S·I·S·y = t·S·h is y = t·S⁻¹·ω (powers of two: exact)
         y0 = None if x0 is None else x0 / s * t
         return _refine(scale_sym(I, s), hs * t, steps, y0) * s / t
 
 
-def _refine(I: Sym3, h: np.ndarray, steps: Optional[int], x0: Optional[np.ndarray] = None) -> np.ndarray:
+def _refine(I: Sym3, h: np.ndarray, steps: int | None, x0: np.ndarray | None = None) -> np.ndarray:
     fac = ldlt_factor(I)
     other = ~fac.positive()
     I_o = I.take(other) if other.any() else None
@@ -299,8 +301,7 @@ def _refine(I: Sym3, h: np.ndarray, steps: Optional[int], x0: Optional[np.ndarra
                 alive &= ratio < 0.25
             # stop once no row's remaining error is predicted above STOP_TOL·eps; a correction
             # already at the rounding level (c <= eps²) has nothing left to find
-            if not np.any((pred > STOP_TOL ** 2 * tiny) & (c > tiny) & alive):
+            if not np.any((pred > STOP_TOL**2 * tiny) & (c > tiny) & alive):
                 break
         prev = c
     return x
-

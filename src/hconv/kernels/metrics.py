@@ -4,6 +4,7 @@ Every figure hconv reports of this kind (the ``residual`` column, ``diagnose``'s
 ``compare``'s differences, the stability sweeps, the bench's accuracy) comes from here.
 Vectors are component-major, shape ``(3, N)``; results are ``(N,)``.
 """
+
 from __future__ import annotations
 
 import numpy as np

@@ -2,6 +2,7 @@
 
 Shapes: tensors are :class:`hconv.kernels.inertia.Sym3` of ``(N,)`` columns [kg·m²]; results ``(3, N)``.
 """
+
 from __future__ import annotations
 
 import math

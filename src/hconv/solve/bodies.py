@@ -17,10 +17,10 @@ component-major ``(k, N)`` arrays) and the :class:`Conventions` of the scene. It
 The residual is measured in the frame and about the point where the tensor is solved, so it does
 not include the (few-ulp) rounding of the rotations.
 """
+
 from __future__ import annotations
 
 import dataclasses
-from typing import Optional
 
 import numpy as np
 
@@ -35,7 +35,7 @@ from hconv.solve.options import Conventions
 ROTATION_K = 2.0
 
 
-def _given(value: Optional[np.ndarray], name: str) -> np.ndarray:
+def _given(value: np.ndarray | None, name: str) -> np.ndarray:
     """A set the conventions need (``Conventions.needs``), which must be there."""
     if value is None:
         raise UsageError(f"this conversion needs the set {name!r}")
@@ -51,8 +51,14 @@ def _pivot_shift(form: forms.Form, I_C: np.ndarray, m: np.ndarray, r_B: np.ndarr
     return form.shifted(I_C, d)
 
 
-def solve(sets: dict, form: str, method: str = "exact", precision: int = 64, conv: Conventions = Conventions(),
-          diagnostics: bool = True) -> core.Result:
+def solve(
+    sets: dict,
+    form: str,
+    method: str = "exact",
+    precision: int = 64,
+    conv: Conventions = Conventions(),
+    diagnostics: bool = True,
+) -> core.Result:
     """ω for every row of ``sets`` (see the module docstring); a stacked :class:`core.Result`.
 
     ``sets``: ``H`` ``(3, N)`` [kg·m²/s], ``I`` ``(k, N)`` in ``form`` (a name in
@@ -103,9 +109,19 @@ def _solve(sets: dict, form: forms.Form, method, precision, conv: Conventions, d
     if bad.any():
         H_solved = np.where(bad, np.nan, H_solved)  # status invalid_input, through core
     I_sym, asym = solved_form.as_sym3(I_solved)
-    res = core.convert_columns(H_solved, I_sym, asym, solved_form.diagonal, r_B, method=method,
-                               precision=precision, diagnostics=diagnostics, degenerate=conv.degenerate,
-                               degenerate_rtol=conv.degenerate_rtol, extra_k=ROTATION_K if rotate_in else 0.0)
+    res = core.convert_columns(
+        H_solved,
+        I_sym,
+        asym,
+        solved_form.diagonal,
+        r_B,
+        method=method,
+        precision=precision,
+        diagnostics=diagnostics,
+        degenerate=conv.degenerate,
+        degenerate_rtol=conv.degenerate_rtol,
+        extra_k=ROTATION_K if rotate_in else 0.0,
+    )
     w_B, axis_B, code = res.w, res.null_axis, res.status_code
     w_out, axis_out = w_B, axis_B
     if R_WB is not None and conv.w_frame == "world":

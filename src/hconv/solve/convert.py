@@ -18,10 +18,10 @@ Diagnostics per row:
 * ``cond``: the 2-norm condition number of I, |moment|max / |moment|min.
 * ``status``: see :mod:`hconv.solve.status`.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional
 
 import numpy as np
 
@@ -40,15 +40,15 @@ class Result:
     """ω and its diagnostics. Arrays are stacked ``(N, ...)`` or, for one body, unstacked."""
 
     w: np.ndarray  #: (N, 3) or (3,), in ``unit``
-    residual: Optional[np.ndarray]  #: (N,) or scalar; None when diagnostics were off
+    residual: np.ndarray | None  #: (N,) or scalar; None when diagnostics were off
     cond: np.ndarray  #: (N,) or scalar
     status_code: np.ndarray  #: (N,) uint8, or scalar; names in hconv.solve.status.STATUSES
     unit: str  #: unit of w: "rad/s" or "m^2/s"
     method: str
     #: with degenerate="pinv"/"lock": the dropped axis, (N, 3) unit vectors, NaN where none or
     #: more than one was dropped; and how many axes were dropped, (N,) int8
-    null_axis: Optional[np.ndarray] = None
-    null_dim: Optional[np.ndarray] = None
+    null_axis: np.ndarray | None = None
+    null_dim: np.ndarray | None = None
 
     @property
     def status(self):
@@ -68,9 +68,18 @@ def _as_float(name: str, a) -> np.ndarray:
         raise ValueError(f"{name} must be numeric: {exc}") from None
 
 
-def convert(H, I, r=None, *, method: str = "exact", precision: int = 64,
-            diagnostics: bool = True, degenerate: str = "error",
-            degenerate_rtol: Optional[float] = None, extra_k: float = 0.0) -> Result:
+def convert(
+    H,
+    I,
+    r=None,
+    *,
+    method: str = "exact",
+    precision: int = 64,
+    diagnostics: bool = True,
+    degenerate: str = "error",
+    degenerate_rtol: float | None = None,
+    extra_k: float = 0.0,
+) -> Result:
     """Convert angular momentum to angular velocity with ``method``; see the module docstring.
 
     ``precision`` (64 or 32) sets the dtype the method computes in; diagnostics are always
@@ -106,31 +115,61 @@ def convert(H, I, r=None, *, method: str = "exact", precision: int = 64,
     if r is not None:
         r = _as_float("r", r)
         if r.shape != (n, 3):
-            raise ValueError(f"Expected r to have shape {(3,) if single else (n, 3)}, got {r.shape[1:] if single else r.shape}")
+            raise ValueError(
+                f"Expected r to have shape {(3,) if single else (n, 3)}, got {r.shape[1:] if single else r.shape}"
+            )
     elif m.needs_r:
         raise ValueError(f"method {method!r} needs the offset r [m]; pass r=...")
     form, values = forms.from_array(I)
     I_sym, asym = form.as_sym3(values)
-    res = convert_columns(H.T, I_sym, asym, form.diagonal, None if r is None else r.T, method=method,
-                          precision=precision, diagnostics=diagnostics, degenerate=degenerate,
-                          degenerate_rtol=degenerate_rtol, extra_k=extra_k)
+    res = convert_columns(
+        H.T,
+        I_sym,
+        asym,
+        form.diagonal,
+        None if r is None else r.T,
+        method=method,
+        precision=precision,
+        diagnostics=diagnostics,
+        degenerate=degenerate,
+        degenerate_rtol=degenerate_rtol,
+        extra_k=extra_k,
+    )
     if single:
-        return Result(res.w[0], None if res.residual is None else res.residual[0], res.cond[0], res.status_code[0],
-                      res.unit, res.method, None if res.null_axis is None else res.null_axis[0],
-                      None if res.null_dim is None else res.null_dim[0])
+        return Result(
+            res.w[0],
+            None if res.residual is None else res.residual[0],
+            res.cond[0],
+            res.status_code[0],
+            res.unit,
+            res.method,
+            None if res.null_axis is None else res.null_axis[0],
+            None if res.null_dim is None else res.null_dim[0],
+        )
     return res
 
 
-def _checked(method: str, precision: int, degenerate: str, degenerate_rtol: Optional[float]) -> methods.Method:
+def _checked(method: str, precision: int, degenerate: str, degenerate_rtol: float | None) -> methods.Method:
     m = methods.get(method)
     options.check_precision(precision)
     options.check_degenerate(degenerate, degenerate_rtol, method)
     return m
 
 
-def convert_columns(H: np.ndarray, I: Sym3, asym: np.ndarray, diagonal: bool, r: Optional[np.ndarray] = None, *,
-                    method: str = "exact", precision: int = 64, diagnostics: bool = True, degenerate: str = "error",
-                    degenerate_rtol: Optional[float] = None, extra_k: float = 0.0) -> Result:
+def convert_columns(
+    H: np.ndarray,
+    I: Sym3,
+    asym: np.ndarray,
+    diagonal: bool,
+    r: np.ndarray | None = None,
+    *,
+    method: str = "exact",
+    precision: int = 64,
+    diagnostics: bool = True,
+    degenerate: str = "error",
+    degenerate_rtol: float | None = None,
+    extra_k: float = 0.0,
+) -> Result:
     """:func:`convert` on hconv's internal layout: ``H`` and ``r`` component-major ``(3, N)``,
     I a :class:`Sym3` of ``(N,)`` columns with the ``(N,)`` mask ``asym`` of rows given as
     non-symmetric nine numbers (:meth:`hconv.solve.forms.Form.as_sym3` makes both); ``diagonal``
@@ -159,8 +198,15 @@ def _convert_blocks(n, opts, Isym, asym, H, r, w, cond, code, residual, deg) -> 
     for lo in range(0, n, BLOCK_ROWS):
         sl = slice(lo, min(n, lo + BLOCK_ROWS))
         _convert_block(
-            opts, Isym.take(sl), asym[sl], H[:, sl], None if r is None else r[:, sl],
-            w[sl], cond[sl], code[sl], None if residual is None else residual[sl],
+            opts,
+            Isym.take(sl),
+            asym[sl],
+            H[:, sl],
+            None if r is None else r[:, sl],
+            w[sl],
+            cond[sl],
+            code[sl],
+            None if residual is None else residual[sl],
             None if deg is None else _Degenerate(deg.axis[sl], deg.dim[sl]),
         )
 
@@ -170,7 +216,7 @@ class _BlockOptions:
     m: methods.Method
     dtype: type
     diagonal: bool  #: I holds diagonal tensors (principal moments in their own frame)
-    degenerate_rtol: Optional[float]
+    degenerate_rtol: float | None
     extra_k: float
 
 
@@ -220,10 +266,7 @@ def _convert_block(o: _BlockOptions, I: Sym3, asym, H, r, w_out, cond_out, code_
     dropped = singular & ~invalid & ~asym if deg is not None else np.zeros(n, dtype=bool)
     # The division is correctly rounded, so on diagonal tensors the error does not grow with cond.
     k_extra = o.extra_k if o.diagonal else o.extra_k + (m.error_k or {}).get(8 * np.dtype(dtype).itemsize, 0.0)
-    if m.exact and k_extra:
-        cond_limit = status.ILL_CONDITIONED_TOL / (k_extra * float(np.finfo(dtype).eps))
-    else:
-        cond_limit = np.inf
+    cond_limit = status.ILL_CONDITIONED_TOL / (k_extra * float(np.finfo(dtype).eps)) if m.exact and k_extra else np.inf
     flags = {
         "invalid_input": invalid,
         "not_symmetric": asym & ~invalid,
@@ -270,8 +313,9 @@ def _convert_block(o: _BlockOptions, I: Sym3, asym, H, r, w_out, cond_out, code_
         every = bool(ok.all())
         if every or ok.any():
             rows = slice(None) if every else ok  # a slice copies nothing
-            res = _residual(o, I if every else I.take(ok), H[:, rows], w[:, rows],
-                            moments[:, rows] if o.diagonal else None)
+            res = _residual(
+                o, I if every else I.take(ok), H[:, rows], w[:, rows], moments[:, rows] if o.diagonal else None
+            )
             res_out[rows] = res
             if m.exact:
                 # The safety net under the a-priori statuses: an exact-family answer measured off
@@ -281,7 +325,7 @@ def _convert_block(o: _BlockOptions, I: Sym3, asym, H, r, w_out, cond_out, code_
                 code_out[:] = status.merge(code_out, bad, "inaccurate")
 
 
-def _residual(o: _BlockOptions, I: Sym3, H: np.ndarray, w: np.ndarray, moments: Optional[np.ndarray]) -> np.ndarray:
+def _residual(o: _BlockOptions, I: Sym3, H: np.ndarray, w: np.ndarray, moments: np.ndarray | None) -> np.ndarray:
     """‖ω − I⁻¹H‖ / ‖I⁻¹H‖ for rows that have an answer: ``H``, ``w`` (and ``moments``) ``(3, k)``;
     returns ``(k,)``.
 
@@ -301,8 +345,9 @@ def _residual(o: _BlockOptions, I: Sym3, H: np.ndarray, w: np.ndarray, moments: 
     return relative_error(w, ref)
 
 
-def _pseudo_inverse(I: Sym3, H: np.ndarray, tol: np.ndarray, diagonal: bool, deg: _Degenerate,
-                    rows: np.ndarray) -> np.ndarray:
+def _pseudo_inverse(
+    I: Sym3, H: np.ndarray, tol: np.ndarray, diagonal: bool, deg: _Degenerate, rows: np.ndarray
+) -> np.ndarray:
     """ω = I⁺·H on degenerate rows, in float64: moments at or below ``tol`` ``(k,)`` are dropped.
 
     ``H`` is ``(3, k)``; writes the dropped axis (when exactly one) and the count into ``deg``

@@ -21,15 +21,16 @@ full9       the six plus ``Iyx, Izx, Izy``                      row-major (9)   
 ``scalar`` and ``principal`` are *diagonal*: moments about the axes they are given in, so they
 have no products and are solved by division.
 """
+
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable, Optional
 
 import numpy as np
 
-from hconv.registry import Registry
 from hconv.kernels.inertia import Sym3
+from hconv.registry import Registry
 from hconv.solve.status import SYMMETRY_RTOL
 
 #: The six numbers' order, and the name of each entry.
@@ -46,7 +47,7 @@ class Form:
     note: str  #: what its numbers are, in a word: "principal", "row-major", ...
     diagonal: bool  #: moments about the given axes only (no products): solved by division
     #: values per row in a list column ``I``; None when the form has no list spelling
-    list_size: Optional[int]
+    list_size: int | None
     #: ``(k, N)`` → the one internal representation: a :class:`Sym3` of contiguous ``(N,)``
     #: columns, and the ``(N,)`` mask of rows whose nine numbers are not symmetric (those rows
     #: keep the mean of the two entries, so that the arrays stay finite; the caller flags them)
@@ -60,9 +61,10 @@ class Form:
     shifted: Callable[[np.ndarray, Sym3], tuple[str, np.ndarray]]
 
     #: the form this one extends: its columns must be present too (full9 extends sym6)
-    extends: Optional[str] = None
+    extends: str | None = None
     #: position in :attr:`columns` of each value, in value order; None when they coincide
-    value_order: Optional[tuple] = None
+    value_order: tuple | None = None
+
     @property
     def count(self) -> int:
         """Numbers per row."""
@@ -85,8 +87,11 @@ class Form:
             return np.zeros(I.shape[1])
         s = self.as_six(I)
         with np.errstate(divide="ignore", invalid="ignore"):
-            ratios = [np.abs(s[3]) / np.sqrt(np.abs(s[0] * s[1])), np.abs(s[4]) / np.sqrt(np.abs(s[0] * s[2])),
-                      np.abs(s[5]) / np.sqrt(np.abs(s[1] * s[2]))]
+            ratios = [
+                np.abs(s[3]) / np.sqrt(np.abs(s[0] * s[1])),
+                np.abs(s[4]) / np.sqrt(np.abs(s[0] * s[2])),
+                np.abs(s[5]) / np.sqrt(np.abs(s[1] * s[2])),
+            ]
         return np.fmax(np.fmax(ratios[0], ratios[1]), ratios[2])
 
 
@@ -111,16 +116,15 @@ def from_array(I: np.ndarray) -> tuple[Form, np.ndarray]:
         return FORMS["sym6"], I.T
     if I.ndim == 3 and I.shape[1:] == (3, 3):
         return FORMS["full9"], I.reshape(I.shape[0], 9).T
-    raise ValueError(
-        f"Expected I to have shape (3,), (6,), (3, 3), (N, 3), (N, 6) or (N, 3, 3), got {I.shape}")
+    raise ValueError(f"Expected I to have shape (3,), (6,), (3, 3), (N, 3), (N, 6) or (N, 3, 3), got {I.shape}")
 
 
-def by_count(k: int) -> Optional[Form]:
+def by_count(k: int) -> Form | None:
     """The first registered form with ``k`` numbers per row (``hconv one --I``), or None."""
     return next((f for f in FORMS.values() if f.count == k), None)
 
 
-def by_list_size(k: int) -> Optional[Form]:
+def by_list_size(k: int) -> Form | None:
     """The form a list column ``I`` of ``k`` values per row holds, or None."""
     return next((f for f in FORMS.values() if f.list_size == k), None)
 
@@ -150,6 +154,7 @@ def forms_text() -> str:
 
 
 # --- the entries ---------------------------------------------------------------------------
+
 
 def _shift_diagonal(diag: np.ndarray, d: Sym3) -> tuple[str, np.ndarray]:
     return "sym6", np.stack([diag[0] + d.xx, diag[1] + d.yy, diag[2] + d.zz, d.xy, d.xz, d.yz])
@@ -184,33 +189,55 @@ def _sym3_of_nine(I: np.ndarray) -> tuple[Sym3, np.ndarray]:
         np.maximum(skew, np.abs(I[2] - I[6]), out=skew)
         np.maximum(skew, np.abs(I[5] - I[7]), out=skew)
         asym = skew > SYMMETRY_RTOL * scale
-    return Sym3(I[0].copy(), I[4].copy(), I[8].copy(), 0.5 * (I[1] + I[3]), 0.5 * (I[2] + I[6]),
-                0.5 * (I[5] + I[7])), asym
+    return Sym3(
+        I[0].copy(), I[4].copy(), I[8].copy(), 0.5 * (I[1] + I[3]), 0.5 * (I[2] + I[6]), 0.5 * (I[5] + I[7])
+    ), asym
 
 
-register(Form(
-    "scalar", ("I",), "I (isotropic)", "isotropic", diagonal=True, list_size=None,
-    as_sym3=lambda I: _sym3_of_diagonal(np.repeat(I, 3, axis=0)),
-    as_six=lambda I: _six_of_diagonal(np.repeat(I, 3, axis=0)),
-    flip_products=_no_products,
-    shifted=lambda I, d: _shift_diagonal(np.repeat(I, 3, axis=0), d),
-))
+register(
+    Form(
+        "scalar",
+        ("I",),
+        "I (isotropic)",
+        "isotropic",
+        diagonal=True,
+        list_size=None,
+        as_sym3=lambda I: _sym3_of_diagonal(np.repeat(I, 3, axis=0)),
+        as_six=lambda I: _six_of_diagonal(np.repeat(I, 3, axis=0)),
+        flip_products=_no_products,
+        shifted=lambda I, d: _shift_diagonal(np.repeat(I, 3, axis=0), d),
+    )
+)
 
-register(Form(
-    "principal", ("I1", "I2", "I3"), "I1, I2, I3 (principal)", "principal", diagonal=True, list_size=3,
-    as_sym3=_sym3_of_diagonal,
-    as_six=_six_of_diagonal,
-    flip_products=_no_products,
-    shifted=_shift_diagonal,
-))
+register(
+    Form(
+        "principal",
+        ("I1", "I2", "I3"),
+        "I1, I2, I3 (principal)",
+        "principal",
+        diagonal=True,
+        list_size=3,
+        as_sym3=_sym3_of_diagonal,
+        as_six=_six_of_diagonal,
+        flip_products=_no_products,
+        shifted=_shift_diagonal,
+    )
+)
 
-register(Form(
-    "sym6", SIX, f"{', '.join(SIX)} (tensor)", ",".join(SIX), diagonal=False, list_size=6,
-    as_sym3=_sym3_of_six,
-    as_six=lambda I: I,
-    flip_products=lambda I: np.concatenate([I[:3], -I[3:]]),
-    shifted=lambda I, d: ("sym6", I + np.stack(list(d))),
-))
+register(
+    Form(
+        "sym6",
+        SIX,
+        f"{', '.join(SIX)} (tensor)",
+        ",".join(SIX),
+        diagonal=False,
+        list_size=6,
+        as_sym3=_sym3_of_six,
+        as_six=lambda I: I,
+        flip_products=lambda I: np.concatenate([I[:3], -I[3:]]),
+        shifted=lambda I, d: ("sym6", I + np.stack(list(d))),
+    )
+)
 
 #: Row-major positions of the nine-number form's off-diagonal entries.
 _OFF9 = (1, 2, 3, 5, 6, 7)
@@ -222,14 +249,21 @@ def _flip9(I: np.ndarray) -> np.ndarray:
     return I
 
 
-register(Form(
-    "full9", SIX + ("Iyx", "Izx", "Izy"), "the six plus Iyx, Izx, Izy", "row-major", diagonal=False, list_size=9,
-    extends="sym6",
-    # the named nine are the six, then Iyx, Izx, Izy; as values they are row-major
-    value_order=(0, 3, 4, 6, 1, 5, 7, 8, 2),
-    as_sym3=_sym3_of_nine,
-    as_six=lambda I: np.stack([I[0], I[4], I[8], 0.5 * (I[1] + I[3]), 0.5 * (I[2] + I[6]), 0.5 * (I[5] + I[7])]),
-    flip_products=_flip9,
-    # stays nine numbers, so that an asymmetry remains visible (status not_symmetric)
-    shifted=lambda I, d: ("full9", I + np.stack([d.xx, d.xy, d.xz, d.xy, d.yy, d.yz, d.xz, d.yz, d.zz])),
-))
+register(
+    Form(
+        "full9",
+        SIX + ("Iyx", "Izx", "Izy"),
+        "the six plus Iyx, Izx, Izy",
+        "row-major",
+        diagonal=False,
+        list_size=9,
+        extends="sym6",
+        # the named nine are the six, then Iyx, Izx, Izy; as values they are row-major
+        value_order=(0, 3, 4, 6, 1, 5, 7, 8, 2),
+        as_sym3=_sym3_of_nine,
+        as_six=lambda I: np.stack([I[0], I[4], I[8], 0.5 * (I[1] + I[3]), 0.5 * (I[2] + I[6]), 0.5 * (I[5] + I[7])]),
+        flip_products=_flip9,
+        # stays nine numbers, so that an asymmetry remains visible (status not_symmetric)
+        shifted=lambda I, d: ("full9", I + np.stack([d.xx, d.xy, d.xz, d.xy, d.yy, d.yz, d.xz, d.yz, d.zz])),
+    )
+)

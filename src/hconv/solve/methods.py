@@ -7,19 +7,20 @@ boolean ``(N,)`` masks for the statuses that only the method itself can see. (Ve
 component-major so that every component is one contiguous column.)
 All arrays share one dtype, which sets the working precision.
 """
+
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable, Optional
 
 import numpy as np
 
-from hconv.registry import Registry
 from hconv.kernels import frames, linsolve
 from hconv.kernels.inertia import Sym3, pinv_moments, principal_frame
-from hconv.solve.status import ILL_CONDITIONED_TOL, REPEATED_RTOL, R_AXIS_RTOL, singular_rtol
+from hconv.registry import Registry
+from hconv.solve.status import ILL_CONDITIONED_TOL, R_AXIS_RTOL, REPEATED_RTOL, singular_rtol
 
-Kernel = Callable[[Sym3, np.ndarray, Optional[np.ndarray]], "tuple[np.ndarray, dict[str, np.ndarray]]"]
+Kernel = Callable[[Sym3, np.ndarray, np.ndarray | None], "tuple[np.ndarray, dict[str, np.ndarray]]"]
 
 RAD_S = "rad/s"
 M2_S = "m^2/s"  # what the seed document's algebra yields: (m² / kg·m²) · kg·m²/s
@@ -42,7 +43,7 @@ class Method:
     #: exact family only: worst relative error ≈ K·cond(I)·eps, K per precision {64: K, 32: K},
     #: set to about twice the worst K measured over 100k random rows; K = 0 means the error does
     #: not grow with cond before I is singular.
-    error_k: Optional[dict] = None
+    error_k: dict | None = None
 
     def cond_limit(self, precision: int) -> float:
         """The largest cond(I) at which this method's error stays within ILL_CONDITIONED_TOL."""
@@ -56,8 +57,18 @@ class Method:
 METHODS: Registry[Method] = Registry("method")
 
 
-def register(name: str, *, unit: str, exact: bool, summary: str, cost: str, fails: str,
-             needs_r: bool = False, nan_on: Optional[set] = None, error_k: Optional[dict] = None):
+def register(
+    name: str,
+    *,
+    unit: str,
+    exact: bool,
+    summary: str,
+    cost: str,
+    fails: str,
+    needs_r: bool = False,
+    nan_on: set | None = None,
+    error_k: dict | None = None,
+):
     def deco(kernel: Kernel) -> Kernel:
         kw: dict = {"error_k": error_k}
         if nan_on is not None:
@@ -74,7 +85,9 @@ def get(name: str) -> Method:
 
 
 @register(
-    "exact", unit=RAD_S, exact=True,
+    "exact",
+    unit=RAD_S,
+    exact=True,
     summary="ω = I⁻¹H by LDLᵀ unrolled over column arrays",
     cost="~30 flops/row; the fastest LAPACK-accurate solver",
     fails="singular I (ω = NaN); error grows as cond(I)·eps, like LAPACK's",
@@ -91,12 +104,14 @@ def _exact(I, H, r):
 
 
 @register(
-    "refined", unit=RAD_S, exact=True,
+    "refined",
+    unit=RAD_S,
+    exact=True,
     summary="ω = I⁻¹H within one rounding: exact's answer refined with a double-double residual",
     cost="exact + refinement steps of ~170 flops/row, as many as the block needs: "
-         "1 to cond ~1e8, 2 to ~1e10, 3 at 1e12 (6 at most)",
+    "1 to cond ~1e8, 2 to ~1e10, 3 at 1e12 (6 at most)",
     fails="singular I (ω = NaN); in float64 the error stays at rounding up to the singular "
-          "threshold; in float32 the rounding of the inputs themselves limits it",
+    "threshold; in float32 the rounding of the inputs themselves limits it",
     error_k={64: 0.0, 32: 2.5},
 )
 def _refined(I, H, r):
@@ -104,7 +119,9 @@ def _refined(I, H, r):
 
 
 @register(
-    "lapack", unit=RAD_S, exact=True,
+    "lapack",
+    unit=RAD_S,
+    exact=True,
     summary="ω = I⁻¹H by numpy.linalg.solve on the (N,3,3) stack",
     cost="LU with pivoting per row; the reference most users write",
     fails="singular I (ω = NaN); error grows as cond(I)·eps",
@@ -115,7 +132,9 @@ def _lapack(I, H, r):
 
 
 @register(
-    "cholesky", unit=RAD_S, exact=True,
+    "cholesky",
+    unit=RAD_S,
+    exact=True,
     summary="ω = I⁻¹H by Cholesky LLᵀ unrolled over column arrays",
     cost="~35 flops + 3 square roots per row",
     fails="I not positive definite or singular (ω = NaN); error grows as cond(I)·eps",
@@ -140,11 +159,13 @@ def _cholesky(I, H, r):
 
 
 @register(
-    "eigen", unit=RAD_S, exact=True,
+    "eigen",
+    unit=RAD_S,
+    exact=True,
     summary="ω = R·diag(1/S)·Rᵀ·H through the principal axes (numpy.linalg.eigh)",
     cost="a 3×3 eigendecomposition per row; slowest of the exact family",
     fails="zero principal moments (rod, point mass): pseudo-inverse answer, status singular; "
-          "error grows as cond(I)·eps, about 5× faster than LDLᵀ's",
+    "error grows as cond(I)·eps, about 5× faster than LDLᵀ's",
     nan_on={"invalid_input", "not_symmetric"},
     error_k={64: 6.0, 32: 3.0},
 )
@@ -155,7 +176,9 @@ def _eigen(I, H, r):
 
 
 @register(
-    "diagonal", unit=RAD_S, exact=False,
+    "diagonal",
+    unit=RAD_S,
+    exact=False,
     summary="ω_i = H_i / I_ii: the shortcut that ignores the products of inertia",
     cost="3 divisions per row",
     fails="exact only when I is diagonal in the given axes; I_ii = 0 gives NaN",
@@ -182,7 +205,10 @@ def _seed_formula(moments: np.ndarray, H: np.ndarray, r: np.ndarray):
 
 
 @register(
-    "document", unit=M2_S, exact=False, needs_r=True,
+    "document",
+    unit=M2_S,
+    exact=False,
+    needs_r=True,
     summary="the seed's Version 1: ω_i = (|r|² - r_i²) / I_ii · H_i in the given axes",
     cost="~12 flops per row",
     fails="not I⁻¹H and not in rad/s; r on an axis forces a component to 0 (status r_on_axis)",
@@ -194,11 +220,14 @@ def _document(I, H, r):
 
 
 @register(
-    "document-principal", unit=M2_S, exact=False, needs_r=True,
+    "document-principal",
+    unit=M2_S,
+    exact=False,
+    needs_r=True,
     summary="the seed's Version 2: Version 1 in I's principal frame, then rotated back",
     cost="a 3×3 eigendecomposition per row",
     fails="not I⁻¹H and not in rad/s; repeated moments make the answer depend on an arbitrary "
-          "choice of axes (status frame_ambiguous); r on a principal axis (status r_on_axis)",
+    "choice of axes (status frame_ambiguous); r on a principal axis (status r_on_axis)",
     nan_on={"invalid_input", "not_symmetric"},
 )
 def _document_principal(I, H, r):

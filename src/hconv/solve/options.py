@@ -6,10 +6,10 @@ the CLI) validates an option by calling the function here, so that a bad value g
 The CLI builds its choices from the tuples here. Messages name the option as the command line
 spells it; the Python keyword is the same word with underscores.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional
 
 import numpy as np
 
@@ -42,7 +42,7 @@ def check_precision(precision) -> None:
         raise UsageError(f"--precision must be 64 or 32, got {precision!r}")
 
 
-def check_degenerate(mode: str, rtol: Optional[float], method: Optional[str] = None) -> None:
+def check_degenerate(mode: str, rtol: float | None, method: str | None = None) -> None:
     """The degenerate mode and threshold and, given a method, that a mode other than error is
     only asked of the exact family."""
     check_choice("--degenerate", mode, DEGENERATE_MODES)
@@ -58,11 +58,11 @@ class Conventions:
     :mod:`hconv.kernels.inertia` and :mod:`hconv.kernels.frames`)."""
 
     frame: str = "world"  #: the frame of H, r and v: world or body (body needs no q)
-    omega_frame: Optional[str] = None  #: the frame of ω; None: the frame of H
+    omega_frame: str | None = None  #: the frame of ω; None: the frame of H
     about: str = "same"  #: same (I and H about one point), pivot or free
     products: str = "tensor"  #: tensor (Ixy = -∫xy dm) or positive (Pxy = +∫xy dm)
     degenerate: str = "error"  #: error, pinv or lock
-    degenerate_rtol: Optional[float] = None  #: a moment <= this × trace counts as zero
+    degenerate_rtol: float | None = None  #: a moment <= this × trace counts as zero
 
     def __post_init__(self) -> None:
         check_choice("--frame", self.frame, FRAMES)

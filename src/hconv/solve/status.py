@@ -4,6 +4,7 @@ A status describes the input and the numerics, never a method's approximation er
 what the ``residual`` column measures). Where several apply, the earliest in :data:`STATUSES`
 wins. Codes are small integers so that a status column costs one byte per row.
 """
+
 from __future__ import annotations
 
 import numpy as np

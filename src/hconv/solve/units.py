@@ -6,6 +6,7 @@ hconv computes in SI: H [kg·m²/s], I [kg·m²], r [m], m [kg], v [m/s], ω [ra
 anything else goes through pint, an optional extra (``pip install 'hconv[units]'``) that is
 imported only then. Only multiplicative units are accepted (no offsets such as °C).
 """
+
 from __future__ import annotations
 
 import functools
@@ -26,8 +27,15 @@ SI = {
     "w": "rad/s",
     "q": "",
 }
-QUANTITY = {"H": "angular momentum", "I": "inertia", "r": "length", "m": "mass", "v": "velocity",
-            "w": "angular velocity", "q": "a quaternion (no unit)"}
+QUANTITY = {
+    "H": "angular momentum",
+    "I": "inertia",
+    "r": "length",
+    "m": "mass",
+    "v": "velocity",
+    "w": "angular velocity",
+    "q": "a quaternion (no unit)",
+}
 
 # Spellings of the SI units that need no pint: with spaces, '·', '^' and '²' normalised away.
 _SI_SPELLINGS = {
@@ -47,7 +55,7 @@ def _normal(unit: str) -> str:
     return re.sub(r"\*+(?=\*\*)", "", re.sub(r"\*{3,}", "**", u))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _registry():
     try:
         import pint
@@ -56,7 +64,7 @@ def _registry():
     return pint.UnitRegistry()
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def factor(quantity: str, unit: str, where: str = "--unit") -> float:
     """The factor that turns a value in ``unit`` into the SI unit of ``quantity`` (a key of SI).
 
@@ -71,12 +79,16 @@ def factor(quantity: str, unit: str, where: str = "--unit") -> float:
         q = ureg.Quantity(1.0, unit)
         value = q.to(SI[quantity] or "dimensionless").magnitude
     except pint.errors.DimensionalityError:
-        raise UsageError(f"{where}: {unit!r} is not a unit of {QUANTITY[quantity]} ({SI[quantity] or 'no unit'})") from None
+        raise UsageError(
+            f"{where}: {unit!r} is not a unit of {QUANTITY[quantity]} ({SI[quantity] or 'no unit'})"
+        ) from None
     except pint.errors.OffsetUnitCalculusError:
         raise UsageError(f"{where}: {unit!r} has an offset; give a unit without one") from None
     except Exception as exc:  # pint raises several kinds for text it cannot parse
-        raise UsageError(f"{where}: pint does not understand the unit {unit!r} ({type(exc).__name__}); "
-                         "write it like g*cm**2 or lb*ft**2/s") from None
+        raise UsageError(
+            f"{where}: pint does not understand the unit {unit!r} ({type(exc).__name__}); "
+            "write it like g*cm**2 or lb*ft**2/s"
+        ) from None
     value = float(value)
     if not (np.isfinite(value) and value > 0):
         raise UsageError(f"{where}: {unit!r} gives a factor of {value}; give a positive unit")

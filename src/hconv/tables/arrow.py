@@ -7,9 +7,8 @@ other column passes through unchanged and in order. Output: the input columns, t
 ``null_x, null_y, null_z, null_dim``. In Parquet, every column hconv read also records the unit
 it was read in as field metadata ``unit``.
 """
-from __future__ import annotations
 
-from typing import Optional
+from __future__ import annotations
 
 import numpy as np
 import pyarrow as pa
@@ -31,35 +30,61 @@ def output_fields(job: Job) -> list[pa.Field]:
     meta = {"unit": job.unit, "method": m.name}
     fields = [pa.field(c, wtype, metadata=meta) for c in layout.W_COLUMNS]
     if job.diagnostics:
-        fields.append(pa.field("residual", pa.float64(), metadata={
-            "unit": "1", "description": "|w - inv(I)H| / |inv(I)H|; for m^2/s methods, of the bare numbers"}))
+        fields.append(
+            pa.field(
+                "residual",
+                pa.float64(),
+                metadata={
+                    "unit": "1",
+                    "description": "|w - inv(I)H| / |inv(I)H|; for m^2/s methods, of the bare numbers",
+                },
+            )
+        )
     fields.append(pa.field("cond", pa.float64(), metadata={"unit": "1", "description": "2-norm condition number of I"}))
     fields.append(pa.field("status", _STATUS_TYPE))
     if job.conventions.degenerate != "error":
         for c in layout.NULL_COLUMNS[:3]:
-            fields.append(pa.field(c, pa.float64(), metadata={
-                "unit": "1", "description": f"unit axis of the dropped principal moment, {job.conventions.w_frame} frame"}))
+            fields.append(
+                pa.field(
+                    c,
+                    pa.float64(),
+                    metadata={
+                        "unit": "1",
+                        "description": f"unit axis of the dropped principal moment, {job.conventions.w_frame} frame",
+                    },
+                )
+            )
         fields.append(pa.field("null_dim", pa.int8(), metadata={"description": "principal moments dropped"}))
     return fields
 
 
-def convert_table(data, method: str = "exact", precision: int = 64, diagnostics: bool = True,
-                  *, source: str = "table", job: Optional[Job] = None,
-                  plan: Optional[layout.Layout] = None) -> pa.Table:
+def convert_table(
+    data,
+    method: str = "exact",
+    precision: int = 64,
+    diagnostics: bool = True,
+    *,
+    source: str = "table",
+    job: Job | None = None,
+    plan: layout.Layout | None = None,
+) -> pa.Table:
     """Convert every row of a pyarrow Table or RecordBatch; returns a Table.
 
     The result holds the input columns unchanged, then ω and the diagnostics (see the module
     docstring). ``job`` carries the conventions, units and mapping (it overrides ``method``,
     ``precision`` and ``diagnostics``); ``plan`` is the input's layout from
-    :func:`hconv.tables.layout.plan`, for a caller converting many batches of one file. Raises :class:`hconv.errors.InputError` or
+    :func:`hconv.tables.layout.plan`, for a caller converting many batches of one file. Raises
+    :class:`hconv.errors.InputError` or
     ``UsageError`` for a schema or options that cannot be used; per-row problems become statuses.
     ``source`` names the data in error messages.
     """
     if isinstance(data, pa.RecordBatch):
         data = pa.Table.from_batches([data])
     if not isinstance(data, pa.Table):
-        raise UsageError(f"convert_table takes a pyarrow Table or RecordBatch, got {type(data).__name__}; "
-                         "make one with pyarrow.table(...)")
+        raise UsageError(
+            f"convert_table takes a pyarrow Table or RecordBatch, got {type(data).__name__}; "
+            "make one with pyarrow.table(...)"
+        )
     if job is None:
         job = Job(method, precision, diagnostics)
     if plan is None:
@@ -74,8 +99,11 @@ def convert_table(data, method: str = "exact", precision: int = 64, diagnostics:
     if job.diagnostics:
         columns.append(pa.array(res.residual))
     columns.append(pa.array(res.cond))
-    columns.append(pa.DictionaryArray.from_arrays(
-        pa.array(res.status_code.astype(np.int8), type=pa.int8()), pa.array(status.STATUSES)))
+    columns.append(
+        pa.DictionaryArray.from_arrays(
+            pa.array(res.status_code.astype(np.int8), type=pa.int8()), pa.array(status.STATUSES)
+        )
+    )
     if res.null_axis is not None:  # degenerate pinv or lock
         columns += [pa.array(res.null_axis[:, k]) for k in range(3)]
         columns.append(pa.array(res.null_dim, type=pa.int8()))
@@ -91,7 +119,7 @@ def _with_input_units(schema: pa.Schema, plan: layout.Layout) -> list[pa.Field]:
     for g in plan.groups.values():
         si = units.SI[QUANTITY[g.name]]
         for k, c in enumerate(g.columns):
-            unit_of[c] = (g.units[k] if k < len(g.units) and g.units[k] else si)
+            unit_of[c] = g.units[k] if k < len(g.units) and g.units[k] else si
     fields = []
     for f in schema:
         if f.name in unit_of and unit_of[f.name]:

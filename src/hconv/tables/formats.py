@@ -3,6 +3,7 @@
 Kept apart from :mod:`hconv.tables.tableio` (which needs pyarrow) so that the CLI can offer the
 choices without importing pyarrow.
 """
+
 from __future__ import annotations
 
 #: Format name -> the extensions that imply it (lower case).

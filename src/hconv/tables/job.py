@@ -7,6 +7,7 @@ Job; the file pipeline, the Arrow adapter and the column planner (:func:`hconv.t
 a pure function of the input's schema and the Job) only read it. This module imports neither
 pyarrow nor rich, so that ``hconv one`` stays quick.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -80,8 +81,10 @@ class Job:
         options.check_degenerate(self.conventions.degenerate, self.conventions.degenerate_rtol, self.method)
         options.check_choice("--quat-order", self.quat_order, options.QUAT_ORDERS)
         if m.unit != methods.RAD_S and units.factor("w", self.omega_unit, "--omega-unit") != 1.0:
-            raise UsageError(f"--omega-unit {self.omega_unit}: method {self.method!r} gives {m.unit}, "
-                             "which is not an angular velocity and cannot be converted")
+            raise UsageError(
+                f"--omega-unit {self.omega_unit}: method {self.method!r} gives {m.unit}, "
+                "which is not an angular velocity and cannot be converted"
+            )
         if m.unit == methods.RAD_S:
             units.factor("w", self.omega_unit, "--omega-unit")  # an unknown unit fails now, not mid-run
 

@@ -1,8 +1,9 @@
 """Which columns hold what: the input's column sets (:mod:`hconv.tables.sets`), found by name, and
 the form of its inertia.
 
-The inertia forms and their columns are :mod:`hconv.solve.forms`' registry. A file uses one form, chosen by its columns, for every row; two forms at once (``I1`` and
-``Ixx``, say) is an error, as is a set with some of its columns missing. With q present the tensor
+The inertia forms and their columns are :mod:`hconv.solve.forms`' registry. A file uses one form,
+chosen by its columns, for every row; two forms at once (``I1`` and ``Ixx``, say) is an error, as
+is a set with some of its columns missing. With q present the tensor
 is taken to be in the body frame (as engines store it); without q, in the frame of H.
 
 Planning is a pure function of the input's schema and the :class:`~hconv.tables.job.Job`
@@ -10,10 +11,10 @@ Planning is a pure function of the input's schema and the :class:`~hconv.tables.
 threads at once. The one thing a schema cannot tell, the length of a variable-length list column,
 is fixed by :meth:`Layout.resolve` from the first batch, before any batch is converted.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Optional
 
 import numpy as np
 import pyarrow as pa
@@ -38,7 +39,7 @@ class Group:
     name: str  #: the set: H, I, q, r, m, v or w_obs
     columns: tuple  #: the input's column names, one per value; or the one list column
     is_list: bool
-    size: Optional[int]  #: values per row; None for a list column whose rows have not been seen
+    size: int | None  #: values per row; None for a list column whose rows have not been seen
     units: tuple = ()  #: the unit of each value as given (a string; "" means SI)
     factors: tuple = ()  #: to SI, one per value
 
@@ -52,7 +53,7 @@ class Layout:
     """
 
     groups: dict
-    form: Optional[str]
+    form: str | None
     source: str
     quat_order: str = "wxyz"
 
@@ -61,7 +62,7 @@ class Layout:
         """The input columns hconv reads as numbers."""
         return tuple(c for g in self.groups.values() for c in g.columns)
 
-    def resolve(self, data: pa.Table) -> "Layout":
+    def resolve(self, data: pa.Table) -> Layout:
         """This layout with the length of every variable-length list column fixed from ``data``
         (rows that are null say nothing), so that every later batch is held to it."""
         groups = dict(self.groups)
@@ -107,7 +108,7 @@ class Layout:
         return out, form.name
 
 
-def _list_size(col, g: Group, source: str) -> Optional[int]:
+def _list_size(col, g: Group, source: str) -> int | None:
     """Values per row of list column ``col`` (all rows must agree; null rows are skipped), or
     None when every row is null."""
     if pa.types.is_fixed_size_list(col.type):
@@ -119,16 +120,20 @@ def _list_size(col, g: Group, source: str) -> Optional[int]:
     k = g.size if g.size is not None else int(given[0])
     bad = np.flatnonzero(given != k)
     if bad.size:
-        raise InputError(f"{source}: list column {g.columns[0]!r} holds {given[bad[0]]} values in "
-                         f"one row but {k} in others; every row must hold the same number")
+        raise InputError(
+            f"{source}: list column {g.columns[0]!r} holds {given[bad[0]]} values in "
+            f"one row but {k} in others; every row must hold the same number"
+        )
     return k
 
 
 def _list_form(k: int, g: Group, source: str) -> forms.Form:
     form = forms.by_list_size(k)
     if form is None:
-        raise InputError(f"{source}: list column {g.columns[0]!r} holds {k} values per row; "
-                         f"an inertia list holds {forms.list_sizes_text()}")
+        raise InputError(
+            f"{source}: list column {g.columns[0]!r} holds {k} values per row; "
+            f"an inertia list holds {forms.list_sizes_text()}"
+        )
     return form
 
 
@@ -143,8 +148,7 @@ def _list_values(col, g: Group, n: int, source: str) -> np.ndarray:
     if k is None:
         return np.full((size, n), np.nan)
     if k != size:
-        raise InputError(f"{source}: list column {g.columns[0]!r} must hold {size} values per row, "
-                         f"but holds {k}")
+        raise InputError(f"{source}: list column {g.columns[0]!r} must hold {size} values per row, but holds {k}")
     values = np.full((n, k), np.nan)
     valid = col.is_valid().to_numpy(zero_copy_only=False)
     if valid.any():
@@ -180,8 +184,10 @@ def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
     names = list(schema.names)
     dupes = sorted({c for c in names if names.count(c) > 1})
     if dupes:
-        raise InputError(f"{source}: column name{_plural(dupes)} {', '.join(map(repr, dupes))} appear"
-                         f"{'' if len(dupes) > 1 else 's'} more than once; rename the copies")
+        raise InputError(
+            f"{source}: column name{_plural(dupes)} {', '.join(map(repr, dupes))} appear"
+            f"{'' if len(dupes) > 1 else 's'} more than once; rename the copies"
+        )
     present = set(names)
     mapping = _mapping(job.mapping, present, source)
     src = lambda n: mapping.get(n, n)  # noqa: E731 - the input's column for an hconv name
@@ -200,8 +206,10 @@ def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
 
     clash = [] if job.observed else [c for c in RESERVED if c in present]
     if clash:
-        raise InputError(f"{source}: already has output column{_plural(clash)} {', '.join(clash)}; "
-                         "rename or drop them (is this hconv's own output?)")
+        raise InputError(
+            f"{source}: already has output column{_plural(clash)} {', '.join(clash)}; "
+            "rename or drop them (is this hconv's own output?)"
+        )
     for g in groups.values():
         for c in g.columns:
             t = schema.field(c).type
@@ -209,8 +217,9 @@ def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
                 if not (_is_list(t) and _is_numeric(t.value_type)):
                     raise InputError(f"{source}: column {c!r} has type {t}, but must be a list of numbers")
             elif not _is_numeric(t):
-                raise InputError(f"{source}: column {c!r} has type {t}, but must be numeric; "
-                                 "store it as a number (float64)")
+                raise InputError(
+                    f"{source}: column {c!r} has type {t}, but must be numeric; store it as a number (float64)"
+                )
     groups = {k: _with_units(g, schema, job.unit_options, mapping) for k, g in groups.items()}
     _check_unit_keys(job.unit_options, groups, present)
     return Layout(groups, form, source, job.quat_order)
@@ -224,29 +233,33 @@ def _mapping(pairs, present: set, source: str) -> dict:
     return dict(pairs)
 
 
-def _vector_group(name: str, schema, has, src, source: str, why: Optional[str]) -> Optional[Group]:
+def _vector_group(name: str, schema, has, src, source: str, why: str | None) -> Group | None:
     """The set ``name`` if present; ``why`` (the reason it is needed) makes it required."""
     cols = VECTOR_SETS[name]
     found = [c for c in cols if has(c)]
     if found and len(found) < len(cols):
         lack = [c for c in cols if c not in found]
         if why:
-            raise InputError(f"{source}: missing column{_plural(lack)} {', '.join(lack)}; {name} is "
-                             f"{', '.join(cols)}")
-        raise InputError(f"{source}: has {', '.join(found)} but not {', '.join(lack)}; give all of "
-                         f"{', '.join(cols)} or none")
+            raise InputError(f"{source}: missing column{_plural(lack)} {', '.join(lack)}; {name} is {', '.join(cols)}")
+        raise InputError(
+            f"{source}: has {', '.join(found)} but not {', '.join(lack)}; give all of {', '.join(cols)} or none"
+        )
     if found:
         if len(cols) > 1 and has(name) and _is_list(schema.field(src(name)).type):
             raise InputError(f"{source}: has both {', '.join(cols)} and a list column {src(name)!r}; keep one")
         return Group(name, tuple(src(c) for c in cols), False, len(cols))
     if len(cols) > 1 and has(name) and not _is_list(schema.field(src(name)).type):
-        raise InputError(f"{source}: column {src(name)!r} has type {schema.field(src(name)).type}; {name} is read "
-                         f"from {', '.join(cols)} or from a list column of {len(cols)} numbers")
+        raise InputError(
+            f"{source}: column {src(name)!r} has type {schema.field(src(name)).type}; {name} is read "
+            f"from {', '.join(cols)} or from a list column of {len(cols)} numbers"
+        )
     if len(cols) > 1 and has(name) and _is_list(schema.field(src(name)).type):
         t = schema.field(src(name)).type
         size = t.list_size if pa.types.is_fixed_size_list(t) else None
         if size is not None and size != len(cols):
-            raise InputError(f"{source}: list column {src(name)!r} holds {size} values per row, but {name} needs {len(cols)}")
+            raise InputError(
+                f"{source}: list column {src(name)!r} holds {size} values per row, but {name} needs {len(cols)}"
+            )
         return Group(name, (src(name),), True, len(cols))
     if why:
         what = f"{', '.join(cols)}" + (f" (or a list column {name})" if len(cols) > 1 else "")
@@ -255,7 +268,7 @@ def _vector_group(name: str, schema, has, src, source: str, why: Optional[str]) 
     return None
 
 
-def _inertia_group(schema, has, src, source: str) -> tuple[Optional[str], Group]:
+def _inertia_group(schema, has, src, source: str) -> tuple[str | None, Group]:
     """The one inertia form the schema holds, asking :mod:`hconv.solve.forms`' registry."""
     found = {}
     list_column = has("I") and _is_list(schema.field(src("I")).type)
@@ -270,17 +283,21 @@ def _inertia_group(schema, has, src, source: str) -> tuple[Optional[str], Group]
         if form.extends and form.name in found:
             base = forms.get(form.extends)
             if base.name not in found:
-                raise InputError(f"{source}: has {', '.join(found[form.name])} but not {', '.join(base.columns)}; "
-                                 f"the {form.count}-number form is the {base.count} plus "
-                                 f"{', '.join(c for c in form.columns if c not in base.columns)}")
+                raise InputError(
+                    f"{source}: has {', '.join(found[form.name])} but not {', '.join(base.columns)}; "
+                    f"the {form.count}-number form is the {base.count} plus "
+                    f"{', '.join(c for c in form.columns if c not in base.columns)}"
+                )
             del found[base.name]
     if len(found) > 1:
         desc = "; ".join(f"{form}: {', '.join(src(c) for c in cols)}" for form, cols in found.items())
-        raise InputError(f"{source}: the inertia is given in more than one form ({desc}); keep one form, "
-                         "or point --map at the columns to use")
+        raise InputError(
+            f"{source}: the inertia is given in more than one form ({desc}); keep one form, "
+            "or point --map at the columns to use"
+        )
     if not found:
         raise InputError(f"{source}: missing the inertia; give {forms.forms_text()}, or a list column I")
-    (name, got), = found.items()
+    ((name, got),) = found.items()
     if name == "list":
         t = schema.field(src("I")).type
         size = t.list_size if pa.types.is_fixed_size_list(t) else None
@@ -290,8 +307,9 @@ def _inertia_group(schema, has, src, source: str) -> tuple[Optional[str], Group]
     own = [c for c in form.columns if c not in (forms.get(form.extends).columns if form.extends else ())]
     lack = [c for c in form.columns if not has(c)]
     if lack:
-        raise InputError(f"{source}: has {', '.join(got)} but not {', '.join(lack)}; the {name} form needs "
-                         f"{', '.join(own)}")
+        raise InputError(
+            f"{source}: has {', '.join(got)} but not {', '.join(lack)}; the {name} form needs {', '.join(own)}"
+        )
     return name, Group("I", tuple(src(c) for c in form.columns), False, form.count)
 
 
@@ -324,5 +342,7 @@ def _check_unit_keys(options, groups: dict, present: set) -> None:
     for key, unit in options:
         if key not in known:
             where = "" if key in present else ", nor one of the input"
-            raise UsageError(f"--unit {key}={unit}: {key!r} is not a column hconv reads{where}; "
-                             f"use a set (H, I, r, m, v, w_obs) or one of its columns")
+            raise UsageError(
+                f"--unit {key}={unit}: {key!r} is not a column hconv reads{where}; "
+                f"use a set (H, I, r, m, v, w_obs) or one of its columns"
+            )

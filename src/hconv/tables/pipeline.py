@@ -2,6 +2,7 @@
 
 The CLI's ``convert`` is a thin wrapper over :func:`convert_file`.
 """
+
 from __future__ import annotations
 
 import os
@@ -9,9 +10,10 @@ import queue
 import threading
 import time
 from collections import deque
+from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import Callable, Iterable, Iterator, Optional, TypeVar
+from typing import TypeVar
 
 import numpy as np
 import pyarrow as pa
@@ -32,7 +34,7 @@ class Tally:
     rows: int = 0
     per_status: np.ndarray = field(default_factory=lambda: np.zeros(len(status.STATUSES), dtype=np.int64))
     worst_residual: float = float("nan")
-    worst_row: Optional[int] = None  #: 1-based data row of the worst residual
+    worst_row: int | None = None  #: 1-based data row of the worst residual
     seconds: float = 0.0
 
     def add(self, table: pa.Table) -> None:
@@ -64,7 +66,7 @@ class BackgroundWriter:
     def __init__(self, out, depth: int = 2):
         self._out = out
         self._q: queue.Queue = queue.Queue(maxsize=depth)
-        self._error: Optional[BaseException] = None
+        self._error: BaseException | None = None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="hconv-writer", daemon=True)
 
@@ -84,7 +86,7 @@ class BackgroundWriter:
             raise self._error
         self._q.put(table)
 
-    def __enter__(self) -> "BackgroundWriter":
+    def __enter__(self) -> BackgroundWriter:
         self._thread.start()
         return self
 
@@ -144,11 +146,21 @@ def ordered_map(fn: Callable[[T], R], items: Iterable[T], threads: int) -> Itera
                 f.cancel()
 
 
-def convert_file(src: str, dst: str, *, method: str = "exact", precision: int = 64,
-                 src_format: Optional[str] = None, dst_format: Optional[str] = None,
-                 force: bool = False, diagnostics: bool = True, job: Optional[Job] = None,
-                 strict: bool = False, threads: Optional[int] = None,
-                 progress: Optional[Callable[[int, Optional[int]], None]] = None) -> Tally:
+def convert_file(
+    src: str,
+    dst: str,
+    *,
+    method: str = "exact",
+    precision: int = 64,
+    src_format: str | None = None,
+    dst_format: str | None = None,
+    force: bool = False,
+    diagnostics: bool = True,
+    job: Job | None = None,
+    strict: bool = False,
+    threads: int | None = None,
+    progress: Callable[[int, int | None], None] | None = None,
+) -> Tally:
     """Convert the table in ``src`` into ``dst`` ("-" for stdin/stdout); returns the tally.
 
     ``job`` (conventions, units, mapping) overrides ``method``, ``precision`` and ``diagnostics``.
@@ -169,20 +181,20 @@ def convert_file(src: str, dst: str, *, method: str = "exact", precision: int = 
     out = Output(dst, fout, force=force, input_path=src)  # refuses early, before reading
     tally = Tally(m.name, job.unit)
     t0 = time.perf_counter()
-    with open_input(src, fin, job) as inp, out:
-        with BackgroundWriter(out) as writer:
-            def one(batch):
-                return convert_table(batch, source=inp.name, job=job, plan=inp.plan)
+    with open_input(src, fin, job) as inp, out, BackgroundWriter(out) as writer:
 
-            for table in ordered_map(one, inp.batches, threads):
-                if strict:
-                    _check_strict(table, tally.rows, inp.name)
-                writer.write(table)
-                tally.add(table)
-                if progress is not None:
-                    progress(inp.position(), inp.total)
-            if tally.rows == 0:  # a header and no rows is a valid empty table
-                writer.write(convert_table(inp.schema.empty_table(), source=inp.name, job=job, plan=inp.plan))
+        def one(batch):
+            return convert_table(batch, source=inp.name, job=job, plan=inp.plan)
+
+        for table in ordered_map(one, inp.batches, threads):
+            if strict:
+                _check_strict(table, tally.rows, inp.name)
+            writer.write(table)
+            tally.add(table)
+            if progress is not None:
+                progress(inp.position(), inp.total)
+        if tally.rows == 0:  # a header and no rows is a valid empty table
+            writer.write(convert_table(inp.schema.empty_table(), source=inp.name, job=job, plan=inp.plan))
     tally.seconds = time.perf_counter() - t0
     return tally
 
@@ -194,7 +206,11 @@ def _check_strict(table: pa.Table, first_row: int, source: str) -> None:
     codes = table.column("status").combine_chunks().indices.to_numpy(zero_copy_only=False)
     bad = np.flatnonzero(codes != 0)
     if bad.size:
-        named = ", ".join(f"row {first_row + int(k) + 1} ({status.STATUSES[codes[k]]})" for k in bad[:STRICT_ROWS_NAMED])
+        named = ", ".join(
+            f"row {first_row + int(k) + 1} ({status.STATUSES[codes[k]]})" for k in bad[:STRICT_ROWS_NAMED]
+        )
         more = f" and {bad.size - STRICT_ROWS_NAMED} more in this batch" if bad.size > STRICT_ROWS_NAMED else ""
-        raise StrictError(f"{source}: --strict, and {named}{more} are not ok; nothing was written "
-                          "(drop --strict to keep every row with its status)")
+        raise StrictError(
+            f"{source}: --strict, and {named}{more} are not ok; nothing was written "
+            "(drop --strict to keep every row with its status)"
+        )

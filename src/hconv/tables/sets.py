@@ -17,9 +17,8 @@ w_obs      wx_obs, wy_obs, wz_obs  [rad/s]                  w_obs: 3 values
 Kept apart from :mod:`hconv.tables.layout` (which needs pyarrow) so that a Job can check
 ``--map`` and ``--unit`` when it is made.
 """
-from __future__ import annotations
 
-from typing import Optional
+from __future__ import annotations
 
 from hconv.solve import forms
 
@@ -39,11 +38,15 @@ OPTIONAL_SETS = ("q", "r", "m")
 
 def all_names() -> tuple:
     """Every name --map takes: the sets' columns, every registered inertia form's, and the sets."""
-    return tuple(sorted({n for names in VECTOR_SETS.values() for n in names} | set(forms.column_names())
-                        | set(QUANTITY), key=str.lower))
+    return tuple(
+        sorted(
+            {n for names in VECTOR_SETS.values() for n in names} | set(forms.column_names()) | set(QUANTITY),
+            key=str.lower,
+        )
+    )
 
 
-def quantity_of(name: str) -> Optional[str]:
+def quantity_of(name: str) -> str | None:
     """The unit quantity of a set or of one of hconv's column names; None for any other name."""
     if name in QUANTITY:
         return QUANTITY[name]

@@ -8,6 +8,7 @@ output. With "-" as output the finished file is then copied to stdout.
 In CSV, the extra columns are read as text so that they come out exactly as they went in, and
 ω's unit goes into a column ``w_unit``; in Parquet it is the ``unit`` metadata of wx, wy, wz.
 """
+
 from __future__ import annotations
 
 import csv
@@ -18,9 +19,9 @@ import re
 import shutil
 import sys
 import tempfile
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Iterator, Optional
 
 import pyarrow as pa
 import pyarrow.csv as pacsv
@@ -37,7 +38,7 @@ PARQUET_BATCH_ROWS = 65536
 UNIT_COLUMN = "w_unit"
 
 
-def format_of(path: str, given: Optional[str], flag: str) -> str:
+def format_of(path: str, given: str | None, flag: str) -> str:
     """``given`` if set, else the format named by ``path``'s extension; UsageError otherwise."""
     if given:
         if given not in FORMATS:
@@ -48,8 +49,10 @@ def format_of(path: str, given: Optional[str], flag: str) -> str:
     suffix = Path(path).suffix.lower()
     fmt = next((f for f, exts in EXTENSIONS.items() if suffix in exts), None)
     if fmt is None:
-        raise UsageError(f"cannot tell the format of {path!r} from its extension; "
-                         f"name it .csv or .parquet, or pass {flag} csv|parquet")
+        raise UsageError(
+            f"cannot tell the format of {path!r} from its extension; "
+            f"name it .csv or .parquet, or pass {flag} csv|parquet"
+        )
     return fmt
 
 
@@ -60,7 +63,7 @@ class Input:
     name: str
     schema: pa.Schema
     batches: Iterator[pa.RecordBatch]
-    total: Optional[int]  #: rows (Parquet) or bytes (CSV); None if unknown
+    total: int | None  #: rows (Parquet) or bytes (CSV); None if unknown
     position: Callable[[], int]  #: rows or bytes read so far
     plan: layout.Layout  #: the input's column sets, planned for the Job
     _closers: list = field(default_factory=list)
@@ -70,7 +73,7 @@ class Input:
             c()
         self._closers.clear()
 
-    def __enter__(self) -> "Input":
+    def __enter__(self) -> Input:
         return self
 
     def __exit__(self, *exc) -> None:
@@ -85,17 +88,18 @@ def open_input(path: str, fmt: str, job: Job) -> Input:
     if path == "-":
         name = "stdin"
         if sys.stdin is None or sys.stdin.isatty():
-            raise UsageError("input is '-' but stdin is a terminal; pipe a file in, e.g. `cat in.csv | hconv convert - out.csv --from csv`")
-        spool = tempfile.NamedTemporaryFile(prefix="hconv-stdin-", delete=False)
+            raise UsageError(
+                "input is '-' but stdin is a terminal; pipe a file in, "
+                "e.g. `cat in.csv | hconv convert - out.csv --from csv`"
+            )
+        # closed by the with below; removed by the closer, even when reading fails
+        spool = tempfile.NamedTemporaryFile(prefix="hconv-stdin-", delete=False)  # noqa: SIM115
         closers.append(lambda: os.unlink(spool.name))
         with spool:
             shutil.copyfileobj(sys.stdin.buffer, spool, 1 << 20)
         path = spool.name
     try:
-        if fmt == "csv":
-            inp = _open_csv(path, name, job)
-        else:
-            inp = _open_parquet(path, name, job)
+        inp = _open_csv(path, name, job) if fmt == "csv" else _open_parquet(path, name, job)
     except BaseException:
         for c in closers:
             c()
@@ -122,24 +126,30 @@ def _sniff_csv(path: str, name: str) -> None:
     if not head:
         return  # the empty file has its own message
     if b"\x00" in head or head.startswith(b"\x89PNG") or head.startswith(b"PAR1"):
-        raise InputError(f"{name}: is not a text file, so not CSV" + (" (it looks like Parquet: name it .parquet or pass --from parquet)"
-                                                                     if head.startswith(b"PAR1") else ""))
+        raise InputError(
+            f"{name}: is not a text file, so not CSV"
+            + (" (it looks like Parquet: name it .parquet or pass --from parquet)" if head.startswith(b"PAR1") else "")
+        )
     head = head[3:] if head.startswith(b"\xef\xbb\xbf") else head
     cut = head.rfind(b"\n") + 1 if len(head) == 1 << 16 else len(head)
     try:
-        head[:cut or len(head)].decode("utf-8")
+        head[: cut or len(head)].decode("utf-8")
     except UnicodeDecodeError as exc:
         line = head[: exc.start].count(b"\n") + 1
-        raise InputError(f"{name}: line {line} is not UTF-8 text; convert the file to UTF-8 first "
-                         "(for example: iconv -f latin1 -t utf-8)") from None
+        raise InputError(
+            f"{name}: line {line} is not UTF-8 text; convert the file to UTF-8 first "
+            "(for example: iconv -f latin1 -t utf-8)"
+        ) from None
     first = head.split(b"\n", 1)[0].decode("utf-8").strip("\r")
     if not first.strip():
         raise InputError(f"{name}: the first line is blank; a CSV needs a header line naming the columns")
     if "," not in first:
         for sep, word in ((";", "semicolons"), ("\t", "tabs"), ("|", "bars")):
             if sep in first:
-                raise InputError(f"{name}: the header is separated by {word}, but hconv reads comma-separated CSV; "
-                                 f"convert the delimiter to commas first")
+                raise InputError(
+                    f"{name}: the header is separated by {word}, but hconv reads comma-separated CSV; "
+                    f"convert the delimiter to commas first"
+                )
 
 
 def _header_hint(names: list) -> str:
@@ -163,9 +173,11 @@ def _open_csv(path: str, name: str, job) -> Input:
             names = probe.schema.names
     except pa.ArrowInvalid as exc:
         if "Empty CSV file" in str(exc):
-            raise InputError(f"{name}: the file is empty; a CSV needs a header line naming the columns "
-                             f"{', '.join(sets.VECTOR_SETS['H'])} and the inertia "
-                             f"({'; or '.join(', '.join(f.columns) for f in forms.FORMS.values() if not f.extends)})") from None
+            raise InputError(
+                f"{name}: the file is empty; a CSV needs a header line naming the columns "
+                f"{', '.join(sets.VECTOR_SETS['H'])} and the inertia "
+                f"({'; or '.join(', '.join(f.columns) for f in forms.FORMS.values() if not f.extends)})"
+            ) from None
         raise _csv_parse_error(path, name, exc) from None
     except OSError as exc:
         raise _oserror(name, exc) from None
@@ -176,7 +188,7 @@ def _open_csv(path: str, name: str, job) -> Input:
     nums = set(plan.numeric)
     types = {n: (pa.float64() if n in nums else pa.string()) for n in names}
     copts = pacsv.ConvertOptions(column_types=types, strings_can_be_null=False)
-    f = open(path, "rb")
+    f = open(path, "rb")  # noqa: SIM115 - stays open for the batches; Input.close() closes it
     try:  # the reader parses its first block here already, so bad values can show up now
         reader = pacsv.open_csv(f, read_options=ropts, convert_options=copts)
     except pa.ArrowInvalid as exc:
@@ -222,16 +234,20 @@ def _csv_parse_error(path: str, name: str, exc: Exception) -> InputError:
                     break
     except (OSError, UnicodeDecodeError, csv.Error):
         pass
-    return InputError(f"{name}: {row or 'a row'} has {got} values, but the header names {expected} columns; "
-                      "every row needs one value per column (quote a value that holds a comma)")
+    return InputError(
+        f"{name}: {row or 'a row'} has {got} values, but the header names {expected} columns; "
+        "every row needs one value per column (quote a value that holds a comma)"
+    )
 
 
 def _csv_value_error(path: str, name: str, names: list, ropts, exc: Exception) -> InputError:
     """Turn pyarrow's conversion error into one naming the column, the value and its row."""
     u = _CSV_UTF8.search(str(exc))
     if u:
-        return InputError(f"{name}: column {names[int(u.group(1))]!r} holds text that is not UTF-8; convert the "
-                          "file to UTF-8 first (for example: iconv -f latin1 -t utf-8)")
+        return InputError(
+            f"{name}: column {names[int(u.group(1))]!r} holds text that is not UTF-8; convert the "
+            "file to UTF-8 first (for example: iconv -f latin1 -t utf-8)"
+        )
     m = _CSV_COLUMN.search(str(exc))
     if not m:
         return _csv_parse_error(path, name, exc)
@@ -248,12 +264,14 @@ def _csv_value_error(path: str, name: str, names: list, ropts, exc: Exception) -
                         float(v)
                     except ValueError:
                         where = f" in data row {seen + k + 1}"
-                        raise StopIteration
+                        raise StopIteration from None
             seen += batch.num_rows
     except (StopIteration, pa.ArrowException):
         pass
-    return InputError(f"{name}: column {col!r} must be numeric but holds {value!r}{where}; "
-                      "fix or blank that value (a blank becomes a row with status invalid_input)")
+    return InputError(
+        f"{name}: column {col!r} must be numeric but holds {value!r}{where}; "
+        "fix or blank that value (a blank becomes a row with status invalid_input)"
+    )
 
 
 def _open_parquet(path: str, name: str, job) -> Input:
@@ -266,12 +284,16 @@ def _open_parquet(path: str, name: str, job) -> Input:
         # grow with the writer's row-group size (docs/measurements.md).
         pf = pq.ParquetFile(path, pre_buffer=False, buffer_size=1 << 20)
     except pa.ArrowException as exc:
-        raise InputError(f"{name}: not a readable Parquet file ({_first_line(exc)}); "
-                         "check that it is Parquet and was completely written") from None
+        raise InputError(
+            f"{name}: not a readable Parquet file ({_first_line(exc)}); "
+            "check that it is Parquet and was completely written"
+        ) from None
     except OSError as exc:
         if exc.errno is None and os.path.isfile(path):  # pyarrow's own errors about the bytes
-            raise InputError(f"{name}: not a readable Parquet file ({_first_line(exc)}); "
-                             "check that it is Parquet and was completely written") from None
+            raise InputError(
+                f"{name}: not a readable Parquet file ({_first_line(exc)}); "
+                "check that it is Parquet and was completely written"
+            ) from None
         raise _oserror(name, exc) from None
     schema = pf.schema_arrow
     plan = layout.plan(schema, job, name)
@@ -283,8 +305,9 @@ def _open_parquet(path: str, name: str, job) -> Input:
                 done[0] += batch.num_rows
                 yield batch
         except pa.ArrowException as exc:
-            raise InputError(f"{name}: not a readable Parquet file ({_first_line(exc)}); "
-                             "check that it was completely written") from None
+            raise InputError(
+                f"{name}: not a readable Parquet file ({_first_line(exc)}); check that it was completely written"
+            ) from None
 
     batches = read_all()
     if any(g.is_list and g.size is None for g in plan.groups.values()):
@@ -304,10 +327,10 @@ class Output:
     is removed and ``path`` is left as it was.
     """
 
-    def __init__(self, path: str, fmt: str, *, force: bool = False, input_path: Optional[str] = None):
+    def __init__(self, path: str, fmt: str, *, force: bool = False, input_path: str | None = None):
         self.path, self.fmt = path, fmt
-        self._writer: Optional[_CsvWriter | _ParquetWriter] = None
-        self._tmp: Optional[str] = None
+        self._writer: _CsvWriter | _ParquetWriter | None = None
+        self._tmp: str | None = None
         if path == "-":
             return
         target = Path(path)
@@ -320,7 +343,7 @@ class Output:
         if target.exists() and not force:
             raise OutputError(f"{path}: already exists; pass --force to overwrite it")
 
-    def __enter__(self) -> "Output":
+    def __enter__(self) -> Output:
         if self.path == "-":
             fd, self._tmp = tempfile.mkstemp(prefix="hconv-stdout-")
         else:
@@ -328,8 +351,9 @@ class Output:
             try:
                 fd, self._tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".hconv-tmp", dir=target.parent)
             except OSError as exc:
-                raise OutputError(f"{self.path}: cannot write in {str(target.parent)!r} ({exc.strerror}); "
-                                  "check its permissions") from None
+                raise OutputError(
+                    f"{self.path}: cannot write in {str(target.parent)!r} ({exc.strerror}); check its permissions"
+                ) from None
         os.close(fd)
         if self.path != "-":  # mkstemp makes the file 0600; the output should get the usual permissions
             umask = os.umask(0)
@@ -353,7 +377,9 @@ class Output:
                 self._commit()
         except OSError as err:
             if exc_type is None:
-                raise OutputError(f"{self.path}: could not be written ({err.strerror or err}); nothing was written") from None
+                raise OutputError(
+                    f"{self.path}: could not be written ({err.strerror or err}); nothing was written"
+                ) from None
         finally:
             if self._tmp and os.path.exists(self._tmp):
                 os.unlink(self._tmp)
@@ -381,8 +407,12 @@ class _ParquetWriter:
         # time (docs/measurements.md), so float columns are written plain.
         floats = {f.name for f in schema if pa.types.is_floating(f.type)}
         others = [f.name for f in schema if f.name not in floats]
-        self._w = pq.ParquetWriter(path, schema, use_dictionary=others or False,
-                                   compression={f.name: "none" if f.name in floats else "snappy" for f in schema})
+        self._w = pq.ParquetWriter(
+            path,
+            schema,
+            use_dictionary=others or False,
+            compression={f.name: "none" if f.name in floats else "snappy" for f in schema},
+        )
 
     def write(self, table: pa.Table) -> None:
         self._w.write_table(table)
@@ -396,15 +426,16 @@ def _list_as_text(col):
     t = col.type
     if not (pa.types.is_list(t) or pa.types.is_large_list(t) or pa.types.is_fixed_size_list(t)):
         return col
-    return pa.array([None if v is None else "[" + ", ".join(repr(x) for x in v) + "]" for v in col.to_pylist()],
-                    type=pa.string())
+    return pa.array(
+        [None if v is None else "[" + ", ".join(repr(x) for x in v) + "]" for v in col.to_pylist()], type=pa.string()
+    )
 
 
 class _CsvWriter:
     """CSV with a minimal-quoting header, ``status`` as text and ω's unit in a ``w_unit`` column."""
 
     def __init__(self, path: str, schema: pa.Schema):
-        self._f = open(path, "wb")
+        self._f = open(path, "wb")  # noqa: SIM115 - written batch by batch; close() closes it
         meta = schema.field("wx").metadata or {} if "wx" in schema.names else {}
         self._unit = meta[b"unit"].decode() if b"unit" in meta else None  # only tables with ω have one
         names = schema.names + ([UNIT_COLUMN] if self._unit else [])

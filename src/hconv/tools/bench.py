@@ -2,10 +2,12 @@
 
 Every speed is a median of repeats, and every target is a ratio between two rates measured in the
 same run, because the machine is shared and noisy; the repeats run in interleaved rounds (every
-job once per round), so that a slow drift of the machine falls on both sides of a ratio. Accuracy is scored like `hconv stability`:
-against I⁻¹H solved in exact rational arithmetic. Nothing here is needed at run time; numba (the
-compiled-loop yardstick) is imported only if installed (``pip install 'hconv[bench]'``).
+job once per round), so that a slow drift of the machine falls on both sides of a ratio. Accuracy
+is scored like `hconv stability`: against I⁻¹H solved in exact rational arithmetic. Nothing here is
+needed at run time; numba (the compiled-loop yardstick) is imported only if installed
+(``pip install 'hconv[bench]'``).
 """
+
 from __future__ import annotations
 
 import functools
@@ -17,8 +19,8 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
-from typing import Callable, Optional
 
 import numpy as np
 
@@ -58,8 +60,10 @@ def describe_machine() -> str:
         pass
     import pyarrow
 
-    return (f"{model}, {os.cpu_count()} cores; Python {platform.python_version()}, "
-            f"numpy {np.__version__}, pyarrow {pyarrow.__version__}")
+    return (
+        f"{model}, {os.cpu_count()} cores; Python {platform.python_version()}, "
+        f"numpy {np.__version__}, pyarrow {pyarrow.__version__}"
+    )
 
 
 def rounds(jobs: dict, repeats: int) -> dict:
@@ -91,8 +95,14 @@ def kernel_rates(I: Sym3, H: np.ndarray, r: np.ndarray, repeats: int, only=None)
         if only is not None and not any(k.endswith(f"/{prec}") for k in only):
             continue
         dt = options.DTYPES[prec]
-        blocks = [(I.take(slice(lo, lo + core.BLOCK_ROWS)).astype(dt), H[:, lo:lo + core.BLOCK_ROWS].astype(dt),
-                   r[:, lo:lo + core.BLOCK_ROWS].astype(dt)) for lo in range(0, n, core.BLOCK_ROWS)]
+        blocks = [
+            (
+                I.take(slice(lo, lo + core.BLOCK_ROWS)).astype(dt),
+                H[:, lo : lo + core.BLOCK_ROWS].astype(dt),
+                r[:, lo : lo + core.BLOCK_ROWS].astype(dt),
+            )
+            for lo in range(0, n, core.BLOCK_ROWS)
+        ]
         for name, m in methods.METHODS.items():
             if only is None or f"{name}/{prec}" in only:
                 jobs[f"{name}/{prec}"] = functools.partial(_each_block, m.kernel, blocks)
@@ -142,11 +152,12 @@ def accuracy(rows: int = 300, seed: int = 0) -> dict:
                     err = relative_error(w.T, ref)
                 err = err[np.isfinite(err)]
                 out.setdefault(f"{name}/{prec}", {})[f"{cond:g}"] = (
-                    [float(np.median(err)), float(err.max())] if err.size else [float("nan")] * 2)
+                    [float(np.median(err)), float(err.max())] if err.size else [float("nan")] * 2
+                )
     return out
 
 
-def compiled_loop(I: Sym3, H: np.ndarray) -> Optional[Callable[[], None]]:
+def compiled_loop(I: Sym3, H: np.ndarray) -> Callable[[], None] | None:
     """The yardstick: LDLᵀ's arithmetic as one compiled loop (numba), ready to time; None if numba
     is missing."""
     try:
@@ -191,7 +202,7 @@ else:
 """
 
 
-def yardstick(I: Sym3, H: np.ndarray, tmp: str, repeats: int) -> tuple[Optional[float], float]:
+def yardstick(I: Sym3, H: np.ndarray, tmp: str, repeats: int) -> tuple[float | None, float]:
     """(compiled loop, exact kernel) in rows/s, each in fresh processes, alternating per round.
 
     Separate processes, because importing numba and compiling slows the float64 numpy kernels of
@@ -204,7 +215,9 @@ def yardstick(I: Sym3, H: np.ndarray, tmp: str, repeats: int) -> tuple[Optional[
     got: dict = {"compiled": [], "exact": []}
     for _ in range(repeats):
         for which in got:
-            out = subprocess.run([sys.executable, "-c", _YARDSTICK, path, which], check=True, capture_output=True, text=True)
+            out = subprocess.run(
+                [sys.executable, "-c", _YARDSTICK, path, which], check=True, capture_output=True, text=True
+            )
             got[which].append(float(out.stdout.strip().splitlines()[-1]))
     return statistics.median(got["compiled"]), statistics.median(got["exact"])
 
@@ -215,8 +228,10 @@ def _command(args: list) -> Callable[[], object]:
 
 def _peak_rss_mb(args: list) -> float:
     """Peak RSS of a command, measured from a fresh wrapper process whose only child it is."""
-    code = ("import resource, subprocess, sys; subprocess.run(sys.argv[1:], check=True, capture_output=True);"
-            "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)")
+    code = (
+        "import resource, subprocess, sys; subprocess.run(sys.argv[1:], check=True, capture_output=True);"
+        "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)"
+    )
     out = subprocess.run([sys.executable, "-c", code, *args], check=True, capture_output=True, text=True)
     return int(out.stdout.strip()) / 1024.0
 
@@ -254,8 +269,13 @@ def _roofline(src: str, dst: str) -> None:
             wr.write(pa.Table.from_arrays(list(batch.columns) + cols, schema=pa.schema(list(batch.schema) + fields)))
 
 
-def run(rows: int = 2_000_000, repeats: int = 3, seed: int = 0, memory_rows: int = 0,
-        log: Callable[[str], None] = lambda s: None) -> Result:
+def run(
+    rows: int = 2_000_000,
+    repeats: int = 3,
+    seed: int = 0,
+    memory_rows: int = 0,
+    log: Callable[[str], None] = lambda s: None,
+) -> Result:
     """Measure everything; ``memory_rows`` > 0 also measures peak RSS converting that many rows."""
     from hconv.tables import pipeline
     from hconv.tools import generate
@@ -278,8 +298,12 @@ def run(rows: int = 2_000_000, repeats: int = 3, seed: int = 0, memory_rows: int
         log("end-to-end conversions")
         pipeline.convert_file(src, dst, force=True)  # warm-up: page cache and first-call costs
         jobs: dict[str, Callable[[], object]] = {
-            f"{name}/{prec}": functools.partial(pipeline.convert_file, src, dst, method=name, precision=prec, force=True)
-            for name in methods.METHODS for prec in PRECISIONS}
+            f"{name}/{prec}": functools.partial(
+                pipeline.convert_file, src, dst, method=name, precision=prec, force=True
+            )
+            for name in methods.METHODS
+            for prec in PRECISIONS
+        }
         jobs["roofline"] = lambda: _roofline(src, dst)
         jobs["plain script"] = _command([sys.executable, "-c", _PLAIN_SCRIPT, src, dst])
         jobs["hconv convert"] = _command(hconv_cmd + ["convert", src, dst, "--force", "-q"])
@@ -291,15 +315,26 @@ def run(rows: int = 2_000_000, repeats: int = 3, seed: int = 0, memory_rows: int
         startup_s = secs.pop("hconv start-up")
         res.convert = {k: rows / v for k, v in secs.items()}
         log("start-up")
-        starts = rounds({"one": _command(hconv_cmd + ["one", "--H", "1,2,3", "--I", "2,3,4,0,0,0"]),
-                          "numpy": _command([sys.executable, "-c", "import numpy"])}, 10)
+        starts = rounds(
+            {
+                "one": _command(hconv_cmd + ["one", "--H", "1,2,3", "--I", "2,3,4,0,0,0"]),
+                "numpy": _command([sys.executable, "-c", "import numpy"]),
+            },
+            10,
+        )
         one_s, numpy_s = starts["one"], starts["numpy"]
-        res.baselines = {"io_roofline_rows_per_s": roof, "plain_script_s": plain_s, "hconv_convert_cli_s": hconv_cli_s,
-                         "hconv_startup_s": startup_s,
-                         # what the plain-script ratio could be if hconv computed nothing at all
-                         "plain_script_ceiling": plain_s / (startup_s + rows / roof),
-                         "compiled_loop_rows_per_s": compiled, "exact_kernel_fresh_process_rows_per_s": exact_fresh,
-                         "hconv_one_s": one_s, "import_numpy_s": numpy_s}
+        res.baselines = {
+            "io_roofline_rows_per_s": roof,
+            "plain_script_s": plain_s,
+            "hconv_convert_cli_s": hconv_cli_s,
+            "hconv_startup_s": startup_s,
+            # what the plain-script ratio could be if hconv computed nothing at all
+            "plain_script_ceiling": plain_s / (startup_s + rows / roof),
+            "compiled_loop_rows_per_s": compiled,
+            "exact_kernel_fresh_process_rows_per_s": exact_fresh,
+            "hconv_one_s": one_s,
+            "import_numpy_s": numpy_s,
+        }
         if memory_rows:
             log(f"peak memory on {memory_rows:,} rows")
             big = os.path.join(tmp, "big.parquet")

@@ -12,10 +12,10 @@ failures is measured per row too:
 The summary bins the rows by ``offdiag`` and by ``r_axis`` and gives the median difference of the
 diagonal and document methods in each bin, and lists the rows where they are furthest off.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Optional
 
 import numpy as np
 
@@ -41,7 +41,9 @@ def r_axis_ratio(r: np.ndarray) -> np.ndarray:
     sq = r * r
     total = sq.sum(axis=0)
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.min(np.stack([sq[1] + sq[2], sq[0] + sq[2], sq[0] + sq[1]]), axis=0) / np.where(total > 0, total, np.nan)
+        return np.min(np.stack([sq[1] + sq[2], sq[0] + sq[2], sq[0] + sq[1]]), axis=0) / np.where(
+            total > 0, total, np.nan
+        )
 
 
 @dataclass
@@ -94,7 +96,11 @@ class Comparer:
         r_norm = np.sqrt((r * r).sum(axis=0)) if r is not None else np.full(n, np.nan)
         cols = {"offdiag": off, "r_axis": r_axis}
         for s in self.scores:
-            w = exact if s.method == "exact" else bodies.solve(sets, form, s.method, 64, self.conv, diagnostics=False).w.T
+            w = (
+                exact
+                if s.method == "exact"
+                else bodies.solve(sets, form, s.method, 64, self.conv, diagnostics=False).w.T
+            )
             w = w.astype(np.float64)
             diff, ang = relative_error(w, exact), angle_deg(w, exact)
             s.diff.add(diff, self.rows)
@@ -103,8 +109,11 @@ class Comparer:
             _binned(s.by_r_axis, R_AXIS_BINS, r_axis, diff, self.rows)
             if s.method in SHORTCUTS:
                 order = np.argsort(np.where(np.isnan(diff), -np.inf, diff))[::-1][:WORST_ROWS]
-                s.worst += [(float(diff[k]), self.rows + int(k), float(off[k]), float(r_norm[k]), float(r_axis[k]))
-                            for k in order if np.isfinite(diff[k])]
+                s.worst += [
+                    (float(diff[k]), self.rows + int(k), float(off[k]), float(r_norm[k]), float(r_axis[k]))
+                    for k in order
+                    if np.isfinite(diff[k])
+                ]
                 s.worst = sorted(s.worst, key=lambda t: -t[0])[:WORST_ROWS]
             cols[f"diff_{s.method}"] = diff
             cols[f"angle_{s.method}"] = ang
@@ -115,8 +124,15 @@ class Comparer:
         return Comparison(self.scores, self.rows, self.skipped)
 
 
-def compare_file(src: str, dst: Optional[str] = None, *, src_format: Optional[str] = None,
-                 dst_format: Optional[str] = None, force: bool = False, job=None) -> Comparison:
+def compare_file(
+    src: str,
+    dst: str | None = None,
+    *,
+    src_format: str | None = None,
+    dst_format: str | None = None,
+    force: bool = False,
+    job=None,
+) -> Comparison:
     """Compare every method on the rows of ``src``; with ``dst``, also write the per-row figures
     (the input columns, then offdiag, r_axis, diff_<method>, angle_<method>), atomically."""
     import contextlib
@@ -146,10 +162,14 @@ def compare_file(src: str, dst: Optional[str] = None, *, src_format: Optional[st
                 if clash:
                     from hconv.errors import InputError
 
-                    raise InputError(f"{inp.name}: already has column {clash[0]!r}; rename it (is this compare's own output?)")
+                    raise InputError(
+                        f"{inp.name}: already has column {clash[0]!r}; rename it (is this compare's own output?)"
+                    )
                 for name, values in cols.items():
-                    table = table.append_column(pa.field(name, pa.float64(), metadata={
-                        "unit": "deg" if name.startswith("angle_") else "1"}), pa.array(values))
+                    table = table.append_column(
+                        pa.field(name, pa.float64(), metadata={"unit": "deg" if name.startswith("angle_") else "1"}),
+                        pa.array(values),
+                    )
                 writer.write(table)
         if comp is None:  # a header and no rows: still a valid (empty) output
             comp = Comparer(set(inp.plan.groups), job.conventions)

@@ -27,11 +27,12 @@ document-principal     the seed's Version 2 (needs r; a number in m²/s)
 hconv's own order (xx, yy, zz, xy, xz, yz) is also MuJoCo's ``fullinertia`` order, so a MuJoCo
 ordering is ``exact`` here.
 """
+
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable, Optional
 
 import numpy as np
 
@@ -65,7 +66,7 @@ def _conjugate(q: np.ndarray) -> np.ndarray:
     return np.concatenate([q[:1], -q[1:]])
 
 
-def _six(sets: dict, form: str) -> Optional[np.ndarray]:
+def _six(sets: dict, form: str) -> np.ndarray | None:
     """The inertia as six numbers ``(6, N)``, for the hypotheses that permute them; None for a
     diagonal form, which has no products to misplace."""
     f = forms.get(form)
@@ -103,6 +104,7 @@ def _ordering(order):
         if six is None:
             return None
         return _solve({**sets, "I": reorder(six, order)}, "sym6")
+
     return predict
 
 
@@ -115,6 +117,7 @@ def _method(name):
         if name == "diagonal" and forms.get(form).diagonal:
             return None  # the tensor is diagonal in the frame it is solved in: the same as exact
         return _solve(sets, form, name)
+
     return predict
 
 
@@ -123,8 +126,15 @@ HYPOTHESES = (
     Hypothesis("transposed-rotation", ("q",), _transposed, "q applied the other way (R and Rᵀ swapped)"),
     Hypothesis("ignored-rotation", ("q",), _ignored, "body-frame tensor with world-frame H, not rotated"),
     Hypothesis("flipped-products", (), _flipped, "products of inertia with the opposite sign"),
-    *(Hypothesis(f"ordering-{k}", (), _ordering(v), f"six numbers read in {k.upper() if k == 'urdf' else 'SymPy'}'s "
-                 f"order ({', '.join(v)})") for k, v in ORDERINGS.items()),
+    *(
+        Hypothesis(
+            f"ordering-{k}",
+            (),
+            _ordering(v),
+            f"six numbers read in {k.upper() if k == 'urdf' else 'SymPy'}'s order ({', '.join(v)})",
+        )
+        for k, v in ORDERINGS.items()
+    ),
     Hypothesis("pivot", ("m", "r"), _pivot, "I shifted from the centre of mass to the pivot"),
     Hypothesis("diagonal", (), _method("diagonal"), "ω_i = H_i / I_ii, products ignored"),
     Hypothesis("document", ("r",), _method("document"), "the seed's Version 1 (m²/s)"),
@@ -171,8 +181,14 @@ class Diagnoser:
         self.scores = []
         for h in HYPOTHESES:
             lacking = [s for s in h.needs if s not in present]
-            s = Score(h.name, h.summary, Summary(tol), Summary(0.0), applicable=not lacking,
-                      why_not=f"needs {', '.join(lacking)}" if lacking else "")
+            s = Score(
+                h.name,
+                h.summary,
+                Summary(tol),
+                Summary(0.0),
+                applicable=not lacking,
+                why_not=f"needs {', '.join(lacking)}" if lacking else "",
+            )
             self.scores.append(s)
         self.rows = 0
         self.unexplained = 0
@@ -207,8 +223,9 @@ class Diagnoser:
         return Diagnosis(self.scores, self.rows, self.tol, self.unexplained, self.examples)
 
 
-def diagnose_file(src: str, *, src_format: Optional[str] = None, tol: float = DEFAULT_TOL, job=None,
-                  progress=None) -> Diagnosis:
+def diagnose_file(
+    src: str, *, src_format: str | None = None, tol: float = DEFAULT_TOL, job=None, progress=None
+) -> Diagnosis:
     """Score every hypothesis on the rows of ``src`` (CSV or Parquet, "-" for stdin)."""
     import pyarrow as pa
 

@@ -1,9 +1,9 @@
 """``hconv generate``: synthetic scenes of analytic bodies (:mod:`hconv.tools.scene`) written to a
 file or stdout through the same atomic, background writer as ``convert``."""
+
 from __future__ import annotations
 
 import time
-from typing import Optional
 
 import pyarrow as pa
 
@@ -13,8 +13,16 @@ from hconv.tables.tableio import Output, format_of
 from hconv.tools.scene import check_scene, iter_scene, make_scene
 
 
-def generate_file(dst: str, rows: int, *, scene: str = "mix", cond_max: float = 1e3, seed: int = 0,
-                  dst_format: Optional[str] = None, force: bool = False) -> float:
+def generate_file(
+    dst: str,
+    rows: int,
+    *,
+    scene: str = "mix",
+    cond_max: float = 1e3,
+    seed: int = 0,
+    dst_format: str | None = None,
+    force: bool = False,
+) -> float:
     """Write a synthetic scene of ``rows`` bodies (see :mod:`hconv.tools.scene`) to ``dst``, atomically,
     chunk by chunk; returns the seconds taken."""
     if rows < 0:

@@ -10,6 +10,7 @@ Each body's shape is drawn so that its condition number cond(I) = I_max / I_min 
 between 1 and ``cond_max`` (as far as the kind allows: a sphere is always 1, a disk at most 2,
 a rod at least 100).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -93,8 +94,15 @@ def check_scene(scene: str, cond_max: float) -> None:
         raise UsageError(f"--cond-max must be at least 1, got {cond_max}")
 
 
-def make_scene(n: int, seed: int = 0, scene: str = "mix", cond_max: float = 1e3, *, first_id: int = 1,
-               rng: np.random.Generator | None = None) -> dict[str, np.ndarray]:
+def make_scene(
+    n: int,
+    seed: int = 0,
+    scene: str = "mix",
+    cond_max: float = 1e3,
+    *,
+    first_id: int = 1,
+    rng: np.random.Generator | None = None,
+) -> dict[str, np.ndarray]:
     """A scene of ``n`` bodies as named columns: the input contract plus ``id``, ``body``, ``mass``
     and the known ``w_true_x, w_true_y, w_true_z`` [rad/s]."""
     check_scene(scene, cond_max)
@@ -109,7 +117,9 @@ def make_scene(n: int, seed: int = 0, scene: str = "mix", cond_max: float = 1e3,
     r = rng.uniform(-1.0, 1.0, (n, 3))
     cols = {"id": np.arange(first_id, first_id + n), "body": kind.astype(str), "m": m}
     cols.update({f"H{a}": H[:, k] for k, a in enumerate("xyz")})
-    for name, (i, j) in zip(("Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz"), ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))):
+    for name, (i, j) in zip(
+        ("Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz"), ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
+    ):
         cols[name] = I[:, i, j]
     cols.update({f"r{a}": r[:, k] for k, a in enumerate("xyz")})
     cols.update({f"w_true_{a}": w[:, k] for k, a in enumerate("xyz")})

@@ -7,11 +7,12 @@ then rounded once): independent of every method, and exact at any scale. Rows wi
 (NaN ω) are left out of the error and show in the share flagged. The document methods are scored
 against I⁻¹H like the rest: their error is their distance from the physics, not rounding.
 """
+
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import Callable
 
 import numpy as np
 
@@ -77,7 +78,14 @@ SWEEPS = (
     Sweep("scale", "overall scale of I and H", "scale factor", 10.0 ** np.arange(-200, 201, 25), _scale),
     Sweep("equal", "two moments approach equality", "(I2 − I1) / I1", 10.0 ** np.arange(0, -17, -1), _equal),
     Sweep("axis", "r approaches a principal axis", "|r⊥| / |r|", 10.0 ** np.arange(0, -17, -1), _axis),
-    Sweep("triangle", "triangle inequality broken", "I3 / (I1 + I2)", np.array([0.5, 0.8, 0.95, 0.999, 1.0, 1.001, 1.05, 1.2, 1.5, 2, 3, 5]), _triangle, log_x=False),
+    Sweep(
+        "triangle",
+        "triangle inequality broken",
+        "I3 / (I1 + I2)",
+        np.array([0.5, 0.8, 0.95, 0.999, 1.0, 1.001, 1.05, 1.2, 1.5, 2, 3, 5]),
+        _triangle,
+        log_x=False,
+    ),
     Sweep("zero", "a moment goes to zero (rod)", "I1 / I2", np.append(10.0 ** np.arange(0, -21, -2), 0.0), _zero),
 )
 
@@ -90,8 +98,11 @@ def exact_solve(I: np.ndarray, H: np.ndarray) -> np.ndarray:
         h = [Fraction(float(v)) for v in H[k]]
 
         def det(m):
-            return (m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-                    + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]))
+            return (
+                m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+                - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+                + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+            )
 
         d = det(a)
         if d != 0:
@@ -128,8 +139,15 @@ def run(rows: int = 48, seed: int = 0, sweeps=SWEEPS, precisions=(64, 32)) -> li
                         res = core.convert(H, I, r, method=name, precision=prec, diagnostics=False)
                         err = relative_error(res.w.T.astype(float), ref)
                     err = err[np.isfinite(err)]
-                    points.append(Point(sw.name, float(p), name, prec,
-                                        float(np.median(err)) if err.size else float("nan"),
-                                        float(err.max()) if err.size else float("nan"),
-                                        float(np.mean(res.status_code != 0))))
+                    points.append(
+                        Point(
+                            sw.name,
+                            float(p),
+                            name,
+                            prec,
+                            float(np.median(err)) if err.size else float("nan"),
+                            float(err.max()) if err.size else float("nan"),
+                            float(np.mean(res.status_code != 0)),
+                        )
+                    )
     return points

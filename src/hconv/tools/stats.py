@@ -4,10 +4,10 @@ A :class:`Summary` takes batches of values and keeps: the count, the rows with n
 share at or below a tolerance, the maximum and its row, and a histogram in log10 with 100 bins per
 decade, from which the median is read to within ±1.2 % (half a bin). Exact zeros are counted apart.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Optional
 
 import numpy as np
 
@@ -23,7 +23,7 @@ class Summary:
     within: int = 0
     zeros: int = 0
     maximum: float = float("nan")
-    max_row: Optional[int] = None  #: 0-based row of the maximum
+    max_row: int | None = None  #: 0-based row of the maximum
     _hist: np.ndarray = field(default_factory=lambda: np.zeros(len(_EDGES) + 1, dtype=np.int64))
 
     def add(self, values: np.ndarray, first_row: int = 0) -> None:
@@ -66,7 +66,7 @@ class Summary:
         cum = self.zeros + np.cumsum(self._hist)
         k = int(np.searchsorted(cum, half, side="right"))
         if k == 0:
-            return float(10.0 ** _LO)
+            return float(10.0**_LO)
         if k >= len(_EDGES):
-            return float(10.0 ** _HI) if np.isfinite(self.maximum) else float("inf")
+            return float(10.0**_HI) if np.isfinite(self.maximum) else float("inf")
         return float(10.0 ** (0.5 * (_EDGES[k - 1] + _EDGES[k])))
