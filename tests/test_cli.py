@@ -416,3 +416,12 @@ def test_cli_reader_closing_pipe_early_is_quiet(args):
     proc = subprocess.run(cmd, shell=True, capture_output=True, timeout=120, executable="/bin/bash")
     assert len(proc.stdout.decode().splitlines()) == 1
     assert "error" not in proc.stderr.decode() and "Traceback" not in proc.stderr.decode()
+
+
+def test_version_is_one_source():
+    import importlib.metadata
+
+    proc = run_hconv("--version")
+    assert proc.returncode == 0
+    assert proc.stdout.decode().strip() == f"hconv {hconv.__version__}"
+    assert importlib.metadata.version("hconv") == hconv.__version__

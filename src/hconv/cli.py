@@ -34,6 +34,23 @@ app = typer.Typer(
 )
 
 
+def _print_version(value: bool) -> None:
+    if value:
+        from hconv import __version__
+
+        print(f"hconv {__version__}")
+        raise typer.Exit(0)
+
+
+@app.callback()
+def _root(
+    version: bool = typer.Option(
+        False, "--version", is_eager=True, callback=_print_version, help="print hconv's version and exit"
+    ),
+) -> None:
+    """Angular momentum H (kg·m²/s) to angular velocity ω (rad/s), with the residual against I⁻¹H for every row."""
+
+
 def _choices(name: str, values) -> Any:
     """A typer choice type whose values are the library's own tuple. Its members are ``str``
     subclasses; :func:`_value` gives the plain string."""
