@@ -58,52 +58,19 @@ def engine_bodies(n=8):
 def main():
     OUT.mkdir(exist_ok=True)
     m, moments, q, R, w_true, H = engine_bodies()
-    write_csv(
-        "engine-bodies.csv",
-        {
-            "id": np.arange(1, len(m) + 1),
-            "m": m,
-            "I1": moments[:, 0],
-            "I2": moments[:, 1],
-            "I3": moments[:, 2],
-            "qw": q[:, 0],
-            "qx": q[:, 1],
-            "qy": q[:, 2],
-            "qz": q[:, 3],
-            "Hx": H[:, 0],
-            "Hy": H[:, 1],
-            "Hz": H[:, 2],
-            "w_true_x": w_true[:, 0],
-            "w_true_y": w_true[:, 1],
-            "w_true_z": w_true[:, 2],
-        },
-    )
+    # the engine's bodies as stored: id, mass, principal moments, orientation, world-frame H
+    bodies = {"id": np.arange(1, len(m) + 1), "m": m}
+    bodies.update({f"I{k + 1}": moments[:, k] for k in range(3)})
+    bodies.update({f"q{c}": q[:, k] for k, c in enumerate("wxyz")})
+    bodies.update({f"H{c}": H[:, k] for k, c in enumerate("xyz")})
+    write_csv("engine-bodies.csv", {**bodies, **{f"w_true_{c}": w_true[:, k] for k, c in enumerate("xyz")}})
 
     # An engine log whose ω came from the transposed rotation (world → body used as body → world),
     # in float32 as engines compute. `hconv diagnose` should name it.
     Rt = np.swapaxes(R, 1, 2)
     I_world_wrong = np.einsum("nij,nj,nkj->nik", Rt, moments, Rt)
     w_obs = np.linalg.solve(I_world_wrong, H[..., None])[..., 0].astype(np.float32)
-    write_csv(
-        "engine-log.csv",
-        {
-            "id": np.arange(1, len(m) + 1),
-            "m": m,
-            "I1": moments[:, 0],
-            "I2": moments[:, 1],
-            "I3": moments[:, 2],
-            "qw": q[:, 0],
-            "qx": q[:, 1],
-            "qy": q[:, 2],
-            "qz": q[:, 3],
-            "Hx": H[:, 0],
-            "Hy": H[:, 1],
-            "Hz": H[:, 2],
-            "wx_obs": w_obs[:, 0],
-            "wy_obs": w_obs[:, 1],
-            "wz_obs": w_obs[:, 2],
-        },
-    )
+    write_csv("engine-log.csv", {**bodies, **{f"w{c}_obs": w_obs[:, k] for k, c in enumerate("xyz")}})
 
     # Pendulums: solid cylinders along x swinging about the centre of one end face. I about the
     # centre of mass; r = centre of mass relative to the pivot; H about the pivot.

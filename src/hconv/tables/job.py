@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from hconv.errors import UsageError
 from hconv.solve import methods, options, units
 from hconv.solve.options import Conventions
-from hconv.tables.sets import all_names, quantity_of
+from hconv.tables.sets import QUANTITY, all_names, quantity_of
 
 
 def _pairs(what: str, value) -> tuple:
@@ -111,4 +111,4 @@ class Job:
         given = dict(self.unit_options)
         if name not in given:
             return 1.0
-        return units.factor(name if name != "w_obs" else "w", given[name], f"--unit {name}={given[name]}")
+        return units.factor(QUANTITY[name], given[name], f"--unit {name}={given[name]}")
