@@ -20,7 +20,7 @@ from hconv.tables.job import Job  # noqa: E402
 __all__ = ["convert", "convert_table", "Job", "Conventions", "Result", "METHODS", "FORMS", "STATUSES", "__version__"]
 
 
-def __getattr__(name):  # keeps `import hconv` free of pyarrow
+def __getattr__(name: str) -> object:  # keeps `import hconv` free of pyarrow
     if name == "convert_table":
         from hconv.tables.arrow import convert_table
 

@@ -2,15 +2,22 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from hconv.errors import UsageError
+
+if TYPE_CHECKING:
+    from hconv.tools.bench import Result as BenchResult
+    from hconv.tools.stability import Point, Sweep
+
 
 #: Errors are drawn on log axes; an error of exactly 0 (correctly rounded) is drawn here.
 FLOOR = 1e-18
 
 
-def _pyplot():
+def _pyplot() -> Any:
     try:
         import matplotlib
 
@@ -36,7 +43,7 @@ def requested(out: str | None, no_chart: bool) -> str | None:
     return out
 
 
-def stability_chart(points, sweeps, path: str) -> None:
+def stability_chart(points: list[Point], sweeps: tuple[Sweep, ...], path: str) -> None:
     """One panel per sweep: worst error against the sweep parameter, log axes, a line per method
     and precision (solid float64, dashed float32); hollow markers where most rows are flagged."""
     plt = _pyplot()
@@ -98,7 +105,7 @@ def stability_chart(points, sweeps, path: str) -> None:
     plt.close(fig)
 
 
-def speed_accuracy_chart(res, path: str, cond: str = "10000") -> None:
+def speed_accuracy_chart(res: BenchResult, path: str, cond: str = "10000") -> None:
     """Accuracy (worst error at ``cond``, log) against kernel speed (rows/s, log): one point per
     method and precision, with the Pareto front (nothing both faster and more accurate)."""
     plt = _pyplot()

@@ -14,6 +14,7 @@ import math
 import os
 import signal
 import sys
+from collections.abc import Callable, Iterable
 from enum import Enum
 from typing import TYPE_CHECKING, Any
 
@@ -25,6 +26,11 @@ from hconv.solve import forms, options
 from hconv.solve.methods import METHODS
 from hconv.tables.formats import FORMATS
 from hconv.tools.scene import SCENES
+
+if TYPE_CHECKING:
+    from hconv.solve.methods import Method
+    from hconv.tables.job import Job
+
 
 app = typer.Typer(
     add_completion=False,
@@ -51,7 +57,7 @@ def _root(
     """Angular momentum H (kg·m²/s) to angular velocity ω (rad/s), with the residual against I⁻¹H for every row."""
 
 
-def _choices(name: str, values) -> Any:
+def _choices(name: str, values: Iterable[object]) -> Any:
     """A typer choice type whose values are the library's own tuple. Its members are ``str``
     subclasses; :func:`_value` gives the plain string."""
     return Enum(name, {str(v): str(v) for v in values}, type=str)
@@ -152,20 +158,24 @@ DEGENERATE = ("degenerate", "degenerate_rtol")
 COLUMNS = ("mapping", "unit_options", "quat_order")
 
 
-def job_options(*names: str, help: dict | None = None, **fixed):
+#: The default of a command's ``job`` parameter, which :func:`job_options` always fills in.
+JOB: Any = None
+
+
+def job_options(*names: str, help: dict | None = None, **fixed: Any) -> Callable[[Callable], Callable]:
     """Give a command the Job options ``names``, shown in that order where its ``job`` parameter
     stands, and call it with the :class:`~hconv.tables.job.Job` they make as ``job``. ``help``
     rewords an option for this command; ``fixed`` sets Job fields the command does not offer.
     The Job checks itself when made, so every command's options are checked once, in one place."""
 
-    def option(n: str):
+    def option(n: str) -> inspect.Parameter:
         info = JOB_OPTIONS[n][1]
         if help and n in help:
             info = copy.copy(info)
             info.help = help[n]
         return inspect.Parameter(n, inspect.Parameter.KEYWORD_ONLY, default=info, annotation=JOB_OPTIONS[n][0])
 
-    def deco(fn):
+    def deco(fn: Callable) -> Callable:
         sig = inspect.signature(fn)
         params = list(sig.parameters.values())
         at = [p.name for p in params].index("job")
@@ -173,18 +183,18 @@ def job_options(*names: str, help: dict | None = None, **fixed):
         kinds = [p.replace(kind=inspect.Parameter.KEYWORD_ONLY) if k > at else p for k, p in enumerate(params)]
 
         @functools.wraps(fn)
-        def wrapper(*args, **kwargs):
+        def wrapper(*args: Any, **kwargs: Any) -> Any:
             given = {n: kwargs.pop(n) for n in names}
             return fn(*args, job=_make_job(given, fixed), **kwargs)
 
-        wrapper.__signature__ = sig.replace(parameters=kinds)
+        wrapper.__signature__ = sig.replace(parameters=kinds)  # type: ignore[attr-defined]
         wrapper.__annotations__ = {p.name: p.annotation for p in kinds}
         return wrapper
 
     return deco
 
 
-def _make_job(given: dict, fixed: dict):
+def _make_job(given: dict, fixed: dict) -> Job:
     from hconv.tables.job import Job
 
     values: dict[str, Any] = {n: _value(v) for n, v in given.items()}
@@ -201,11 +211,11 @@ def _fail(msg: str, code: int) -> None:
     raise typer.Exit(code)
 
 
-def friendly(fn):
+def friendly(fn: Callable) -> Callable:
     """Turn hconv's errors, interrupts and surprises into one line and an exit code, never a traceback."""
 
     @functools.wraps(fn)
-    def wrapper(*args, **kwargs):
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
             return fn(*args, **kwargs)
         except HconvError as exc:
@@ -245,7 +255,7 @@ def _numbers(option: str, text: str, allowed: tuple[int, ...]) -> list[float]:
     return values
 
 
-def _json_number(x: float):
+def _json_number(x: float) -> float | None:
     """``x``, or None where it is NaN or infinite: standard JSON has neither."""
     return x if math.isfinite(x) else None
 
@@ -292,7 +302,7 @@ def one(
     q: str | None = typer.Option(None, "--q", help="qw,qx,qy,qz: the body's orientation (body → world)"),
     mass: float | None = typer.Option(None, "--m", help="mass (kg), for --about pivot|free and the unit check"),
     v: str | None = typer.Option(None, "--v", help="vx,vy,vz (m/s): velocity of the centre of mass, for --about free"),
-    job=None,  # the run options go here (job_options)
+    job: Job = JOB,  # the run options go here (job_options)
     as_json: bool = typer.Option(False, "--json", help="print one JSON object"),
 ) -> None:
     """Convert one body state and print ω with its unit, the residual, cond and the status."""
@@ -304,7 +314,7 @@ def one(
     form = forms.by_count(len(i))
     if form is None:  # _numbers let through only the counts of registered forms
         raise UsageError(f"--I takes {forms.counts_text()} values")
-    sets = {"H": _numbers("--H", H, (3,)), "I": i}
+    sets: dict[str, Any] = {"H": _numbers("--H", H, (3,)), "I": i}
     for name, text, k in (("r", r, 3), ("q", q, 4), ("v", v, 3)):
         if text is not None:
             sets[name] = _numbers(f"--{name}", text, (k,))
@@ -331,7 +341,7 @@ def one(
     )
     if as_json:
         clean = _json_number
-        out = {
+        out: dict[str, Any] = {
             "w": [clean(x) for x in w],
             "unit": unit_out,
             "residual": clean(residual),
@@ -360,7 +370,7 @@ def one(
 def convert_cmd(
     src: str = typer.Argument(..., metavar="IN", help="input .csv or .parquet, or - for stdin"),
     dst: str = typer.Argument(..., metavar="OUT", help="output .csv or .parquet, or - for stdout"),
-    job=None,  # the run options go here (job_options)
+    job: Job = JOB,  # the run options go here (job_options)
     from_: Fmt | None = typer.Option(None, "--from", help="input format; needed when IN is -"),
     to: Fmt | None = typer.Option(None, "--to", help="output format; needed when OUT is -"),
     force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
@@ -377,7 +387,9 @@ def convert_cmd(
     from hconv import report
     from hconv.tables import pipeline
 
-    kwargs = dict(job=job, src_format=_value(from_), dst_format=_value(to), force=force, strict=strict, threads=threads)
+    kwargs: dict[str, Any] = dict(
+        job=job, src_format=_value(from_), dst_format=_value(to), force=force, strict=strict, threads=threads
+    )
     if sys.stderr.isatty() and dst != "-" and not quiet:
         with report.ProgressBar(f"converting {src}") as bar:
             tally = pipeline.convert_file(src, dst, progress=bar, **kwargs)
@@ -395,7 +407,7 @@ def diagnose_cmd(
     tol: float = typer.Option(1e-3, "--tol", help="a row is explained when |ω - ω_obs| / |ω_obs| <= this"),
     from_: Fmt | None = typer.Option(None, "--from", help="input format; needed when IN is -"),
     as_json: bool = typer.Option(False, "--json", help="print the ranking as JSON, best first"),
-    job=None,  # the run options go here (job_options)
+    job: Job = JOB,  # the run options go here (job_options)
 ) -> None:
     """Find which convention explains the ω your engine produced (columns wx_obs, wy_obs, wz_obs)."""
     from hconv.tools import diagnose
@@ -434,7 +446,7 @@ def compare_cmd(
     from_: Fmt | None = typer.Option(None, "--from", help="input format; needed when IN is -"),
     to: Fmt | None = typer.Option(None, "--to", help="output format; needed when OUT is -"),
     force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
-    job=None,  # the run options go here (job_options)
+    job: Job = JOB,  # the run options go here (job_options)
 ) -> None:
     """Run every method on the same rows: how far each is from exact, and where the shortcuts fail."""
     from hconv import report
@@ -507,7 +519,7 @@ def methods_cmd(as_json: bool = typer.Option(False, "--json", help="print a JSON
     """List the methods: the unit of each result, whether it is exact, its cost and when it fails."""
     if as_json:
 
-        def limit(m, p):  # JSON has no Infinity: null means "up to the singular threshold"
+        def limit(m: Method, p: int) -> float | None:  # JSON has no Infinity: null means "up to the singular threshold"
             return m.cond_limit(p) if m.exact and math.isfinite(m.cond_limit(p)) else None
 
         print(
@@ -566,7 +578,7 @@ def stability_cmd(
         print(f"chart written to {chart}", file=sys.stderr)
 
 
-def _sigterm(signum, frame):  # let the atomic writer clean up as for Ctrl-C
+def _sigterm(signum: int, frame: object) -> None:  # let the atomic writer clean up as for Ctrl-C
     raise KeyboardInterrupt
 
 

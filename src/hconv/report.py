@@ -5,14 +5,24 @@ rich is imported here only, so that ``hconv one`` does not pay for it.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from rich.console import Console
 from rich.table import Table
 
 from hconv.solve.methods import METHODS
 
+if TYPE_CHECKING:
+    from hconv.solve.methods import Method
+    from hconv.tables.pipeline import Tally
+    from hconv.tools.bench import Result as BenchResult
+    from hconv.tools.compare import Comparison
+    from hconv.tools.diagnose import Diagnosis
+    from hconv.tools.stability import Point, Sweep
 
-def summary(tally, console: Console | None = None) -> None:
+
+def summary(tally: Tally, console: Console | None = None) -> None:
     """Print a run's summary: rows, rows per status, the worst residual and the time taken."""
     console = console or Console(stderr=True)
     rate = f"{tally.rows / tally.seconds:,.0f} rows/s" if tally.seconds > 0 and tally.rows else "-"
@@ -48,15 +58,15 @@ class ProgressBar:
     def __call__(self, done: int, total: int | None) -> None:
         self._p.update(self._task, completed=done, total=total)
 
-    def __enter__(self):
+    def __enter__(self) -> ProgressBar:
         self._p.start()
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self._p.stop()
 
 
-def envelope(m) -> str:
+def envelope(m: Method) -> str:
     """The cond(I) up to which a method's error stays within 1e-6, per precision, as text."""
     if not m.exact:
         return "n/a: not I⁻¹H"
@@ -77,13 +87,13 @@ def methods_table(console: Console | None = None) -> None:
     console.print(t)
 
 
-def stability_tables(points, sweeps, console: Console | None = None) -> None:
+def stability_tables(points: list[Point], sweeps: tuple[Sweep, ...], console: Console | None = None) -> None:
     """Per sweep and precision, a table of worst errors: rows are sweep points, columns methods;
     a trailing * marks a cell where most rows are flagged, — one where no row had an answer."""
     console = console or Console()
     names = list(METHODS)
 
-    def cell(p) -> str:
+    def cell(p: Point | None) -> str:
         if p is None or not np.isfinite(p.worst_error):
             text = "—"
         else:
@@ -106,7 +116,7 @@ def stability_tables(points, sweeps, console: Console | None = None) -> None:
             console.print(t)
 
 
-def bench_tables(res, console: Console | None = None) -> None:
+def bench_tables(res: BenchResult, console: Console | None = None) -> None:
     """The benchmark: a row per method and precision, then the targets as measured ratios."""
     console = console or Console()
     console.print(f"[bold]hconv bench[/bold] · {res.rows:,} rows · {res.machine}")
@@ -153,7 +163,7 @@ def _g(x: float) -> str:
     return "-" if x is None or not np.isfinite(x) else f"{x:.3g}"
 
 
-def diagnosis_tables(d, console: Console | None = None) -> None:
+def diagnosis_tables(d: Diagnosis, console: Console | None = None) -> None:
     """Print ``hconv diagnose``'s ranking, what was left out, and the rows nothing explains."""
     console = console or Console()
     console.print(
@@ -194,7 +204,7 @@ def diagnosis_tables(d, console: Console | None = None) -> None:
         console.print("every row is explained by at least one hypothesis")
 
 
-def comparison_tables(c, console: Console | None = None) -> None:
+def comparison_tables(c: Comparison, console: Console | None = None) -> None:
     """Print ``hconv compare``: each method against exact, and where the shortcuts fail."""
     from hconv.tools.compare import OFFDIAG_BINS, R_AXIS_BINS, SHORTCUTS
 

@@ -15,9 +15,10 @@ These are the readable statement of the arithmetic. :func:`hconv.kernels.linsolv
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import DTypeLike
 
 
-def splitter(dtype) -> float:
+def splitter(dtype: DTypeLike) -> float:
     """Dekker's splitting factor 2**ceil(p/2) + 1 for a p-bit significand: 2**27 + 1 for float64,
     2**12 + 1 for float32."""
     p = np.finfo(dtype).nmant + 1

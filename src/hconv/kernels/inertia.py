@@ -15,9 +15,11 @@ A batch of N symmetric tensors is held as a :class:`Sym3` of six arrays of shape
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import NamedTuple
 
 import numpy as np
+from numpy.typing import DTypeLike
 
 
 class Sym3(NamedTuple):
@@ -30,10 +32,10 @@ class Sym3(NamedTuple):
     xz: np.ndarray
     yz: np.ndarray
 
-    def astype(self, dtype) -> Sym3:
+    def astype(self, dtype: DTypeLike) -> Sym3:
         return Sym3(*(np.asarray(c, dtype=dtype) for c in self))
 
-    def take(self, rows) -> Sym3:
+    def take(self, rows: slice | np.ndarray) -> Sym3:
         return Sym3(*(c[rows] for c in self))
 
     def matrices(self) -> np.ndarray:
@@ -47,7 +49,7 @@ class Sym3(NamedTuple):
         return m
 
 
-def max_abs(columns) -> np.ndarray:
+def max_abs(columns: Iterable[np.ndarray]) -> np.ndarray:
     """Elementwise max of |column| over a few ``(N,)`` columns (chained, no stacking copy)."""
     it = iter(columns)
     m = np.abs(next(it))
@@ -78,7 +80,7 @@ def principal_frame(I: Sym3) -> tuple[np.ndarray, np.ndarray]:
     return np.ascontiguousarray(S.T), np.moveaxis(R, 0, -1)
 
 
-def pinv_moments(S: np.ndarray, tol) -> tuple[np.ndarray, np.ndarray]:
+def pinv_moments(S: np.ndarray, tol: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """1/S for moments ``S`` ``(3, N)``, with every moment whose magnitude is at or below ``tol``
     (``(N,)`` or a scalar) set to 0: the pseudo-inverse in the principal frame. Returns the
     inverses (S's dtype) and the ``(3, N)`` mask of the moments dropped."""

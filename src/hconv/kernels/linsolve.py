@@ -11,6 +11,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+from numpy.typing import DTypeLike
 
 from hconv.kernels import eft
 from hconv.kernels.inertia import Sym3, max_abs, sum_sq
@@ -203,7 +204,7 @@ def scale_sym(I: Sym3, s: np.ndarray) -> Sym3:
     return Sym3(I.xx * sx * sx, I.yy * sy * sy, I.zz * sz * sz, I.xy * sx * sy, I.xz * sx * sz, I.yz * sy * sz)
 
 
-def _in_safe_range(arrays, dtype, skip_nan: bool = False) -> bool:
+def _in_safe_range(arrays: list[np.ndarray], dtype: DTypeLike, skip_nan: bool = False) -> bool:
     """True when every nonzero magnitude is within 2^±(maxexp/2.5): Dekker splits and their
     products can then neither overflow nor underflow, and no equilibration is needed. A NaN
     fails, unless ``skip_nan`` (rows without an answer); an infinity always fails."""
@@ -266,7 +267,7 @@ def _refine(I: Sym3, h: np.ndarray, steps: int | None, x0: np.ndarray | None = N
     other = ~fac.positive()
     I_o = I.take(other) if other.any() else None
 
-    def solve(rhs):
+    def solve(rhs: np.ndarray) -> np.ndarray:
         y = ldlt_solve(fac, rhs)
         if I_o is not None:
             y[:, other] = lapack_solve(I_o, rhs[:, other])

@@ -74,7 +74,9 @@ def solve(
         return _solve(sets, spec, method, precision, conv, diagnostics)
 
 
-def _solve(sets: dict, form: forms.Form, method, precision, conv: Conventions, diagnostics) -> core.Result:
+def _solve(
+    sets: dict, form: forms.Form, method: str, precision: int, conv: Conventions, diagnostics: bool
+) -> core.Result:
     # Names say what a quantity is about and the frame it is in: H_P_F is the momentum about P
     # (the point of the given I), in F, the frame of the given H (world, or body when q is
     # absent or --frame body); _B is the body frame; _C about the centre of mass.

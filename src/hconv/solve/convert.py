@@ -24,6 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from hconv.kernels import frames, linsolve
 from hconv.kernels.inertia import Sym3, max_abs, pinv_moments, principal_frame
@@ -51,7 +52,7 @@ class Result:
     null_dim: np.ndarray | None = None
 
     @property
-    def status(self):
+    def status(self) -> str | np.ndarray:
         """Status names, shape ``(N,)``, or one name for one body."""
         s = status.names(np.asarray(self.status_code))
         return str(s) if s.ndim == 0 else s
@@ -61,7 +62,7 @@ class Result:
         return status.counts(np.atleast_1d(self.status_code))
 
 
-def _as_float(name: str, a) -> np.ndarray:
+def _as_float(name: str, a: ArrayLike) -> np.ndarray:
     try:
         return np.asarray(a, dtype=np.float64)
     except (TypeError, ValueError) as exc:
@@ -69,9 +70,9 @@ def _as_float(name: str, a) -> np.ndarray:
 
 
 def convert(
-    H,
-    I,
-    r=None,
+    H: ArrayLike,
+    I: ArrayLike,
+    r: ArrayLike | None = None,
     *,
     method: str = "exact",
     precision: int = 64,
@@ -194,7 +195,19 @@ def convert_columns(
     return Result(w, residual, cond, code, m.unit, m.name, axis, dim)
 
 
-def _convert_blocks(n, opts, Isym, asym, H, r, w, cond, code, residual, deg) -> None:
+def _convert_blocks(
+    n: int,
+    opts: _BlockOptions,
+    Isym: Sym3,
+    asym: np.ndarray,
+    H: np.ndarray,
+    r: np.ndarray | None,
+    w: np.ndarray,
+    cond: np.ndarray,
+    code: np.ndarray,
+    residual: np.ndarray | None,
+    deg: _Degenerate | None,
+) -> None:
     for lo in range(0, n, BLOCK_ROWS):
         sl = slice(lo, min(n, lo + BLOCK_ROWS))
         _convert_block(
@@ -228,7 +241,18 @@ class _Degenerate:
     dim: np.ndarray  #: (n,) int8
 
 
-def _convert_block(o: _BlockOptions, I: Sym3, asym, H, r, w_out, cond_out, code_out, res_out, deg) -> None:
+def _convert_block(
+    o: _BlockOptions,
+    I: Sym3,
+    asym: np.ndarray,
+    H: np.ndarray,
+    r: np.ndarray | None,
+    w_out: np.ndarray,
+    cond_out: np.ndarray,
+    code_out: np.ndarray,
+    res_out: np.ndarray | None,
+    deg: _Degenerate | None,
+) -> None:
     """One block of rows, ``H`` and ``r`` ``(3, n)``; writes into the ``*_out`` views (and
     ``deg``'s, for pinv/lock)."""
     m, dtype = o.m, o.dtype
@@ -285,7 +309,7 @@ def _convert_block(o: _BlockOptions, I: Sym3, asym, H, r, w_out, cond_out, code_
         w, own = m.kernel(I.astype(dtype), H.astype(dtype), None if r_used is None else r_used.astype(dtype))
     for name, mask in own.items():
         flags[name] = flags[name] | mask if name in flags else mask
-    if dropped.any():
+    if deg is not None and dropped.any():
         flags["singular"] &= ~dropped  # a method's own singular flag does not apply to these rows
         w[:, dropped] = _pseudo_inverse(I.take(dropped), H[:, dropped], tol[dropped], o.diagonal, deg, dropped)
     no_answer = np.zeros(n, dtype=bool)

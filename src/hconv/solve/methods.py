@@ -68,7 +68,7 @@ def register(
     needs_r: bool = False,
     nan_on: set | None = None,
     error_k: dict | None = None,
-):
+) -> Callable[[Kernel], Kernel]:
     def deco(kernel: Kernel) -> Kernel:
         kw: dict = {"error_k": error_k}
         if nan_on is not None:
@@ -93,7 +93,7 @@ def get(name: str) -> Method:
     fails="singular I (ω = NaN); error grows as cond(I)·eps, like LAPACK's",
     error_k={64: 1.0, 32: 2.5},
 )
-def _exact(I, H, r):
+def _exact(I: Sym3, H: np.ndarray, r: np.ndarray | None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     fac = linsolve.ldlt_factor(I)
     w = linsolve.ldlt_solve(fac, H)
     # LDLᵀ without pivoting is only stable for positive definite I; the rest go to LU.
@@ -114,7 +114,7 @@ def _exact(I, H, r):
     "threshold; in float32 the rounding of the inputs themselves limits it",
     error_k={64: 0.0, 32: 2.5},
 )
-def _refined(I, H, r):
+def _refined(I: Sym3, H: np.ndarray, r: np.ndarray | None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     return linsolve.solve_refined(I, H), {}
 
 
@@ -127,7 +127,7 @@ def _refined(I, H, r):
     fails="singular I (ω = NaN); error grows as cond(I)·eps",
     error_k={64: 1.0, 32: 1.5},
 )
-def _lapack(I, H, r):
+def _lapack(I: Sym3, H: np.ndarray, r: np.ndarray | None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     return linsolve.lapack_solve(I, H), {}
 
 
@@ -141,7 +141,7 @@ def _lapack(I, H, r):
     nan_on={"invalid_input", "not_symmetric", "singular", "not_positive_definite"},
     error_k={64: 1.2, 32: 2.5},
 )
-def _cholesky(I, H, r):
+def _cholesky(I: Sym3, H: np.ndarray, r: np.ndarray | None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         l11 = np.sqrt(I.xx)
         l21, l31 = I.xy / l11, I.xz / l11
@@ -169,10 +169,10 @@ def _cholesky(I, H, r):
     nan_on={"invalid_input", "not_symmetric"},
     error_k={64: 6.0, 32: 3.0},
 )
-def _eigen(I, H, r):
+def _eigen(I: Sym3, H: np.ndarray, r: np.ndarray | None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     S, R = principal_frame(I)
     inv, zero = pinv_moments(S, singular_rtol(S.dtype) * np.max(np.abs(S), axis=0))
-    return frames.to_world(R, inv * frames.to_body(R, H)), {"singular": zero.any(axis=0)}
+    return frames.to_world(R, inv * frames.to_body(R, H)), {"singular": np.asarray(zero.any(axis=0))}
 
 
 @register(
@@ -184,13 +184,20 @@ def _eigen(I, H, r):
     fails="exact only when I is diagonal in the given axes; I_ii = 0 gives NaN",
     nan_on={"invalid_input", "not_symmetric"},
 )
-def _diagonal(I, H, r):
+def _diagonal(I: Sym3, H: np.ndarray, r: np.ndarray | None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     with np.errstate(divide="ignore", invalid="ignore"):
         w = H / np.stack([I.xx, I.yy, I.zz])
     return w, {}
 
 
-def _seed_formula(moments: np.ndarray, H: np.ndarray, r: np.ndarray):
+def _offset(r: np.ndarray | None) -> np.ndarray:
+    """The offset r of a method registered with needs_r (convert refuses to call it without)."""
+    if r is None:
+        raise ValueError("the document methods need the offset r")
+    return r
+
+
+def _seed_formula(moments: np.ndarray, H: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The seed's per-axis formula ω_i = (r_j² + r_k²) / I_i · H_i, all ``(3, N)``; result in m²/s.
 
     The seed writes the factor as |r - (r·x̂)x̂|² = |r|² - r_i²; the sum of the other two squares is
@@ -214,8 +221,8 @@ def _seed_formula(moments: np.ndarray, H: np.ndarray, r: np.ndarray):
     fails="not I⁻¹H and not in rad/s; r on an axis forces a component to 0 (status r_on_axis)",
     nan_on={"invalid_input", "not_symmetric"},
 )
-def _document(I, H, r):
-    w, on_axis = _seed_formula(np.stack([I.xx, I.yy, I.zz]), H, r)
+def _document(I: Sym3, H: np.ndarray, r: np.ndarray | None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    w, on_axis = _seed_formula(np.stack([I.xx, I.yy, I.zz]), H, _offset(r))
     return w, {"r_on_axis": on_axis}
 
 
@@ -230,9 +237,9 @@ def _document(I, H, r):
     "choice of axes (status frame_ambiguous); r on a principal axis (status r_on_axis)",
     nan_on={"invalid_input", "not_symmetric"},
 )
-def _document_principal(I, H, r):
+def _document_principal(I: Sym3, H: np.ndarray, r: np.ndarray | None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     S, R = principal_frame(I)
-    w_p, on_axis = _seed_formula(S, frames.to_body(R, H), frames.to_body(R, r))
+    w_p, on_axis = _seed_formula(S, frames.to_body(R, H), frames.to_body(R, _offset(r)))
     gap = np.minimum(S[1] - S[0], S[2] - S[1])
     repeated = gap <= REPEATED_RTOL * np.max(np.abs(S), axis=0)
     return frames.to_world(R, w_p), {"frame_ambiguous": repeated, "r_on_axis": on_axis}

@@ -31,13 +31,13 @@ PRODUCTS = ("tensor", "positive")
 QUAT_ORDERS = ("wxyz", "xyzw")
 
 
-def check_choice(option: str, value, allowed: tuple) -> None:
+def check_choice(option: str, value: object, allowed: tuple) -> None:
     """UsageError unless ``value`` is one of ``allowed``."""
     if value not in allowed:
         raise UsageError(f"{option} must be one of {', '.join(map(str, allowed))}, got {value!r}")
 
 
-def check_precision(precision) -> None:
+def check_precision(precision: object) -> None:
     if precision not in PRECISIONS:
         raise UsageError(f"--precision must be 64 or 32, got {precision!r}")
 

@@ -8,6 +8,7 @@ wins. Codes are small integers so that a status column costs one byte per row.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import DTypeLike
 
 #: Status names in order of precedence; the code of a status is its index.
 STATUSES: tuple[str, ...] = (
@@ -42,7 +43,7 @@ TRIANGLE_RTOL = 1e-9
 R_AXIS_RTOL = 1e-9
 
 
-def singular_rtol(dtype) -> float:
+def singular_rtol(dtype: DTypeLike) -> float:
     """The ratio |moment|min / |moment|max at or below which I counts as singular in ``dtype``."""
     return SINGULAR_RTOL_EPS * float(np.finfo(dtype).eps)
 

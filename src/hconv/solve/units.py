@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import functools
 import re
+from typing import Any
 
 import numpy as np
 
@@ -56,7 +57,7 @@ def _normal(unit: str) -> str:
 
 
 @functools.cache
-def _registry():
+def _registry() -> Any:
     try:
         import pint
     except ImportError:

@@ -59,7 +59,7 @@ def output_fields(job: Job) -> list[pa.Field]:
 
 
 def convert_table(
-    data,
+    data: pa.Table | pa.RecordBatch,
     method: str = "exact",
     precision: int = 64,
     diagnostics: bool = True,

@@ -11,6 +11,7 @@ pyarrow nor rich, so that ``hconv one`` stays quick.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 from hconv.errors import UsageError
 from hconv.solve import methods, options, units
@@ -18,7 +19,7 @@ from hconv.solve.options import Conventions
 from hconv.tables.sets import QUANTITY, all_names, quantity_of
 
 
-def _pairs(what: str, value) -> tuple:
+def _pairs(what: str, value: Any) -> tuple:
     """``value`` as a tuple of (name, value) string pairs: from a dict, or from pairs."""
     items = value.items() if isinstance(value, dict) else value
     try:

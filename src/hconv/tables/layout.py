@@ -14,6 +14,7 @@ is fixed by :meth:`Layout.resolve` from the first batch, before any batch is con
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sized
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -108,7 +109,7 @@ class Layout:
         return out, form.name
 
 
-def _list_size(col, g: Group, source: str) -> int | None:
+def _list_size(col: pa.Array, g: Group, source: str) -> int | None:
     """Values per row of list column ``col`` (all rows must agree; null rows are skipped), or
     None when every row is null."""
     if pa.types.is_fixed_size_list(col.type):
@@ -137,7 +138,7 @@ def _list_form(k: int, g: Group, source: str) -> forms.Form:
     return form
 
 
-def _list_values(col, g: Group, n: int, source: str) -> np.ndarray:
+def _list_values(col: pa.Array | None, g: Group, n: int, source: str) -> np.ndarray:
     """The list column's values ``(k, n)``, NaN for null rows; held to the group's size (set)."""
     size = g.size
     if size is None:
@@ -157,7 +158,7 @@ def _list_values(col, g: Group, n: int, source: str) -> np.ndarray:
     return values.T
 
 
-def _floats(col) -> np.ndarray:
+def _floats(col: pa.Array | pa.ChunkedArray) -> np.ndarray:
     """A numeric column or array as float64 with nulls as NaN, shape ``(N,)``."""
     if pa.types.is_null(col.type):
         return np.full(len(col), np.nan)
@@ -172,7 +173,7 @@ def _is_list(t: pa.DataType) -> bool:
     return pa.types.is_list(t) or pa.types.is_large_list(t) or pa.types.is_fixed_size_list(t)
 
 
-def _plural(items) -> str:
+def _plural(items: Sized) -> str:
     return "s" if len(items) > 1 else ""
 
 
@@ -190,9 +191,15 @@ def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
         )
     present = set(names)
     mapping = _mapping(job.mapping, present, source)
-    src = lambda n: mapping.get(n, n)  # noqa: E731 - the input's column for an hconv name
     used_elsewhere = set(mapping.values())
-    has = lambda n: src(n) in present and (n in mapping or n not in used_elsewhere)  # noqa: E731
+
+    def src(n: str) -> str:
+        """The input's column for an hconv name."""
+        return mapping.get(n, n)
+
+    def has(n: str) -> bool:
+        """The input has hconv's name n (a column that --map gave another name does not count)."""
+        return src(n) in present and (n in mapping or n not in used_elsewhere)
 
     groups = {}
     need = job.needs()
@@ -225,7 +232,7 @@ def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
     return Layout(groups, form, source, job.quat_order)
 
 
-def _mapping(pairs, present: set, source: str) -> dict:
+def _mapping(pairs: tuple, present: set, source: str) -> dict:
     """The Job's --map pairs (already checked against hconv's names) against this input."""
     for name, column in pairs:
         if column not in present:
@@ -233,7 +240,9 @@ def _mapping(pairs, present: set, source: str) -> dict:
     return dict(pairs)
 
 
-def _vector_group(name: str, schema, has, src, source: str, why: str | None) -> Group | None:
+def _vector_group(
+    name: str, schema: pa.Schema, has: Callable[[str], bool], src: Callable[[str], str], source: str, why: str | None
+) -> Group | None:
     """The set ``name`` if present; ``why`` (the reason it is needed) makes it required."""
     cols = VECTOR_SETS[name]
     found = [c for c in cols if has(c)]
@@ -268,7 +277,9 @@ def _vector_group(name: str, schema, has, src, source: str, why: str | None) -> 
     return None
 
 
-def _inertia_group(schema, has, src, source: str) -> tuple[str | None, Group]:
+def _inertia_group(
+    schema: pa.Schema, has: Callable[[str], bool], src: Callable[[str], str], source: str
+) -> tuple[str | None, Group]:
     """The one inertia form the schema holds, asking :mod:`hconv.solve.forms`' registry."""
     found = {}
     list_column = has("I") and _is_list(schema.field(src("I")).type)
@@ -313,7 +324,7 @@ def _inertia_group(schema, has, src, source: str) -> tuple[str | None, Group]:
     return name, Group("I", tuple(src(c) for c in form.columns), False, form.count)
 
 
-def _with_units(g: Group, schema: pa.Schema, options, mapping: dict) -> Group:
+def _with_units(g: Group, schema: pa.Schema, options: tuple, mapping: dict) -> Group:
     """``g`` with the unit of each of its values, from --unit, else field metadata, else SI."""
     back = {v: k for k, v in mapping.items()}  # column -> hconv name
     given = dict(options)
@@ -334,7 +345,7 @@ def _with_units(g: Group, schema: pa.Schema, options, mapping: dict) -> Group:
     return Group(g.name, g.columns, g.is_list, g.size, tuple(us), tuple(fs))
 
 
-def _check_unit_keys(options, groups: dict, present: set) -> None:
+def _check_unit_keys(options: tuple, groups: dict, present: set) -> None:
     known = set(groups) | {c for g in groups.values() for c in g.columns}
     for g in groups.values():
         if not g.is_list:

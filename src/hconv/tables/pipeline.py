@@ -63,7 +63,7 @@ class BackgroundWriter:
 
     _DONE = object()
 
-    def __init__(self, out, depth: int = 2):
+    def __init__(self, out: Output, depth: int = 2):
         self._out = out
         self._q: queue.Queue = queue.Queue(maxsize=depth)
         self._error: BaseException | None = None
@@ -90,7 +90,7 @@ class BackgroundWriter:
         self._thread.start()
         return self
 
-    def __exit__(self, exc_type, exc, tb) -> None:
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: object) -> None:
         if exc_type is not None:
             self._stop.set()
             while True:  # drop what is queued, so the sentinel fits
@@ -183,7 +183,7 @@ def convert_file(
     t0 = time.perf_counter()
     with open_input(src, fin, job) as inp, out, BackgroundWriter(out) as writer:
 
-        def one(batch):
+        def one(batch: pa.RecordBatch) -> pa.Table:
             return convert_table(batch, source=inp.name, job=job, plan=inp.plan)
 
         for table in ordered_map(one, inp.batches, threads):

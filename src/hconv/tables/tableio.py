@@ -76,7 +76,7 @@ class Input:
     def __enter__(self) -> Input:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
 
@@ -163,7 +163,7 @@ def _header_hint(names: list) -> str:
     return ""
 
 
-def _open_csv(path: str, name: str, job) -> Input:
+def _open_csv(path: str, name: str, job: Job) -> Input:
     if os.path.isdir(path):
         raise InputError(f"{name}: is a directory, not a CSV file")
     _sniff_csv(path, name)
@@ -199,7 +199,7 @@ def _open_csv(path: str, name: str, job) -> Input:
         raise
     total = os.fstat(f.fileno()).st_size
 
-    def batches():
+    def batches() -> Iterator[pa.RecordBatch]:
         while True:
             try:
                 batch = reader.read_next_batch()
@@ -240,7 +240,7 @@ def _csv_parse_error(path: str, name: str, exc: Exception) -> InputError:
     )
 
 
-def _csv_value_error(path: str, name: str, names: list, ropts, exc: Exception) -> InputError:
+def _csv_value_error(path: str, name: str, names: list, ropts: pacsv.ReadOptions, exc: Exception) -> InputError:
     """Turn pyarrow's conversion error into one naming the column, the value and its row."""
     u = _CSV_UTF8.search(str(exc))
     if u:
@@ -274,7 +274,7 @@ def _csv_value_error(path: str, name: str, names: list, ropts, exc: Exception) -
     )
 
 
-def _open_parquet(path: str, name: str, job) -> Input:
+def _open_parquet(path: str, name: str, job: Job) -> Input:
     if os.path.isdir(path):
         raise InputError(f"{name}: is a directory, not a Parquet file")
     try:
@@ -299,7 +299,7 @@ def _open_parquet(path: str, name: str, job) -> Input:
     plan = layout.plan(schema, job, name)
     done = [0]
 
-    def read_all():
+    def read_all() -> Iterator[pa.RecordBatch]:
         try:
             for batch in pf.iter_batches(batch_size=PARQUET_BATCH_ROWS):
                 done[0] += batch.num_rows
@@ -369,7 +369,7 @@ class Output:
             self._writer = (_CsvWriter if self.fmt == "csv" else _ParquetWriter)(self._tmp, table.schema)
         self._writer.write(table)
 
-    def __exit__(self, exc_type, exc, tb) -> None:
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: object) -> None:
         try:
             if self._writer is not None:
                 self._writer.close()
@@ -421,7 +421,7 @@ class _ParquetWriter:
         self._w.close()
 
 
-def _list_as_text(col):
+def _list_as_text(col: pa.ChunkedArray) -> pa.ChunkedArray | pa.Array:
     """A list column as text, ``[1.5, 2.0, 3.0]``, since CSV has no lists; other columns as they are."""
     t = col.type
     if not (pa.types.is_list(t) or pa.types.is_large_list(t) or pa.types.is_fixed_size_list(t)):

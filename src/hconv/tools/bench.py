@@ -78,7 +78,7 @@ def rounds(jobs: dict, repeats: int) -> dict:
     return {k: statistics.median(v) for k, v in times.items()}
 
 
-def _inputs(rows: int, seed: int):
+def _inputs(rows: int, seed: int) -> tuple[Sym3, np.ndarray, np.ndarray]:
     cols = make_scene(rows, seed=seed)
     I = Sym3(*(np.ascontiguousarray(cols[c]) for c in ("Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz")))
     H = np.ascontiguousarray(np.stack([cols[f"H{a}"] for a in "xyz"]))
@@ -86,13 +86,15 @@ def _inputs(rows: int, seed: int):
     return I, H, r
 
 
-def kernel_rates(I: Sym3, H: np.ndarray, r: np.ndarray, repeats: int, only=None) -> dict:
+def kernel_rates(
+    I: Sym3, H: np.ndarray, r: np.ndarray, repeats: int, only: str | tuple[str, ...] | None = None
+) -> dict:
     """Each method's own arithmetic over cache-sized blocks, as `convert` runs it, in rows/s;
     ``only`` ("exact/64", or several such keys) measures just those, in the same rounds."""
     n, jobs = H.shape[1], {}
-    only = {only} if isinstance(only, str) else only
+    keys = {only} if isinstance(only, str) else (set(only) if only is not None else None)
     for prec in PRECISIONS:
-        if only is not None and not any(k.endswith(f"/{prec}") for k in only):
+        if keys is not None and not any(k.endswith(f"/{prec}") for k in keys):
             continue
         dt = options.DTYPES[prec]
         blocks = [
@@ -104,7 +106,7 @@ def kernel_rates(I: Sym3, H: np.ndarray, r: np.ndarray, repeats: int, only=None)
             for lo in range(0, n, core.BLOCK_ROWS)
         ]
         for name, m in methods.METHODS.items():
-            if only is None or f"{name}/{prec}" in only:
+            if keys is None or f"{name}/{prec}" in keys:
                 jobs[f"{name}/{prec}"] = functools.partial(_each_block, m.kernel, blocks)
     return {k: n / v for k, v in rounds(jobs, repeats).items()}
 
@@ -130,7 +132,7 @@ def refined_by_cond(rows: int, repeats: int, seed: int = 0) -> dict:
     return out
 
 
-def _each_block(kernel, blocks) -> None:
+def _each_block(kernel: Callable, blocks: list) -> None:
     """Run ``kernel`` on every block and drop each answer, as ``convert`` does once it has copied
     it out: keeping all of them made the allocator hand the memory back and fault it in again on
     every repeat, which slowed the kernels (docs/measurements.md)."""
@@ -166,7 +168,7 @@ def compiled_loop(I: Sym3, H: np.ndarray) -> Callable[[], None] | None:
         return None
 
     @numba.njit(cache=False, fastmath=False)
-    def ldlt_loop(a, b, c, d, e, f, h, w):  # pragma: no cover - compiled
+    def ldlt_loop(a, b, c, d, e, f, h, w):  # type: ignore[no-untyped-def]  # numba infers the types
         for k in range(a.shape[0]):
             d1 = a[k]
             l21, l31 = d[k] / d1, e[k] / d1

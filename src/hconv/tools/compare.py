@@ -131,7 +131,7 @@ def compare_file(
     src_format: str | None = None,
     dst_format: str | None = None,
     force: bool = False,
-    job=None,
+    job: Job | None = None,
 ) -> Comparison:
     """Compare every method on the rows of ``src``; with ``dst``, also write the per-row figures
     (the input columns, then offdiag, r_axis, diff_<method>, angle_<method>), atomically."""

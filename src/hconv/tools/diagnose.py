@@ -33,6 +33,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -73,6 +74,10 @@ def _six(sets: dict, form: str) -> np.ndarray | None:
     return None if f.diagonal else f.as_six(sets["I"])
 
 
+#: How a hypothesis predicts ω from a batch's sets and form: ``(3, N)``, or None when it is exact's.
+Predict = Callable[[dict, str], np.ndarray | None]
+
+
 @dataclass(frozen=True)
 class Hypothesis:
     name: str
@@ -81,25 +86,25 @@ class Hypothesis:
     summary: str
 
 
-def _solve(sets, form, method="exact", **conv) -> np.ndarray:
+def _solve(sets: dict, form: str, method: str = "exact", **conv: Any) -> np.ndarray:
     res = bodies.solve(sets, form, method, 64, Conventions(**conv), diagnostics=False)
     return res.w.T
 
 
-def _transposed(sets, form):
+def _transposed(sets: dict, form: str) -> np.ndarray | None:
     return _solve({**sets, "q": _conjugate(sets["q"])}, form)
 
 
-def _ignored(sets, form):
+def _ignored(sets: dict, form: str) -> np.ndarray | None:
     return _solve({k: v for k, v in sets.items() if k != "q"}, form)
 
 
-def _flipped(sets, form):
+def _flipped(sets: dict, form: str) -> np.ndarray | None:
     return None if forms.get(form).diagonal else _solve(sets, form, products="positive")
 
 
-def _ordering(order):
-    def predict(sets, form):
+def _ordering(order: tuple) -> Predict:
+    def predict(sets: dict, form: str) -> np.ndarray | None:
         six = _six(sets, form)
         if six is None:
             return None
@@ -108,12 +113,12 @@ def _ordering(order):
     return predict
 
 
-def _pivot(sets, form):
+def _pivot(sets: dict, form: str) -> np.ndarray | None:
     return _solve(sets, form, about="pivot")
 
 
-def _method(name):
-    def predict(sets, form):
+def _method(name: str) -> Predict:
+    def predict(sets: dict, form: str) -> np.ndarray | None:
         if name == "diagonal" and forms.get(form).diagonal:
             return None  # the tensor is diagonal in the frame it is solved in: the same as exact
         return _solve(sets, form, name)
@@ -224,7 +229,12 @@ class Diagnoser:
 
 
 def diagnose_file(
-    src: str, *, src_format: str | None = None, tol: float = DEFAULT_TOL, job=None, progress=None
+    src: str,
+    *,
+    src_format: str | None = None,
+    tol: float = DEFAULT_TOL,
+    job: Job | None = None,
+    progress: Callable[[int, int | None], None] | None = None,
 ) -> Diagnosis:
     """Score every hypothesis on the rows of ``src`` (CSV or Parquet, "-" for stdin)."""
     import pyarrow as pa

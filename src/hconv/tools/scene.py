@@ -13,7 +13,10 @@ a rod at least 100).
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from hconv.errors import UsageError
 from hconv.kernels.frames import quaternion_matrix
@@ -22,20 +25,20 @@ KINDS = ("box", "cylinder", "rod", "sphere", "ellipsoid")
 SCENES = ("mix",) + KINDS
 
 
-def box_moments(m, a, b, c) -> np.ndarray:
+def box_moments(m: ArrayLike, a: ArrayLike, b: ArrayLike, c: ArrayLike) -> np.ndarray:
     """Solid box with edges a, b, c along x, y, z; shape ``(..., 3)``."""
     m, a, b, c = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (m, a, b, c)))
     return np.stack([m * (b * b + c * c), m * (a * a + c * c), m * (a * a + b * b)], axis=-1) / 12.0
 
 
-def cylinder_moments(m, radius, length) -> np.ndarray:
+def cylinder_moments(m: ArrayLike, radius: ArrayLike, length: ArrayLike) -> np.ndarray:
     """Solid cylinder with its axis along z; shape ``(..., 3)``."""
     m, R, L = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (m, radius, length)))
     side = m * (3.0 * R * R + L * L) / 12.0
     return np.stack([side, side, 0.5 * m * R * R], axis=-1)
 
 
-def sphere_moments(m, radius) -> np.ndarray:
+def sphere_moments(m: ArrayLike, radius: ArrayLike) -> np.ndarray:
     """Solid sphere; shape ``(..., 3)``."""
     m, R = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (m, radius)))
     i = 0.4 * m * R * R
@@ -55,7 +58,7 @@ def rotate_tensors(R: np.ndarray, moments: np.ndarray) -> np.ndarray:
     return 0.5 * (I + np.swapaxes(I, 1, 2))  # exactly symmetric despite rounding
 
 
-def ellipsoid_moments(m, a, b, c) -> np.ndarray:
+def ellipsoid_moments(m: ArrayLike, a: ArrayLike, b: ArrayLike, c: ArrayLike) -> np.ndarray:
     """Solid ellipsoid with semi-axes a, b, c along x, y, z; shape ``(..., 3)``."""
     m, a, b, c = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (m, a, b, c)))
     return np.stack([m * (b * b + c * c), m * (a * a + c * c), m * (a * a + b * b)], axis=-1) / 5.0
@@ -126,7 +129,9 @@ def make_scene(
     return cols
 
 
-def iter_scene(n: int, seed: int = 0, scene: str = "mix", cond_max: float = 1e3, chunk: int = 1 << 18):
+def iter_scene(
+    n: int, seed: int = 0, scene: str = "mix", cond_max: float = 1e3, chunk: int = 1 << 18
+) -> Iterator[dict[str, np.ndarray]]:
     """:func:`make_scene` in chunks of ``chunk`` rows, for bounded memory. The rows depend on the
     seed and the chunk size; the same call always gives the same rows."""
     rng = np.random.default_rng(seed)

@@ -21,6 +21,9 @@ from hconv.solve import convert as core
 from hconv.solve import methods
 from hconv.tools.scene import random_rotations, rotate_tensors
 
+#: A sweep point's bodies: I (n, 3, 3) [kg·m²], H (n, 3) [kg·m²/s], r (n, 3) [m].
+Bodies = tuple[np.ndarray, np.ndarray, np.ndarray]
+
 
 @dataclass(frozen=True)
 class Sweep:
@@ -34,7 +37,9 @@ class Sweep:
     log_x: bool = True
 
 
-def _bodies(rng, moments, *, rotate=True, r=None):
+def _bodies(
+    rng: np.random.Generator, moments: np.ndarray, *, rotate: bool = True, r: np.ndarray | None = None
+) -> Bodies:
     n = moments.shape[0]
     I = rotate_tensors(random_rotations(rng, n), moments) if rotate else np.stack([np.diag(m) for m in moments])
     H = rng.normal(size=(n, 3))
@@ -42,34 +47,38 @@ def _bodies(rng, moments, *, rotate=True, r=None):
     return I, H, r
 
 
-def slender_bodies(rng, n, c):
+def slender_bodies(rng: np.random.Generator, n: int, c: float) -> Bodies:
     """Physical rods and plates with cond(I) ≈ c: moments (1/c, 1, 1 + t/c), t in [0, 1);
     (I (n,3,3), H (n,3), r (n,3))."""
     e = np.full(n, 1.0 / c)
     return _bodies(rng, np.stack([e, np.ones(n), 1 + rng.random(n) * e], axis=1))
 
 
-def _scale(rng, n, s):
+def _scale(rng: np.random.Generator, n: int, s: float) -> Bodies:
     I, H, r = _bodies(rng, np.stack([np.full(n, 1.0), np.full(n, 2.0), np.full(n, 2.5)], axis=1))
     return I * s, H * s, r
 
 
-def _equal(rng, n, gap):  # two moments approach each other: a symmetric top in the limit
+def _equal(rng: np.random.Generator, n: int, gap: float) -> Bodies:
+    """Two moments approach each other: a symmetric top in the limit."""
     return _bodies(rng, np.stack([np.full(n, 1.0), np.full(n, 1.0 + gap), np.full(n, 1.5)], axis=1))
 
 
-def _axis(rng, n, d):  # r approaches a principal axis; I is diagonal so the given axes are principal
+def _axis(rng: np.random.Generator, n: int, d: float) -> Bodies:
+    """R approaches a principal axis; I is diagonal so the given axes are principal."""
     moments = np.stack([np.full(n, 1.0), np.full(n, 1.5), np.full(n, 2.0)], axis=1)
     r = np.stack([d * rng.uniform(0.5, 1, n), d * rng.uniform(0.5, 1, n), np.ones(n)], axis=1)
     return _bodies(rng, moments, rotate=False, r=r)
 
 
-def _triangle(rng, n, ratio):  # I3 = ratio · (I1 + I2): physical for ratio <= 1
+def _triangle(rng: np.random.Generator, n: int, ratio: float) -> Bodies:
+    """I3 = ratio · (I1 + I2): physical for ratio <= 1."""
     a, b = rng.uniform(0.5, 1, n), rng.uniform(0.5, 1, n)
     return _bodies(rng, np.stack([a, b, ratio * (a + b)], axis=1))
 
 
-def _zero(rng, n, e):  # one moment goes to zero: a rod in the limit (e = 0 exactly)
+def _zero(rng: np.random.Generator, n: int, e: float) -> Bodies:
+    """One moment goes to zero: a rod in the limit (e = 0 exactly)."""
     return _bodies(rng, np.stack([np.full(n, e), np.ones(n), np.ones(n) + e], axis=1))
 
 
@@ -97,7 +106,7 @@ def exact_solve(I: np.ndarray, H: np.ndarray) -> np.ndarray:
         a = [[Fraction(float(v)) for v in row] for row in I[k]]
         h = [Fraction(float(v)) for v in H[k]]
 
-        def det(m):
+        def det(m: list[list[Fraction]]) -> Fraction:
             return (
                 m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
                 - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
@@ -125,7 +134,9 @@ class Point:
     flagged: float  #: share of rows whose status is not ok
 
 
-def run(rows: int = 48, seed: int = 0, sweeps=SWEEPS, precisions=(64, 32)) -> list[Point]:
+def run(
+    rows: int = 48, seed: int = 0, sweeps: tuple[Sweep, ...] = SWEEPS, precisions: tuple[int, ...] = (64, 32)
+) -> list[Point]:
     """Run every method over every sweep; one :class:`Point` per (sweep point, method, precision)."""
     rng = np.random.default_rng(seed)
     points = []
