@@ -27,6 +27,11 @@ def test_bench_command_small_run_writes_tables_json_and_chart(tmp_path):
         assert met is None or met == (value >= required)
     out = proc.stdout.decode()
     assert "targets" in out and "document-principal" in out
+    # what users call comes first: hconv.convert against numpy.linalg.solve at 1, 100 and 10k rows
+    assert list(res["user"])[:3] == ["1", "100", "10000"] and out.index("what users call") < out.index("kernel")
+    assert all(t > 0 for times in res["user"].values() for t in times.values())
+    assert "numpy.linalg.solve / convert (N,3,3), one body" in names
+    assert "pyarrow read+append+write time / hconv convert time" in names
 
 
 def test_bench_rejects_other_chart_formats(tmp_path):

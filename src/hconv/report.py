@@ -116,10 +116,40 @@ def stability_tables(points: list[Point], sweeps: tuple[Sweep, ...], console: Co
             console.print(t)
 
 
+def _duration(s: float) -> str:
+    return f"{s * 1e6:.1f} µs" if s < 1e-3 else (f"{s * 1e3:.1f} ms" if s < 1 else f"{s:.2f} s")
+
+
+def user_table(user: dict, console: Console) -> None:
+    """What users call: numpy.linalg.solve's time per call on the same rows, and each
+    hconv.convert call as the ratio of that time to its own (above 1: faster than numpy)."""
+    if not user:
+        return
+    calls = list(dict.fromkeys(c for times in user.values() for c in times if c != "numpy.linalg.solve"))
+    t = Table(
+        title="what users call: numpy.linalg.solve time / hconv.convert time, same rows (above 1: faster)",
+        title_justify="left",
+        header_style="bold",
+    )
+    t.add_column("rows", justify="right")
+    t.add_column("solve", justify="right")
+    for c in calls:
+        t.add_column(c.replace("convert ", "").replace(", no residual", "\nno residual"), justify="right")
+    for n, times in user.items():
+        solve = times["numpy.linalg.solve"]
+        t.add_row(
+            n if not n.isdigit() else f"{int(n):,}",
+            _duration(solve),
+            *(f"{solve / times[c]:.2f}" if c in times else "" for c in calls),
+        )
+    console.print(t)
+
+
 def bench_tables(res: BenchResult, console: Console | None = None) -> None:
     """The benchmark: a row per method and precision, then the targets as measured ratios."""
     console = console or Console()
     console.print(f"[bold]hconv bench[/bold] · {res.rows:,} rows · {res.machine}")
+    user_table(res.user, console)
     conds = list(next(iter(res.accuracy.values())))
     t = Table(header_style="bold")
     for col in ("method", "prec", "kernel Mrows/s", "× lapack", "convert Mrows/s"):

@@ -48,6 +48,8 @@ class Result:
     accuracy: dict = field(default_factory=dict)  #: "method/64" -> {cond: [median, worst]}
     refined_by_cond: dict = field(default_factory=dict)  #: cond -> refined/64 kernel ÷ lapack/64 kernel
     baselines: dict = field(default_factory=dict)  #: named reference rates and times
+    #: what users call, against numpy.linalg.solve on the same rows: N -> call -> seconds per call
+    user: dict = field(default_factory=dict)
     targets: list = field(default_factory=list)  #: [name, measured ratio, required, met]
 
 
@@ -252,6 +254,92 @@ pq.write_table(t, sys.argv[2])
 """
 
 
+#: The sizes users call hconv.convert at: one body (a physics engine's step), a scene, a batch, a file.
+USER_SIZES = (1, 100, 10_000, 2_000_000)
+#: Rows per timed job, and the most calls in one, so that small calls are timed over many repeats
+#: while a job stays well under a second.
+_ROWS_PER_JOB, _MOST_CALLS = 200_000, 200
+
+
+def _stacks(n: int, seed: int, cond: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """n bodies as numpy users hold them: H (n, 3) [kg·m²/s] and I (n, 3, 3) [kg·m²]; the example
+    scene's mix, or bodies of exactly ``cond``."""
+    if cond is None:
+        cols = make_scene(n, seed=seed)
+        I3 = np.empty((n, 3, 3))
+        for (i, j), c in zip(
+            ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)), ("Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz")
+        ):
+            I3[:, i, j] = I3[:, j, i] = cols[c]
+        return np.column_stack([cols["Hx"], cols["Hy"], cols["Hz"]]), I3
+    I, H = cond_bodies(np.random.default_rng(seed), n, cond)
+    return np.ascontiguousarray(H.T), I.matrices()
+
+
+def _six(I3: np.ndarray) -> np.ndarray:
+    return np.stack([I3[:, 0, 0], I3[:, 1, 1], I3[:, 2, 2], I3[:, 0, 1], I3[:, 0, 2], I3[:, 1, 2]], axis=1)
+
+
+def _repeated(fn: Callable[[], object], k: int) -> Callable[[], None]:
+    def job() -> None:
+        for _ in range(k):
+            fn()
+
+    return job
+
+
+def _calls(h: np.ndarray, i3: np.ndarray, i6: np.ndarray) -> dict[str, Callable[[], object]]:
+    """The calls timed at one size; one body (h of shape (3,)) is passed unstacked, as a physics
+    engine calls it once per step."""
+    import hconv
+
+    rhs = h if h.ndim == 1 else h[..., None]
+    return {
+        "numpy.linalg.solve": lambda: np.linalg.solve(i3, rhs),
+        "convert (N,3,3)": lambda: hconv.convert(h, i3),
+        "convert (N,3,3), no residual": lambda: hconv.convert(h, i3, diagnostics=False),
+        "convert (N,6)": lambda: hconv.convert(h, i6),
+        "convert (N,6), no residual": lambda: hconv.convert(h, i6, diagnostics=False),
+    }
+
+
+def user_calls(rows: int, repeats: int, seed: int = 0) -> dict:
+    """``hconv.convert`` as users call it, against ``numpy.linalg.solve`` on the same rows: at each
+    of USER_SIZES up to ``rows``, I as an (N, 3, 3) stack and as (N, 6), with and without the
+    residual, and ``refined`` at cond 1e12. Seconds per call, keyed by size then call."""
+    import hconv
+
+    out: dict = {}
+    for n in [s for s in USER_SIZES if s <= rows]:
+        H, I3 = _stacks(n, seed)
+        I6 = _six(I3)
+        calls = _calls(H[0], I3[0], I6[0]) if n == 1 else _calls(H, I3, I6)
+        k = max(1, min(_MOST_CALLS, _ROWS_PER_JOB // n))
+        secs = rounds({name: _repeated(fn, k) for name, fn in calls.items()}, repeats)
+        out[str(n)] = {name: s / k for name, s in secs.items()}
+    n = min(rows, REFINED_ROWS)
+    H, I3 = _stacks(n, seed, cond=1e12)
+    secs = rounds(
+        {
+            "numpy.linalg.solve": lambda: np.linalg.solve(I3, H[..., None]),
+            "convert refined, no residual": lambda: hconv.convert(H, I3, method="refined", diagnostics=False),
+        },
+        repeats,
+    )
+    out[f"{n} at cond 1e12"] = secs
+    return out
+
+
+_PLAIN_IO = """
+import sys, numpy as np, pyarrow as pa, pyarrow.parquet as pq
+t = pq.read_table(sys.argv[1])
+zero = pa.array(np.zeros(t.num_rows))
+for c in ("wx", "wy", "wz", "residual", "cond", "status"):
+    t = t.append_column(c, zero)
+pq.write_table(t, sys.argv[2])
+"""
+
+
 def _roofline(src: str, dst: str) -> None:
     """hconv's own reading and writing of the same columns, with no computation at all."""
     import pyarrow as pa
@@ -271,6 +359,40 @@ def _roofline(src: str, dst: str) -> None:
             wr.write(pa.Table.from_arrays(list(batch.columns) + cols, schema=pa.schema(list(batch.schema) + fields)))
 
 
+#: What users call, as (size, call, required ratio numpy.linalg.solve time / call time): issue 13.
+USER_TARGETS = (
+    ("2000000", "convert (N,3,3), no residual", 10.0),
+    ("2000000", "convert (N,6), no residual", 10.0),
+    ("2000000", "convert (N,3,3)", 5.0),
+    ("2000000", "convert (N,6)", 5.0),
+    ("10000", "convert (N,3,3)", 2.0),
+    ("100", "convert (N,3,3)", 1 / 3),
+    ("1", "convert (N,3,3)", 0.1),
+)
+
+
+def user_targets(user: dict) -> list[list]:
+    """The targets for what users call, as [name, measured, required] rows: each a ratio of
+    numpy.linalg.solve's time to hconv's on the same rows (higher is better)."""
+    rows = []
+    for n, call, required in USER_TARGETS:
+        if n in user:
+            label = "one body" if n == "1" else f"N = {int(n):,}"
+            rows.append(
+                [f"numpy.linalg.solve / {call}, {label}", user[n]["numpy.linalg.solve"] / user[n][call], required]
+            )
+    refined = next((v for k, v in user.items() if k.endswith("at cond 1e12")), None)
+    if refined:
+        rows.append(
+            [
+                "numpy.linalg.solve / convert refined (no residual), cond 1e12",
+                refined["numpy.linalg.solve"] / refined["convert refined, no residual"],
+                3.0,
+            ]
+        )
+    return rows
+
+
 def run(
     rows: int = 2_000_000,
     repeats: int = 3,
@@ -283,6 +405,8 @@ def run(
     from hconv.tools import generate
 
     res = Result(rows=rows, machine=describe_machine())
+    log("what users call: hconv.convert against numpy.linalg.solve")
+    res.user = user_calls(rows, repeats, seed)
     log("generating inputs")
     I, H, r = _inputs(rows, seed)
     log("kernels")
@@ -308,12 +432,14 @@ def run(
         }
         jobs["roofline"] = lambda: _roofline(src, dst)
         jobs["plain script"] = _command([sys.executable, "-c", _PLAIN_SCRIPT, src, dst])
+        jobs["pyarrow read, append six, write"] = _command([sys.executable, "-c", _PLAIN_IO, src, dst])
         jobs["hconv convert"] = _command(hconv_cmd + ["convert", src, dst, "--force", "-q"])
         tiny, tiny_out = os.path.join(tmp, "tiny.parquet"), os.path.join(tmp, "tiny-out.parquet")
         generate.generate_file(tiny, 10, seed=seed)
         jobs["hconv start-up"] = _command(hconv_cmd + ["convert", tiny, tiny_out, "--force", "-q"])
         secs = rounds(jobs, repeats)
         roof, plain_s, hconv_cli_s = rows / secs.pop("roofline"), secs.pop("plain script"), secs.pop("hconv convert")
+        plain_io_s = secs.pop("pyarrow read, append six, write")
         startup_s = secs.pop("hconv start-up")
         res.convert = {k: rows / v for k, v in secs.items()}
         log("start-up")
@@ -329,6 +455,7 @@ def run(
             "io_roofline_rows_per_s": roof,
             "plain_script_s": plain_s,
             "hconv_convert_cli_s": hconv_cli_s,
+            "pyarrow_read_append_write_s": plain_io_s,
             "hconv_startup_s": startup_s,
             # what the plain-script ratio could be if hconv computed nothing at all
             "plain_script_ceiling": plain_s / (startup_s + rows / roof),
@@ -345,6 +472,8 @@ def run(
             res.baselines["peak_rss_mb"] = _peak_rss_mb(hconv_cmd + ["convert", big, dst, "--force", "-q"])
     k = res.kernel
     res.targets = [
+        *user_targets(res.user),
+        ["pyarrow read+append+write time / hconv convert time", plain_io_s / hconv_cli_s, 0.85],
         ["exact kernel / lapack kernel", k["exact/64"] / k["lapack/64"], 10.0],
         ["exact kernel / compiled loop (fresh processes)", (exact_fresh / compiled) if compiled else None, 0.5],
         ["refined kernel / lapack kernel", k["refined/64"] / k["lapack/64"], 3.0],
