@@ -245,7 +245,7 @@ def test_form_as_sym3_solves_to_the_matrix_answer(name, rng):
     form = forms.get(name)
     I, asym = form.as_sym3(_form_values(name, M))
     assert not asym.any() and all(c.flags.c_contiguous for c in I)
-    got = convert_columns(H.T, I, asym, form.diagonal).w
+    got = convert_columns(H.T, form, _form_values(name, M)).w
     assert rel_err(got, mp_solve(M, H)).max() < 4 * np.finfo(float).eps * 20
 
 

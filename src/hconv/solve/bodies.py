@@ -110,12 +110,10 @@ def _solve(
             H_solved = frames.momentum_about_com(H_P_B, m_C, r_CP, _given(v_B, "v"))
     if bad.any():
         H_solved = np.where(bad, np.nan, H_solved)  # status invalid_input, through core
-    I_sym, asym = solved_form.as_sym3(I_solved)
     res = core.convert_columns(
         H_solved,
-        I_sym,
-        asym,
-        solved_form.diagonal,
+        solved_form,
+        I_solved,
         r_B,
         method=method,
         precision=precision,

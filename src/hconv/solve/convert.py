@@ -122,12 +122,10 @@ def convert(
     elif m.needs_r:
         raise ValueError(f"method {method!r} needs the offset r [m]; pass r=...")
     form, values = forms.from_array(I)
-    I_sym, asym = form.as_sym3(values)
     res = convert_columns(
         H.T,
-        I_sym,
-        asym,
-        form.diagonal,
+        form,
+        values,
         None if r is None else r.T,
         method=method,
         precision=precision,
@@ -159,9 +157,8 @@ def _checked(method: str, precision: int, degenerate: str, degenerate_rtol: floa
 
 def convert_columns(
     H: np.ndarray,
-    I: Sym3,
-    asym: np.ndarray,
-    diagonal: bool,
+    form: forms.Form,
+    I: np.ndarray,
     r: np.ndarray | None = None,
     *,
     method: str = "exact",
@@ -172,9 +169,10 @@ def convert_columns(
     extra_k: float = 0.0,
 ) -> Result:
     """:func:`convert` on hconv's internal layout: ``H`` and ``r`` component-major ``(3, N)``,
-    I a :class:`Sym3` of ``(N,)`` columns with the ``(N,)`` mask ``asym`` of rows given as
-    non-symmetric nine numbers (:meth:`hconv.solve.forms.Form.as_sym3` makes both); ``diagonal``
-    when I holds principal moments in their own axes. Returns a stacked :class:`Result`.
+    I the ``(k, N)`` numbers of inertia ``form``. Each block of rows is read into :class:`Sym3`
+    columns by :meth:`hconv.solve.forms.Form.as_sym3` as it is converted, so the whole input is
+    never repacked and a block's reading happens while its rows are in cache. Returns a stacked
+    :class:`Result`.
     """
     m = _checked(method, precision, degenerate, degenerate_rtol)
     n = H.shape[1]
@@ -188,9 +186,9 @@ def convert_columns(
     deg = None
     if degenerate != "error":
         deg = _Degenerate(np.full((n, 3), np.nan), np.zeros(n, dtype=np.int8))
-    opts = _BlockOptions(m, dtype, diagonal, degenerate_rtol, extra_k)
+    opts = _BlockOptions(m, dtype, form.diagonal, degenerate_rtol, extra_k)
     with np.errstate(all="ignore"):  # every row that would warn gets a status instead
-        _convert_blocks(n, opts, I, asym, H, r, w, cond, code, residual, deg)
+        _convert_blocks(n, opts, form, I, H, r, w, cond, code, residual, deg)
     axis, dim = (None, None) if deg is None else (deg.axis, deg.dim)
     return Result(w, residual, cond, code, m.unit, m.name, axis, dim)
 
@@ -198,8 +196,8 @@ def convert_columns(
 def _convert_blocks(
     n: int,
     opts: _BlockOptions,
-    Isym: Sym3,
-    asym: np.ndarray,
+    form: forms.Form,
+    I: np.ndarray,
     H: np.ndarray,
     r: np.ndarray | None,
     w: np.ndarray,
@@ -212,8 +210,7 @@ def _convert_blocks(
         sl = slice(lo, min(n, lo + BLOCK_ROWS))
         _convert_block(
             opts,
-            Isym.take(sl),
-            asym[sl],
+            *form.as_sym3(I[:, sl]),
             H[:, sl],
             None if r is None else r[:, sl],
             w[sl],
