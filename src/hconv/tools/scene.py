@@ -49,7 +49,7 @@ def random_rotations(rng: np.random.Generator, n: int) -> np.ndarray:
     """``n`` uniformly random rotation matrices, shape ``(n, 3, 3)``: isotropic normal 4-vectors
     are uniform in direction, so their quaternions' rotations are uniform."""
     R, _ = quaternion_matrix(rng.normal(size=(n, 4)).T)
-    return np.ascontiguousarray(np.moveaxis(R, -1, 0))
+    return np.moveaxis(R, -1, 0)
 
 
 def rotate_tensors(R: np.ndarray, moments: np.ndarray) -> np.ndarray:
