@@ -81,13 +81,13 @@ class Job:
             raise UsageError(f"conventions must be a Conventions, got {type(self.conventions).__name__}")
         options.check_degenerate(self.conventions.degenerate, self.conventions.degenerate_rtol, self.method)
         options.check_choice("--quat-order", self.quat_order, options.QUAT_ORDERS)
-        if m.unit != methods.RAD_S and units.factor("w", self.omega_unit, "--omega-unit") != 1.0:
+        # an unknown unit fails now, not mid-run
+        w_factor = units.factor("w", self.omega_unit, "--omega-unit")
+        if m.unit != methods.RAD_S and w_factor != 1.0:
             raise UsageError(
                 f"--omega-unit {self.omega_unit}: method {self.method!r} gives {m.unit}, "
                 "which is not an angular velocity and cannot be converted"
             )
-        if m.unit == methods.RAD_S:
-            units.factor("w", self.omega_unit, "--omega-unit")  # an unknown unit fails now, not mid-run
 
     @property
     def unit(self) -> str:
