@@ -66,9 +66,24 @@ def test_eigenvalues_empty():
     assert eigenvalues(_sym(np.zeros((0, 3, 3)))).shape == (3, 0)
 
 
-def test_cos_series_matches_numpy_on_its_range():
-    from hconv.kernels.spectrum import _cos
+def test_largest_root_within_rounding_of_mpmath_on_every_r():
+    """The trig-free root c = cos(acos(r)/3) against a 40-digit one, over r in [-1, 1] and near its
+    ends, with the tensor built so that its r is exactly the one asked for."""
+    import mpmath
 
-    x = np.linspace(0.0, np.pi / 3, 200_001)
-    want = np.cos(x)
-    assert np.max(np.abs(_cos(x) - want) / np.spacing(want)) <= 2
+    from hconv.kernels.spectrum import _largest_root
+
+    mpmath.mp.dps = 40
+    r = np.concatenate([np.linspace(-1, 1, 801), [-1 + 1e-12, -1 + 1e-6, 1 - 1e-12, 1 - 1e-6]])
+    # diag(q + 2p·cos(θ/3 + 2πk/3)) has this r; in units where q = 3 and p = 1 the root is 3 + 2c
+    theta = [mpmath.acos(mpmath.mpf(float(x))) for x in r]
+    roots = [[3 + 2 * mpmath.cos(t / 3 + 2 * mpmath.pi * k / 3) for k in range(3)] for t in theta]
+    diag = np.array([[float(x) for x in row] for row in roots]).T
+    zero = np.zeros_like(diag[0])
+    hi, err = _largest_root(Sym3(diag[0], diag[1], diag[2], zero, zero, zero))
+    want = np.array([float(max(row)) for row in roots])
+    # The diagonal is rounded to float64, so r moves by about eps; near r = -1 that moves c by
+    # eps/√(1 − r²), which err covers: the bound must hold, and away from the ends one rounding.
+    assert np.all(np.abs(hi - want) <= err)
+    inner = np.abs(r) < 0.99
+    assert np.max(np.abs(hi - want)[inner] / np.spacing(want[inner])) <= 4

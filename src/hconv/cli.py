@@ -23,6 +23,7 @@ import typer
 from hconv.errors import HconvError, UsageError
 from hconv.kernels import allocator
 from hconv.solve import forms, options
+from hconv.solve.engines import ENGINES
 from hconv.solve.methods import METHODS
 from hconv.tables.formats import FORMATS
 from hconv.tools.scene import SCENES
@@ -75,6 +76,7 @@ if TYPE_CHECKING:  # for type checkers the choices are strings; typer needs the 
     Products = str
     Degenerate = str
     QuatOrder = str
+    Engine = str
 else:
     MethodName = _choices("MethodName", METHODS)
     Fmt = _choices("Fmt", FORMATS)
@@ -83,6 +85,7 @@ else:
     Products = _choices("Products", options.PRODUCTS)
     Degenerate = _choices("Degenerate", options.DEGENERATE_MODES)
     QuatOrder = _choices("QuatOrder", options.QUAT_ORDERS)
+    Engine = _choices("Engine", ENGINES)
 
 #: Every option of the run configuration (hconv.tables.job.Job), as the command line spells it:
 #: Job field (or Conventions field) -> (type, typer option). Commands take theirs through
@@ -147,6 +150,14 @@ JOB_OPTIONS = {
         ),
     ),
     "omega_unit": (str, typer.Option("rad/s", "--omega-unit", help="unit of ω: rad/s, deg/s, rpm, ...")),
+    "engine": (
+        Engine,
+        typer.Option(
+            "auto",
+            "--engine",
+            help="numpy, numba (pip install 'hconv\\[fast]') or python; auto: numba for large inputs when installed",
+        ),
+    ),
     "quat_order": (
         QuatOrder,
         typer.Option("wxyz", "--quat-order", help="order of a 4-value list column q (named columns need none)"),
@@ -366,7 +377,7 @@ def one(
 
 @app.command("convert")
 @friendly
-@job_options("method", "precision", *SCENE, *DEGENERATE, *COLUMNS, "omega_unit")
+@job_options("method", "precision", "engine", *SCENE, *DEGENERATE, *COLUMNS, "omega_unit")
 def convert_cmd(
     src: str = typer.Argument(..., metavar="IN", help="input .csv or .parquet, or - for stdin"),
     dst: str = typer.Argument(..., metavar="OUT", help="output .csv or .parquet, or - for stdout"),

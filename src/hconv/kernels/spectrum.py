@@ -57,18 +57,26 @@ def eigenvalues(I: Sym3) -> np.ndarray:
 
 
 def _largest_root(I: Sym3) -> tuple[np.ndarray, np.ndarray]:
-    """Largest eigenvalue of each symmetric tensor by the trigonometric formula, and a bound on its
-    rounding error; both ``(N,)``.
+    """Largest eigenvalue of each symmetric tensor from the trigonometric solution of its cubic,
+    with no trigonometric call, and a bound on its rounding error; both ``(N,)``.
 
     With q = tr/3, p² = ‖I − qE‖²_F / 6 and r = det((I − qE)/p) / 2, the largest root is
-    q + 2p·cos(acos(r)/3). acos is ill-conditioned near r = −1 (the two largest roots meet), where
-    the error grows to about p·eps / √(1 − r²), capped at p·√eps.
+    q + 2p·c with c = cos(acos(r)/3), the root in [1/2, 1] of 4c³ − 3c = r. Written c = 1/2 + u·t
+    with u = √(1 + r), t is the root of t² + (2u/3)·t³ = 1/6, smooth in u on [0, √2] (t from
+    0.408 to 0.354): its Taylor start and ROOT_NEWTON_STEPS Newton steps give c within one
+    rounding (tests/test_spectrum.py, against mpmath), where acos and cos cost several times more,
+    compiled or not (docs/measurements.md). Near r = −1 (the two largest roots meet) the answer is
+    ill-conditioned in r itself: the error grows to about p·eps / √(1 − r²), capped at p·√eps.
+    :func:`hconv.solve.rows.largest_root` is the same arithmetic for one row.
     """
-    # Scaled by a power of two near the largest entry (exact), so that squares and the
-    # determinant neither overflow nor underflow; the exponent is clamped so that s and 1/s stay
-    # finite for entries near 1e308 and for subnormal ones.
+    # Beyond ROOT_RANGE, scaled by a power of two near the largest entry (exact), so that squares
+    # and the determinant neither overflow nor underflow; the exponent is clamped so that s and
+    # 1/s stay finite for entries near 1e308 and for subnormal ones. Within it, not scaled: the
+    # row engines compute the same bits without a call to frexp, which stops compiled loops
+    # from running several rows at once.
     big = max_abs(I)
     s = np.ldexp(1.0, np.clip(np.frexp(np.where(big > 0, big, 1.0))[1], -1000, 1000))
+    s[(big >= 1.0 / ROOT_RANGE) & (big <= ROOT_RANGE)] = 1.0
     inv_s = 1.0 / s
     a, b, c, d, e, f = (comp * inv_s for comp in I)
     q = (a + b + c) * (1.0 / 3.0)
@@ -78,25 +86,23 @@ def _largest_root(I: Sym3) -> tuple[np.ndarray, np.ndarray]:
         ip = 1.0 / np.where(p > 0, p, 1.0)
         det = aq * (bq * cq - f * f) - d * (d * cq - f * e) + e * (d * f - bq * e)
         r = np.clip(det * (0.5 * ip * ip * ip), -1.0, 1.0)
-    hi = q + 2.0 * p * _cos(np.arccos(r) * (1.0 / 3.0))
+    u = np.sqrt(1.0 + r)
+    s0, s1, s2 = ROOT_START
+    t = s0 + u * (s1 + u * s2)
+    k = (2.0 / 3.0) * u
+    for _ in range(ROOT_NEWTON_STEPS):
+        t2 = t * t
+        t -= (t2 + k * t2 * t - (1.0 / 6.0)) / (2.0 * t + 3.0 * k * t2)
+    hi = q + p * (1.0 + 2.0 * (u * t))
     eps = np.finfo(np.float64).eps
     err = p * np.minimum(np.sqrt(eps), 16.0 * eps / np.sqrt(np.maximum(1.0 - r * r, eps))) + 8.0 * eps * np.abs(q)
     return hi * s, err * s
 
 
-#: Taylor coefficients of cos in powers of x², (-1)^k / (2k)!, k = 0..10, for |x| ≤ π/3.
-_COS = tuple((-1) ** k / math.factorial(2 * k) for k in range(11))
-
-
-def _cos(x: np.ndarray) -> np.ndarray:
-    """cos(x) for 0 ≤ x ≤ π/3, within a few ulps (the series' remainder there is below 1e-21).
-
-    numpy's own ``cos`` is libm's, not vectorised, and cost more than the rest of the root;
-    this series by Horner's rule is several times cheaper (docs/measurements.md).
-    """
-    y = x * x
-    c = np.full_like(y, _COS[-1])
-    for k in _COS[-2::-1]:
-        c *= y
-        c += k
-    return c
+#: The start for t(u) in :func:`_largest_root`: its Taylor series at u = 0 to second order,
+#: 1/√6 − u/18 + 5√6·u²/648, at most 4 % off on [0, √2].
+ROOT_START = (1.0 / math.sqrt(6.0), -1.0 / 18.0, 5.0 * math.sqrt(6.0) / 648.0)
+#: Tensors whose largest entry lies within [1/ROOT_RANGE, ROOT_RANGE] kg·m² are not rescaled.
+ROOT_RANGE = 2.0**128
+#: Newton doubles the correct digits each step: from 4 % four steps reach rounding.
+ROOT_NEWTON_STEPS = 4

@@ -58,6 +58,7 @@ def solve(
     precision: int = 64,
     conv: Conventions = Conventions(),
     diagnostics: bool = True,
+    engine: str = "auto",
 ) -> core.Result:
     """ω for every row of ``sets`` (see the module docstring); a stacked :class:`core.Result`.
 
@@ -71,11 +72,11 @@ def solve(
         if name not in sets:
             raise UsageError(f"this conversion needs the set {name!r}")
     with np.errstate(all="ignore"):  # extreme rows get statuses, never warnings
-        return _solve(sets, spec, method, precision, conv, diagnostics)
+        return _solve(sets, spec, method, precision, conv, diagnostics, engine)
 
 
 def _solve(
-    sets: dict, form: forms.Form, method: str, precision: int, conv: Conventions, diagnostics: bool
+    sets: dict, form: forms.Form, method: str, precision: int, conv: Conventions, diagnostics: bool, engine: str
 ) -> core.Result:
     # Names say what a quantity is about and the frame it is in: H_P_F is the momentum about P
     # (the point of the given I), in F, the frame of the given H (world, or body when q is
@@ -121,6 +122,7 @@ def _solve(
         degenerate=conv.degenerate,
         degenerate_rtol=conv.degenerate_rtol,
         extra_k=ROTATION_K if rotate_in else 0.0,
+        engine=engine,
     )
     w_B, axis_B, code = res.w, res.null_axis, res.status_code
     w_out, axis_out = w_B, axis_B

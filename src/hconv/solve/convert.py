@@ -30,7 +30,7 @@ from hconv.kernels import frames, linsolve
 from hconv.kernels.inertia import Sym3, max_abs, pinv_moments, principal_frame
 from hconv.kernels.metrics import relative_error
 from hconv.kernels.spectrum import eigenvalues
-from hconv.solve import forms, methods, options, status
+from hconv.solve import engines, forms, methods, options, rows, status
 
 #: Rows per kernel block: small enough that a block's temporaries stay in cache.
 BLOCK_ROWS = 16384
@@ -50,6 +50,8 @@ class Result:
     #: more than one was dropped; and how many axes were dropped, (N,) int8
     null_axis: np.ndarray | None = None
     null_dim: np.ndarray | None = None
+    #: the engine that converted the rows: numpy, numba or python (hconv.solve.engines)
+    engine: str = "numpy"
 
     @property
     def status(self) -> str | np.ndarray:
@@ -80,6 +82,7 @@ def convert(
     degenerate: str = "error",
     degenerate_rtol: float | None = None,
     extra_k: float = 0.0,
+    engine: str = "auto",
 ) -> Result:
     """Convert angular momentum to angular velocity with ``method``; see the module docstring.
 
@@ -96,6 +99,9 @@ def convert(
     about the dropped axis), status ``degenerate``, and fill ``null_axis`` and ``null_dim``.
     ``extra_k`` adds to the method's error constant K for the ``ill_conditioned`` test, for a
     caller that has already rounded H in a way that grows with cond (a frame rotation: 2).
+
+    ``engine`` (auto, numpy, numba or python) picks the code that converts; see
+    :mod:`hconv.solve.engines`. Every engine gives the same answers (docs/engines.md).
     """
     m = _checked(method, precision, degenerate, degenerate_rtol)
     H = _as_float("H", H)
@@ -133,6 +139,7 @@ def convert(
         degenerate=degenerate,
         degenerate_rtol=degenerate_rtol,
         extra_k=extra_k,
+        engine=engine,
     )
     if single:
         return Result(
@@ -144,6 +151,7 @@ def convert(
             res.method,
             None if res.null_axis is None else res.null_axis[0],
             None if res.null_dim is None else res.null_dim[0],
+            res.engine,
         )
     return res
 
@@ -167,6 +175,7 @@ def convert_columns(
     degenerate: str = "error",
     degenerate_rtol: float | None = None,
     extra_k: float = 0.0,
+    engine: str = "auto",
 ) -> Result:
     """:func:`convert` on hconv's internal layout: ``H`` and ``r`` component-major ``(3, N)``,
     I the ``(k, N)`` numbers of inertia ``form``. Each block of rows is read into :class:`Sym3`
@@ -178,6 +187,10 @@ def convert_columns(
     n = H.shape[1]
     if m.needs_r and r is None:
         raise ValueError(f"method {method!r} needs the offset r [m]; pass r=...")
+    covered = degenerate_rtol is None and form.name in _ROW_FORMS
+    used = engines.resolve(engine, n, method, precision, degenerate, not covered)
+    if used != "numpy":
+        return _convert_rows(used, m, form, I, H, diagnostics, extra_k)
     dtype = options.DTYPES[precision]
     w = np.empty((n, 3), dtype=dtype)
     cond = np.empty(n)
@@ -191,6 +204,81 @@ def convert_columns(
         _convert_blocks(n, opts, form, I, H, r, w, cond, code, residual, deg)
     axis, dim = (None, None) if deg is None else (deg.axis, deg.dim)
     return Result(w, residual, cond, code, m.unit, m.name, axis, dim)
+
+
+#: The forms the row engines read, and whether each is nine row-major numbers.
+_ROW_FORMS = {"sym6": False, "full9": True}
+
+
+def _convert_rows(
+    used: str, m: methods.Method, form: forms.Form, I: np.ndarray, H: np.ndarray, diagnostics: bool, extra_k: float
+) -> Result:
+    """:func:`convert_columns` by a row engine (``numba`` or ``python``); the rows it leaves
+    (``fallback``) are converted by the numpy engine and put in their places."""
+    n = H.shape[1]
+    I = np.asarray(I, dtype=np.float64)
+    H = np.asarray(H, dtype=np.float64)
+    w = np.empty((n, 3))
+    cond = np.empty(n)
+    code = np.empty(n, dtype=np.uint8)
+    residual = np.empty(n if diagnostics else 0)
+    fallback = np.zeros(n, dtype=bool)
+    k = extra_k + (m.error_k or {}).get(64, 0.0)
+    cond_limit = status.ILL_CONDITIONED_TOL / (k * float(np.finfo(np.float64).eps)) if k else np.inf
+    nine = _ROW_FORMS[form.name]
+    if used == "numba":
+        from hconv.solve import compiled  # numba's import: only here, when it runs
+
+        compiled.convert_rows(
+            I, nine, H, m.name == "refined", diagnostics, cond_limit, w, cond, code, residual, fallback
+        )
+    else:
+        _python_rows(I, nine, H, m.name == "refined", diagnostics, cond_limit, w, cond, code, residual, fallback)
+    rest = np.flatnonzero(fallback)
+    if rest.size:
+        sub = convert_columns(
+            H[:, rest], form, I[:, rest], method=m.name, diagnostics=diagnostics, extra_k=extra_k, engine="numpy"
+        )
+        w[rest], cond[rest], code[rest] = sub.w, sub.cond, sub.status_code
+        if sub.residual is not None:
+            residual[rest] = sub.residual
+    return Result(w, residual if diagnostics else None, cond, code, m.unit, m.name, engine=used)
+
+
+def _python_rows(
+    I: np.ndarray,
+    nine: bool,
+    H: np.ndarray,
+    refined: bool,
+    diagnostics: bool,
+    cond_limit: float,
+    w: np.ndarray,
+    cond: np.ndarray,
+    code: np.ndarray,
+    residual: np.ndarray,
+    fallback: np.ndarray,
+) -> None:
+    """:func:`hconv.solve.rows.convert_rows` interpreted, on Python floats (numpy scalars would
+    cost several times more per operation)."""
+    for i, (values, (h0, h1, h2)) in enumerate(zip(I.T.tolist(), H.T.tolist())):
+        if nine:
+            xx, yy, zz, xy, xz, yz, asym = rows.sym_of_nine(*values)
+        else:
+            (xx, yy, zz, xy, xz, yz), asym = values, False
+        if asym:
+            fallback[i] = True
+            continue
+        try:
+            w0, w1, w2, c, k, res, fb = rows.convert_one(
+                xx, yy, zz, xy, xz, yz, h0, h1, h2, refined, diagnostics, cond_limit
+            )
+        except (ZeroDivisionError, ValueError):  # Python raises where IEEE gives inf or NaN
+            fallback[i] = True
+            continue
+        w[i] = w0, w1, w2
+        cond[i], code[i], fallback[i] = c, k, fb
+        if diagnostics:
+            residual[i] = res
 
 
 def _convert_blocks(

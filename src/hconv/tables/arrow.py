@@ -90,7 +90,7 @@ def convert_table(
     if plan is None:
         plan = layout.plan(data.schema, job, source)
     sets, form = plan.read(data)
-    res = bodies.solve(sets, form, job.method, job.precision, job.conventions, job.diagnostics)
+    res = bodies.solve(sets, form, job.method, job.precision, job.conventions, job.diagnostics, job.engine)
     w = res.w
     scale = job.omega_scale
     if scale != 1.0:

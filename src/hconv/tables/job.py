@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from hconv.errors import UsageError
-from hconv.solve import methods, options, units
+from hconv.solve import engines, methods, options, units
 from hconv.solve.options import Conventions
 from hconv.tables.sets import QUANTITY, all_names, quantity_of
 
@@ -66,6 +66,7 @@ class Job:
     quat_order: str = "wxyz"
     omega_unit: str = "rad/s"
     observed: bool = False
+    engine: str = "auto"  #: auto, numpy, numba or python (hconv.solve.engines)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "mapping", _pairs("mapping", self.mapping))
@@ -81,6 +82,9 @@ class Job:
             raise UsageError(f"conventions must be a Conventions, got {type(self.conventions).__name__}")
         options.check_degenerate(self.conventions.degenerate, self.conventions.degenerate_rtol, self.method)
         options.check_choice("--quat-order", self.quat_order, options.QUAT_ORDERS)
+        engines.check_engine(self.engine)
+        if self.engine == "numba" and not engines.numba_installed():
+            raise UsageError("--engine numba needs numba: pip install 'hconv[fast]' (or use --engine auto)")
         # an unknown unit fails now, not mid-run
         w_factor = units.factor("w", self.omega_unit, "--omega-unit")
         if m.unit != methods.RAD_S and w_factor != 1.0:

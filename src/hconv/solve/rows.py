@@ -1,0 +1,516 @@
+"""The row engine: :func:`hconv.solve.convert.convert_columns` for one row at a time, in plain scalar Python.
+
+This is the code the compiled engine runs: :mod:`hconv.solve.compiled` hands these functions to
+numba, which turns :func:`convert_rows` into a loop over rows on both cores. Run interpreted
+(engine ``python``), the same code answers one body without numpy's per-call overhead. It is
+written for both: scalars and ``math`` only, no containers, every helper returns a tuple.
+
+It covers the common case and nothing else, and says so per row: the exact-family methods
+``exact`` and ``refined`` (:data:`METHODS`) on symmetric, finite, positive definite tensors, in
+float64, with ``degenerate="error"``. Every other row (not finite, not symmetric, not positive
+definite, principal moments too close for the closed form to decide, magnitudes beyond the safe
+range of the double-double residual, ω not finite or subnormal) is marked ``fallback`` and its
+caller converts it with the numpy engine, which handles them all. The statuses this engine sets
+itself are ``ok``, ``singular``, ``not_physical``, ``ill_conditioned`` and ``inaccurate``.
+
+Every operation is the numpy engine's (:mod:`hconv.kernels.linsolve`, :mod:`hconv.kernels.spectrum`,
+:mod:`hconv.kernels.metrics`), in the same order, so ω of ``exact``, ``cond`` and every status
+are the same bits. Two things differ by design, both documented in docs/engines.md: the
+refinement decides when to stop row by row, where the numpy engine decides per block of rows,
+so ``refined``'s ω and the ``residual`` reference can differ in the last bits (both within one
+rounding of I⁻¹H).
+
+Conventions and shapes are those of :mod:`hconv.solve.convert`: I is ``(k, N)`` in its form's
+value order (six numbers or nine row-major), H ``(3, N)`` [kg·m²/s], ω ``(N, 3)`` [rad/s].
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from hconv.kernels.eft import splitter
+from hconv.kernels.linsolve import MAX_REFINE_STEPS, STOP_TOL
+from hconv.kernels.spectrum import ROOT_NEWTON_STEPS, ROOT_RANGE, ROOT_START
+from hconv.solve.status import (
+    CODE,
+    ILL_CONDITIONED_TOL,
+    SINGULAR_RTOL_EPS,
+    SYMMETRY_RTOL,
+    TRIANGLE_RTOL,
+)
+
+#: The methods this engine computes; ``refined`` is code 1 in :func:`convert_rows`.
+METHODS = ("exact", "refined")
+
+prange = range  # the compiled engine makes this numba.prange: rows shared between the cores
+
+_EPS = float(np.finfo(np.float64).eps)
+_MAX = float(np.finfo(np.float64).max)
+_SPLIT = splitter(np.float64)
+_SINGULAR = SINGULAR_RTOL_EPS * _EPS
+#: ω below this magnitude is on the grid of subnormal numbers (status inaccurate): the numpy engine's test.
+_GRID = float(np.finfo(np.float64).smallest_subnormal) / ILL_CONDITIONED_TOL
+#: The double-double residual's safe range, :func:`hconv.kernels.linsolve._in_safe_range`'s.
+_SAFE = float(2.0 ** (np.finfo(np.float64).maxexp // 2.5))
+_SQRT_EPS = math.sqrt(_EPS)
+_TINY = _EPS * _EPS
+_STOP = STOP_TOL * STOP_TOL * _TINY
+_S0, _S1, _S2 = ROOT_START
+
+OK = CODE["ok"]
+SINGULAR = CODE["singular"]
+NOT_PHYSICAL = CODE["not_physical"]
+ILL_CONDITIONED = CODE["ill_conditioned"]
+INACCURATE = CODE["inaccurate"]
+
+
+def sym_of_nine(
+    a0: float, a1: float, a2: float, a3: float, a4: float, a5: float, a6: float, a7: float, a8: float
+) -> tuple[float, float, float, float, float, float, bool]:
+    """Nine row-major numbers: the six of their symmetric part, and whether they are not
+    symmetric (:func:`hconv.solve.forms._sym3_of_nine`'s test)."""
+    skew = max(max(abs(a1 - a3), abs(a2 - a6)), abs(a5 - a7))
+    scale = max(max(max(abs(a0), abs(a1)), max(abs(a2), abs(a3))), max(max(abs(a4), abs(a5)), max(abs(a6), abs(a7))))
+    scale = max(scale, abs(a8))
+    asym = skew > SYMMETRY_RTOL * scale or skew != skew  # NaN rows fall back too
+    return a0, a4, a8, 0.5 * (a1 + a3), 0.5 * (a2 + a6), 0.5 * (a5 + a7), asym
+
+
+def ldlt(xx: float, yy: float, zz: float, xy: float, xz: float, yz: float) -> tuple[float, ...]:
+    """:func:`hconv.kernels.linsolve.ldlt_factor`: ``(d1, d2, d3, l21, l31, l32)``."""
+    d1 = xx
+    l21 = xy / d1
+    l31 = xz / d1
+    d2 = yy - l21 * xy
+    t = yz - l31 * xy
+    l32 = t / d2
+    d3 = zz - l31 * xz
+    d3 -= t * l32
+    return d1, d2, d3, l21, l31, l32
+
+
+def ldlt_solve(
+    d1: float, d2: float, d3: float, l21: float, l31: float, l32: float, h0: float, h1: float, h2: float
+) -> tuple[float, float, float]:
+    """:func:`hconv.kernels.linsolve.ldlt_solve` for one right-hand side."""
+    y1 = h0
+    y2 = h1 - l21 * y1
+    y3 = h2 - l31 * y1
+    y3 -= l32 * y2
+    x2 = y3 / d3
+    x1 = y2 / d2
+    x1 -= l32 * x2
+    x0 = y1 / d1
+    x0 -= l21 * x1
+    x0 -= l31 * x2
+    return x0, x1, x2
+
+
+def largest_root(xx: float, yy: float, zz: float, xy: float, xz: float, yz: float) -> tuple[float, float]:
+    """:func:`hconv.kernels.spectrum._largest_root` for a tensor within its ROOT_RANGE (which it does
+    not rescale): the largest eigenvalue and its error bound. No branch, so that a compiled loop
+    over rows runs several at once."""
+    q = (xx + yy + zz) * (1.0 / 3.0)
+    aq, bq, cq = xx - q, yy - q, zz - q
+    p = math.sqrt((aq * aq + bq * bq + cq * cq + 2.0 * (xy * xy + xz * xz + yz * yz)) * (1.0 / 6.0))
+    ip = 1.0 / (p if p > 0 else 1.0)
+    det = aq * (bq * cq - yz * yz) - xy * (xy * cq - yz * xz) + xz * (xy * yz - bq * xz)
+    r = min(max(det * (0.5 * ip * ip * ip), -1.0), 1.0)
+    u = math.sqrt(1.0 + r)
+    # c = cos(acos(r)/3) = 1/2 + u·t, t the root of t² + (2u/3)·t³ = 1/6 (spectrum.py says why)
+    t = _S0 + u * (_S1 + u * _S2)
+    k = (2.0 / 3.0) * u
+    for _ in range(ROOT_NEWTON_STEPS):
+        t2 = t * t
+        t -= (t2 + k * t2 * t - (1.0 / 6.0)) / (2.0 * t + 3.0 * k * t2)
+    hi = q + p * (1.0 + 2.0 * (u * t))
+    err = p * min(_SQRT_EPS, 16.0 * _EPS / math.sqrt(max(1.0 - r * r, _EPS))) + 8.0 * _EPS * abs(q)
+    return hi, err
+
+
+def _safe(v: float) -> bool:
+    """True when |v| is 0 or within the double-double residual's safe range."""
+    m = abs(v)
+    return m == 0.0 or (m < _SAFE and m > 1.0 / _SAFE)
+
+
+def _split(a: float) -> tuple[float, float]:
+    c = _SPLIT * a
+    hi = c - (c - a)
+    return hi, a - hi
+
+
+def _dot_row(
+    s: float,
+    a0: float,
+    a1: float,
+    a2: float,
+    x0: float,
+    x1: float,
+    x2: float,
+    xh0: float,
+    xh1: float,
+    xh2: float,
+    xl0: float,
+    xl1: float,
+    xl2: float,
+) -> float:
+    """``s − (a0·x0 + a1·x1 + a2·x2)`` in double the precision: one row of
+    :func:`hconv.kernels.linsolve.residual_dd`, operation for operation."""
+    err = 0.0
+    for j in range(3):
+        if j == 0:
+            a, xj, xhj, xlj = a0, x0, xh0, xl0
+        elif j == 1:
+            a, xj, xhj, xlj = a1, x1, xh1, xl1
+        else:
+            a, xj, xhj, xlj = a2, x2, xh2, xl2
+        ah, al = _split(a)
+        p = a * xj
+        e = ah * xhj - p
+        e += ah * xlj
+        e += al * xhj
+        e += al * xlj
+        s_new = s - p
+        bb = s_new - s
+        q = s - (s_new - bb)
+        bb += p
+        q -= bb
+        if j == 0:
+            err = q - e
+        else:
+            q -= e
+            err += q
+        s = s_new
+    return err + s
+
+
+def refine_step(
+    xx: float,
+    yy: float,
+    zz: float,
+    xy: float,
+    xz: float,
+    yz: float,
+    f: tuple[float, float, float, float, float, float],
+    h0: float,
+    h1: float,
+    h2: float,
+    x0: float,
+    x1: float,
+    x2: float,
+) -> tuple[float, float, float, float]:
+    """One step of :func:`hconv.kernels.linsolve._refine` for one positive definite row (factors
+    ``f``): x corrected by the solve of its double-double residual, and the correction's size
+    relative to x, squared. No branch."""
+    d1, d2, d3, l21, l31, l32 = f
+    xh0, xl0 = _split(x0)
+    xh1, xl1 = _split(x1)
+    xh2, xl2 = _split(x2)
+    r0 = _dot_row(h0, xx, xy, xz, x0, x1, x2, xh0, xh1, xh2, xl0, xl1, xl2)
+    r1 = _dot_row(h1, xy, yy, yz, x0, x1, x2, xh0, xh1, xh2, xl0, xl1, xl2)
+    r2 = _dot_row(h2, xz, yz, zz, x0, x1, x2, xh0, xh1, xh2, xl0, xl1, xl2)
+    dx0, dx1, dx2 = ldlt_solve(d1, d2, d3, l21, l31, l32, r0, r1, r2)
+    x0 += dx0
+    x1 += dx1
+    x2 += dx2
+    c = dx0 * dx0 + dx1 * dx1 + dx2 * dx2
+    c /= x0 * x0 + x1 * x1 + x2 * x2
+    return x0, x1, x2, c
+
+
+def refine_on(
+    xx: float,
+    yy: float,
+    zz: float,
+    xy: float,
+    xz: float,
+    yz: float,
+    f: tuple[float, float, float, float, float, float],
+    h0: float,
+    h1: float,
+    h2: float,
+    x0: float,
+    x1: float,
+    x2: float,
+    c: float,
+) -> tuple[float, float, float]:
+    """The rest of :func:`refine` after its first step (which gave ``x`` and ``c``)."""
+    # _refine's stopping rule applied to this row alone: stop when the next correction is
+    # predicted below STOP_TOL·eps, or when a correction fails to shrink fourfold.
+    if not c < 0.25:
+        return x0, x1, x2
+    pred = c * c
+    for _ in range(1, MAX_REFINE_STEPS):
+        if not (pred > _STOP and c > _TINY):
+            break
+        prev = c
+        x0, x1, x2, c = refine_step(xx, yy, zz, xy, xz, yz, f, h0, h1, h2, x0, x1, x2)
+        ratio = c / prev
+        if not ratio < 0.25:
+            break
+        pred = c * ratio
+    return x0, x1, x2
+
+
+def refine(
+    xx: float,
+    yy: float,
+    zz: float,
+    xy: float,
+    xz: float,
+    yz: float,
+    f: tuple[float, float, float, float, float, float],
+    h0: float,
+    h1: float,
+    h2: float,
+    x0: float,
+    x1: float,
+    x2: float,
+) -> tuple[float, float, float]:
+    """:func:`hconv.kernels.linsolve._refine` from ``x`` for one positive definite row."""
+    x0, x1, x2, c = refine_step(xx, yy, zz, xy, xz, yz, f, h0, h1, h2, x0, x1, x2)
+    return refine_on(xx, yy, zz, xy, xz, yz, f, h0, h1, h2, x0, x1, x2, c)
+
+
+def relative_error(x0: float, x1: float, x2: float, r0: float, r1: float, r2: float) -> float:
+    """:func:`hconv.kernels.metrics.relative_error` for one row."""
+    d0, d1, d2 = x0 - r0, x1 - r1, x2 - r2
+    unit = max(max(abs(r0), abs(r1)), abs(r2))
+    if not (unit > 0 and unit <= _MAX):
+        unit = 1.0
+    d0, d1, d2, r0, r1, r2 = d0 / unit, d1 / unit, d2 / unit, r0 / unit, r1 / unit, r2 / unit
+    num = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    den = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+    if den > 0:
+        return num / den
+    return 0.0 if num == 0 else math.inf
+
+
+def numbers(
+    xx: float, yy: float, zz: float, xy: float, xz: float, yz: float, h0: float, h1: float, h2: float
+) -> tuple[float, float, float, float, float, float, float, float, float, float, float, float]:
+    """The arithmetic of one row, with no branch: ``(hi, hi_err, lo, d1, d2, d3, l21, l31, l32,
+    w0, w1, w2)``: the largest and smallest principal moments (spectrum.eigenvalues' closed form,
+    meaningful where the pivots are positive), the LDLᵀ factors and the LDLᵀ answer."""
+    d1, d2, d3, l21, l31, l32 = ldlt(xx, yy, zz, xy, xz, yz)
+    hi, hi_err = largest_root(xx, yy, zz, xy, xz, yz)
+    tr = xx + yy + zz
+    inv = 1.0 / hi
+    s = (tr - hi) * inv
+    p = (d1 * inv) * (d2 * inv) * (d3 * inv)
+    root = math.sqrt(max(s * s - 4.0 * p, 0.0))
+    lo = (2.0 * p / (s + root)) * hi
+    w0, w1, w2 = ldlt_solve(d1, d2, d3, l21, l31, l32, h0, h1, h2)
+    return hi, hi_err, lo, d1, d2, d3, l21, l31, l32, w0, w1, w2
+
+
+def decide(
+    xx: float,
+    yy: float,
+    zz: float,
+    xy: float,
+    xz: float,
+    yz: float,
+    h0: float,
+    h1: float,
+    h2: float,
+    hi: float,
+    hi_err: float,
+    lo: float,
+    f: tuple[float, float, float, float, float, float],
+    w0: float,
+    w1: float,
+    w2: float,
+    step: tuple[float, float, float, float],
+    refined: bool,
+    diagnostics: bool,
+    cond_limit: float,
+) -> tuple[float, float, float, float, int, float, bool]:
+    """One row from its :func:`numbers` and the first :func:`refine_step` from their ω (``step``,
+    used by ``refined`` and ``diagnostics`` only): ``(w0, w1, w2, cond, status code, residual,
+    fallback)``; with ``fallback`` True the rest is meaningless and the caller converts the row
+    with the numpy engine."""
+    nan = math.nan
+    no = (nan, nan, nan, nan, OK, nan, True)
+    # x·0 is 0 for a finite x and NaN for NaN or an infinity (max and comparisons would skip a NaN)
+    if (xx + yy + zz + xy + xz + yz + h0 + h1 + h2) * 0.0 != 0.0:
+        return no
+    big = max(max(max(abs(xx), abs(yy)), max(abs(zz), abs(xy))), max(abs(xz), abs(yz)))
+    d1, d2, d3, l21, l31, l32 = f
+    if not (big >= 1.0 / ROOT_RANGE and big <= ROOT_RANGE and min(min(d1, d2), d3) > 0 and abs(l32) <= _MAX):
+        return no
+    tr = xx + yy + zz
+    margin = abs(2.0 * hi - tr)
+    if not (abs(lo) <= _MAX and lo > 0 and margin > 1e-9 * tr + 4.0 * hi_err):
+        return no  # the closed form cannot decide: the numpy engine asks LAPACK
+    mid = tr - hi - lo
+    a0, a1, a2 = abs(lo), abs(mid), abs(hi)
+    top = max(a0, a2)
+    small = min(min(a0, a1), a2)
+    cond = top / small if small > 0 else math.inf
+    code = OK
+    if cond > cond_limit:
+        code = ILL_CONDITIONED
+    if hi - mid - lo > TRIANGLE_RTOL * (a0 + a1 + a2):
+        code = NOT_PHYSICAL
+    if small <= _SINGULAR * top:
+        return nan, nan, nan, cond, SINGULAR, nan, False  # no answer, so no residual either
+    safe = _safe(xx) and _safe(yy) and _safe(zz) and _safe(xy) and _safe(xz) and _safe(yz)
+    safe = safe and _safe(h0) and _safe(h1) and _safe(h2)
+    if refined:
+        if not safe:
+            return no
+        w0, w1, w2 = refine_on(xx, yy, zz, xy, xz, yz, f, h0, h1, h2, step[0], step[1], step[2], step[3])
+    wmax = max(max(abs(w0), abs(w1)), abs(w2))
+    if not ((w0 + w1 + w2) * 0.0 == 0.0 and (wmax == 0 or wmax >= _GRID)):
+        return no  # overflow, or subnormal ω (inaccurate): the numpy engine's rules
+    res = nan
+    if diagnostics:
+        if not safe:
+            return no
+        if refined:  # the reference starts from the refined answer
+            x0, x1, x2 = refine(xx, yy, zz, xy, xz, yz, f, h0, h1, h2, w0, w1, w2)
+        else:  # from LDLᵀ's answer, where the first step has been taken
+            x0, x1, x2 = refine_on(xx, yy, zz, xy, xz, yz, f, h0, h1, h2, step[0], step[1], step[2], step[3])
+        if not (_safe(x0) and _safe(x1) and _safe(x2)):
+            return no
+        res = relative_error(w0, w1, w2, x0, x1, x2)
+        if res > ILL_CONDITIONED_TOL and (code == OK or code > INACCURATE):
+            code = INACCURATE
+    return w0, w1, w2, cond, code, res, False
+
+
+def convert_one(
+    xx: float,
+    yy: float,
+    zz: float,
+    xy: float,
+    xz: float,
+    yz: float,
+    h0: float,
+    h1: float,
+    h2: float,
+    refined: bool,
+    diagnostics: bool,
+    cond_limit: float,
+) -> tuple[float, float, float, float, int, float, bool]:
+    """One row, as :func:`decide` returns it."""
+    hi, hi_err, lo, d1, d2, d3, l21, l31, l32, w0, w1, w2 = numbers(xx, yy, zz, xy, xz, yz, h0, h1, h2)
+    f = (d1, d2, d3, l21, l31, l32)
+    step = (math.nan, math.nan, math.nan, math.nan)
+    if refined or diagnostics:
+        step = refine_step(xx, yy, zz, xy, xz, yz, f, h0, h1, h2, w0, w1, w2)
+    return decide(
+        xx, yy, zz, xy, xz, yz, h0, h1, h2, hi, hi_err, lo, f, w0, w1, w2, step, refined, diagnostics, cond_limit
+    )
+
+
+#: Rows per chunk of :func:`convert_rows`: its scratch (25 numbers a row) stays in the L1 cache.
+CHUNK = 128
+
+
+def _numbers_chunk(a: np.ndarray, m: int) -> None:
+    """:func:`numbers` of the ``m`` rows in scratch ``a``: inputs in columns 0–8 of CHUNK numbers
+    each, results into columns 9–20. One flat array, indexed by constant offsets, so that the
+    compiler can prove the columns apart and run several rows at once (SIMD)."""
+    for j in range(m):
+        (
+            a[9 * CHUNK + j],
+            a[10 * CHUNK + j],
+            a[11 * CHUNK + j],
+            a[12 * CHUNK + j],
+            a[13 * CHUNK + j],
+            a[14 * CHUNK + j],
+            a[15 * CHUNK + j],
+            a[16 * CHUNK + j],
+            a[17 * CHUNK + j],
+            a[18 * CHUNK + j],
+            a[19 * CHUNK + j],
+            a[20 * CHUNK + j],
+        ) = numbers(
+            a[j],
+            a[CHUNK + j],
+            a[2 * CHUNK + j],
+            a[3 * CHUNK + j],
+            a[4 * CHUNK + j],
+            a[5 * CHUNK + j],
+            a[6 * CHUNK + j],
+            a[7 * CHUNK + j],
+            a[8 * CHUNK + j],
+        )
+
+
+def _step_chunk(a: np.ndarray, m: int) -> None:
+    """:func:`refine_step` from the LDLᵀ answer of the ``m`` rows in scratch ``a`` (as
+    :func:`_numbers_chunk` left it), into columns 21–24."""
+    for j in range(m):
+        f = (
+            a[12 * CHUNK + j], a[13 * CHUNK + j], a[14 * CHUNK + j],
+            a[15 * CHUNK + j], a[16 * CHUNK + j], a[17 * CHUNK + j],
+        )  # fmt: skip
+        a[21 * CHUNK + j], a[22 * CHUNK + j], a[23 * CHUNK + j], a[24 * CHUNK + j] = refine_step(
+            a[j], a[CHUNK + j], a[2 * CHUNK + j], a[3 * CHUNK + j], a[4 * CHUNK + j], a[5 * CHUNK + j], f,
+            a[6 * CHUNK + j], a[7 * CHUNK + j], a[8 * CHUNK + j],
+            a[18 * CHUNK + j], a[19 * CHUNK + j], a[20 * CHUNK + j],
+        )  # fmt: skip
+
+
+def convert_rows(
+    I: np.ndarray,
+    nine: bool,
+    H: np.ndarray,
+    refined: bool,
+    diagnostics: bool,
+    cond_limit: float,
+    w: np.ndarray,
+    cond: np.ndarray,
+    code: np.ndarray,
+    residual: np.ndarray,
+    fallback: np.ndarray,
+) -> None:
+    """Every row of ``I`` ``(6, N)`` or, with ``nine``, ``(9, N)`` row-major, and ``H`` ``(3, N)``,
+    into ``w`` ``(N, 3)``, ``cond``, ``code``, ``residual`` (written only with ``diagnostics``) and
+    ``fallback`` ``(N,)``, which marks the rows left for the numpy engine.
+
+    Chunk by chunk: the inputs into a scratch block, then :func:`numbers` and (for ``refined``
+    and ``diagnostics``) the first :func:`refine_step`, in loops with no branch (the compiler
+    runs several rows at once), then :func:`decide` row by row.
+    """
+    n = H.shape[1]
+    for c in prange((n + CHUNK - 1) // CHUNK):
+        start = c * CHUNK
+        m = min(CHUNK, n - start)
+        a = np.empty(25 * CHUNK)
+        asym = np.zeros(CHUNK, dtype=np.bool_)
+        for j in range(m):
+            i = start + j
+            if nine:
+                xx, yy, zz, xy, xz, yz, asym[j] = sym_of_nine(
+                    I[0, i], I[1, i], I[2, i], I[3, i], I[4, i], I[5, i], I[6, i], I[7, i], I[8, i]
+                )
+            else:
+                xx, yy, zz, xy, xz, yz = I[0, i], I[1, i], I[2, i], I[3, i], I[4, i], I[5, i]
+            a[j], a[CHUNK + j], a[2 * CHUNK + j] = xx, yy, zz
+            a[3 * CHUNK + j], a[4 * CHUNK + j], a[5 * CHUNK + j] = xy, xz, yz
+            a[6 * CHUNK + j], a[7 * CHUNK + j], a[8 * CHUNK + j] = H[0, i], H[1, i], H[2, i]
+        _numbers_chunk(a, m)
+        if refined or diagnostics:
+            _step_chunk(a, m)
+        for j in range(m):
+            i = start + j
+            if asym[j]:
+                fallback[i] = True
+                continue
+            v = a[j::CHUNK]  # the row's 25 numbers
+            f = (v[12], v[13], v[14], v[15], v[16], v[17])
+            w0, w1, w2, cj, k, res, fb = decide(
+                v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8], v[9], v[10], v[11],
+                f, v[18], v[19], v[20], (v[21], v[22], v[23], v[24]), refined, diagnostics, cond_limit,
+            )  # fmt: skip
+            w[i, 0], w[i, 1], w[i, 2] = w0, w1, w2
+            cond[i], code[i], fallback[i] = cj, k, fb
+            if diagnostics:
+                residual[i] = res
