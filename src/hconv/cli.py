@@ -524,6 +524,34 @@ def bench_cmd(
         print(f"chart written to {chart}", file=sys.stderr)
 
 
+@app.command("engines")
+@friendly
+def engines_cmd(
+    compile_now: bool = typer.Option(
+        False, "--compile", help="compile the numba engine now (once per machine), so that auto can use it"
+    ),
+) -> None:
+    """List the engines that convert rows, and whether the compiled one is installed and compiled."""
+    from hconv.solve import engines
+
+    if compile_now:
+        if not engines.numba_installed():
+            raise UsageError(f"--compile needs numba: {engines.NUMBA_FIX}")
+        from hconv.solve import compiled
+
+        print(f"compiled the numba engine in {compiled.warm():.1f} s")
+    installed = engines.numba_installed()
+    ready = installed and engines.compiled_ready()
+    numba_state = "not installed: " + engines.NUMBA_FIX
+    if installed:
+        numba_state = "installed, compiled" if ready else "installed, not compiled: run hconv engines --compile"
+    print("numpy   every method and option; always there (the reference)")
+    print("numba   exact and refined on tensors, in float64, on every core")
+    print(f"        {numba_state}")
+    print("python  the numba engine's code, interpreted: one body at a time")
+    print(f"auto    python for one body; numba for {engines.AUTO_MIN_ROWS:,}+ rows once compiled; else numpy")
+
+
 @app.command("methods")
 @friendly
 def methods_cmd(as_json: bool = typer.Option(False, "--json", help="print a JSON list")) -> None:

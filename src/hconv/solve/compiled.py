@@ -11,13 +11,18 @@ start as measured.
 
 from __future__ import annotations
 
+import json
+import os
+import time
 import types
 from collections.abc import Callable
-from typing import Any
+from pathlib import Path
+from typing import Any, Literal
 
 import numba
+import numpy as np
 
-from hconv.solve import rows
+from hconv.solve import engines, rows
 
 #: The functions of rows that are compiled; convert_rows last, as the one with the parallel loop.
 _COMPILED = (
@@ -41,7 +46,9 @@ _COMPILED = (
 )
 
 
-_LOOPS = ("_numbers_chunk", "_step_chunk", "convert_rows", "convert_one")
+#: Inlined where they are called: the arithmetic of the loops that run several rows at once
+#: (inlining the rest too made the first compile several times longer, docs/engines.md).
+_INLINE = ("ldlt", "ldlt_solve", "largest_root", "_split", "_dot_row", "numbers", "refine_step")
 
 
 def _compile() -> dict[str, Any]:
@@ -53,17 +60,50 @@ def _compile() -> dict[str, Any]:
         g.__module__, g.__qualname__ = f.__module__, f.__qualname__
         # error_model="numpy": a division by zero gives inf or NaN, as in the numpy engine,
         # instead of raising; fastmath stays off, so every operation rounds as written.
-        # The helpers are inlined where they are called (numba's inline="always"), so that a loop
+        # The arithmetic is inlined where it is called (numba's inline="always"), so that a loop
         # over rows is one body the compiler can run several rows of at once.
-        loop = name in _LOOPS
+        inline: Literal["always", "never"] = "always" if name in _INLINE else "never"
         space[name] = numba.njit(
-            cache=True,
-            nogil=True,
-            error_model="numpy",
-            parallel=name == "convert_rows",
-            inline="never" if loop else "always",
+            cache=True, nogil=True, error_model="numpy", parallel=name == "convert_rows", inline=inline
         )(g)
     return space
 
 
-convert_rows: Callable[..., None] = _compile()["convert_rows"]
+convert_rows: Callable[..., Any] = _compile()["convert_rows"]
+_marked = False
+
+
+def mark() -> None:
+    """Note, for :func:`hconv.solve.engines.compiled_ready`, that numba's cache now holds the row
+    code: the marker lists the cache's index files, so that it stops counting once they go."""
+    global _marked
+    if _marked:
+        return
+    _marked = True
+    path = engines.marker_path()
+    cache = Path(convert_rows.stats.cache_path)  # type: ignore[attr-defined]
+    index = sorted(str(p) for p in cache.glob("rows.convert_rows-*.nbi"))
+    if path.exists() or not index:  # no index: numba could not write its cache anywhere
+        return
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f".{path.name}.{os.getpid()}")
+        tmp.write_text(json.dumps({"index": index}))
+        os.replace(tmp, path)
+    except OSError:  # a read-only home: auto then keeps to numpy unless numba is asked for
+        return
+    engines.forget_ready()
+
+
+def warm() -> float:
+    """Compile (or load from the cache) the row code for the array layouts hconv passes it:
+    column-major stacks from ``hconv.convert``, row-major blocks from tables. Seconds taken."""
+    start = time.perf_counter()
+    n = 2
+    I = np.tile(np.array([2.0, 0.0, 0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 4.0]), (n, 1))
+    H = np.ones((n, 3))
+    for I_k, H_k in ((I.T, H.T), (np.ascontiguousarray(I.T), np.ascontiguousarray(H.T))):
+        outputs = (np.empty((n, 3)), np.empty(n), np.empty(n, np.uint8), np.empty(n), np.zeros(n, bool))
+        convert_rows(I_k, True, H_k, False, True, np.inf, *outputs)
+    mark()
+    return time.perf_counter() - start

@@ -21,6 +21,7 @@ Diagnostics per row:
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -200,8 +201,11 @@ def convert_columns(
     if degenerate != "error":
         deg = _Degenerate(np.full((n, 3), np.nan), np.zeros(n, dtype=np.int8))
     opts = _BlockOptions(m, dtype, form.diagonal, degenerate_rtol, extra_k)
+    start = time.perf_counter()
     with np.errstate(all="ignore"):  # every row that would warn gets a status instead
         _convert_blocks(n, opts, form, I, H, r, w, cond, code, residual, deg)
+    if covered and engines.covers(method, precision, degenerate, form.diagonal):
+        engines.spend(time.perf_counter() - start)  # auto's count of what numba would have saved
     axis, dim = (None, None) if deg is None else (deg.axis, deg.dim)
     return Result(w, residual, cond, code, m.unit, m.name, axis, dim)
 
@@ -232,6 +236,7 @@ def _convert_rows(
         compiled.convert_rows(
             I, nine, H, m.name == "refined", diagnostics, cond_limit, w, cond, code, residual, fallback
         )
+        compiled.mark()
     else:
         _python_rows(I, nine, H, m.name == "refined", diagnostics, cond_limit, w, cond, code, residual, fallback)
     rest = np.flatnonzero(fallback)

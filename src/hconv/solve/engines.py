@@ -10,11 +10,14 @@ numba    :mod:`hconv.solve.rows` compiled by numba (the ``hconv[fast]`` extra), 
          handed to the numpy engine row by row
 python   the same row code, interpreted: no numpy call per row, so the cheapest for one body;
          same scope as numba
-auto     ``python`` for a single row; ``numba`` when it is installed and the batch has at least
-         :data:`AUTO_MIN_ROWS` rows (or the compiled engine is already loaded, so that it costs
-         nothing to start); otherwise ``numpy``. The environment variable ``HCONV_ENGINE``
-         (numpy, numba or python) makes every ``auto`` that engine, for every size: the test
-         suite runs once per engine this way
+auto     ``python`` for a single row. ``numba`` when it is installed, its code is compiled (in
+         numba's cache, :func:`compiled_ready`) and the work pays for loading it: a batch of at
+         least :data:`AUTO_MIN_ROWS` rows, or a process that has already spent
+         :data:`START_COST` seconds in the numpy engine on work numba covers (many small calls),
+         or numba already loaded. Otherwise ``numpy``. auto never compiles: that takes seconds
+         once per machine (``hconv engines --compile``, or any run with ``--engine numba``).
+         The environment variable ``HCONV_ENGINE`` (numpy, numba or python) makes every
+         ``auto`` that engine, for every size: the test suite runs once per engine this way
 =======  ==========================================================================================
 
 The answers agree: bit for bit for ``exact``'s ω, ``cond`` and every status; ``refined``'s ω and
@@ -23,9 +26,13 @@ the ``residual`` may differ in the last bits (docs/engines.md says by how much, 
 
 from __future__ import annotations
 
+import hashlib
+import importlib.metadata
 import importlib.util
+import json
 import os
 import sys
+from pathlib import Path
 
 from hconv.errors import UsageError
 from hconv.solve import rows
@@ -33,10 +40,17 @@ from hconv.solve.options import check_choice
 
 #: --engine.
 ENGINES = ("auto", "numpy", "numba", "python")
-#: The fewest rows for which auto loads numba (import and cached code: about 0.3 s the first time
-#: in a process, docs/engines.md); below this the numpy engine finishes first.
+#: A batch this large loads the compiled engine at once: the numpy engine would spend longer on
+#: it than numba takes to start from its cache (docs/engines.md).
 AUTO_MIN_ROWS = 200_000
+#: Seconds of numpy-engine time on covered work after which auto loads numba: about what loading
+#: it costs, so that many small calls pay at most twice the best choice (rent or buy).
+START_COST = 0.5
 _COMPILED = "hconv.solve.compiled"
+NUMBA_FIX = "pip install 'hconv[fast]'"
+
+_spent = 0.0
+_ready: bool | None = None
 
 
 def numba_installed() -> bool:
@@ -50,7 +64,46 @@ def covers(method: str, precision: int, degenerate: str, diagonal: bool) -> bool
 
 
 def check_engine(engine: str) -> None:
+    """The choice, and numba installed when it is asked for by name."""
     check_choice("--engine", engine, ENGINES)
+    if engine == "numba" and not numba_installed():
+        raise UsageError(f"--engine numba needs numba: {NUMBA_FIX} (or use --engine auto)")
+
+
+def spend(seconds: float) -> None:
+    """Count numpy-engine time on work the compiled engine covers (the rent in auto's rule)."""
+    global _spent
+    _spent += seconds
+
+
+def marker_path() -> Path:
+    """Where hconv notes that numba has compiled this very row code: one file per version of
+    hconv's row code, numba and Python, in the user's cache directory."""
+    source = Path(rows.__file__).read_bytes()
+    numba_version = importlib.metadata.version("numba") if numba_installed() else "none"
+    key = hashlib.sha256(source + f"{numba_version} {sys.version}".encode()).hexdigest()[:16]
+    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return base / "hconv" / f"compiled-{key}.json"
+
+
+def compiled_ready() -> bool:
+    """True when numba's cache holds the compiled row code (loading it then takes a fraction of a
+    second, compiling it several seconds): the marker :mod:`hconv.solve.compiled` writes, whose
+    cache files still exist."""
+    global _ready
+    if _ready is None:
+        try:
+            files = json.loads(marker_path().read_text())["index"]
+            _ready = bool(files) and all(Path(f).exists() for f in files)
+        except (OSError, ValueError, KeyError, TypeError):
+            _ready = False
+    return _ready
+
+
+def forget_ready() -> None:
+    """Look at the marker again next time (after a compile)."""
+    global _ready
+    _ready = None
 
 
 def _from_environment() -> str:
@@ -69,17 +122,17 @@ def resolve(engine: str, n: int, method: str, precision: int, degenerate: str, d
     An explicit ``numba`` without numba installed is a UsageError with the fix; a run the row
     engines do not cover goes to numpy whatever was asked (the Result's ``engine`` says so).
     """
-    check_engine(engine)
     if engine == "auto":
         engine = _from_environment()
-    if engine == "numba" and not numba_installed():
-        raise UsageError("--engine numba needs numba: pip install 'hconv[fast]' (or use --engine auto)")
+    check_engine(engine)
     if engine == "numpy" or not covers(method, precision, degenerate, diagonal):
         return "numpy"
     if engine != "auto":
         return engine
     if n == 1:
         return "python"
-    if _COMPILED in sys.modules or (n >= AUTO_MIN_ROWS and numba_installed()):
+    if _COMPILED in sys.modules:
+        return "numba"
+    if (n >= AUTO_MIN_ROWS or _spent >= START_COST) and numba_installed() and compiled_ready():
         return "numba"
     return "numpy"

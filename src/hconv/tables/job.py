@@ -83,8 +83,6 @@ class Job:
         options.check_degenerate(self.conventions.degenerate, self.conventions.degenerate_rtol, self.method)
         options.check_choice("--quat-order", self.quat_order, options.QUAT_ORDERS)
         engines.check_engine(self.engine)
-        if self.engine == "numba" and not engines.numba_installed():
-            raise UsageError("--engine numba needs numba: pip install 'hconv[fast]' (or use --engine auto)")
         # an unknown unit fails now, not mid-run
         w_factor = units.factor("w", self.omega_unit, "--omega-unit")
         if m.unit != methods.RAD_S and w_factor != 1.0:
