@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import os
+import threading
 import time
 import types
 from collections.abc import Callable
@@ -69,8 +70,19 @@ def _compile() -> dict[str, Any]:
     return space
 
 
-convert_rows: Callable[..., Any] = _compile()["convert_rows"]
+_convert_rows: Callable[..., Any] = _compile()["convert_rows"]
 _marked = False
+#: One parallel loop at a time: it already runs on every core, and numba's fallback threading
+#: layer (workqueue, where neither OpenMP nor TBB is found) must not be entered from two threads,
+#: as the file pipeline's batch threads would. The loop releases the GIL, so reading and writing
+#: go on meanwhile.
+_one_at_a_time = threading.Lock()
+
+
+def convert_rows(*args: Any) -> None:
+    """:func:`hconv.solve.rows.convert_rows`, compiled; its arguments."""
+    with _one_at_a_time:
+        _convert_rows(*args)
 
 
 def mark() -> None:
@@ -81,7 +93,7 @@ def mark() -> None:
         return
     _marked = True
     path = engines.marker_path()
-    cache = Path(convert_rows.stats.cache_path)  # type: ignore[attr-defined]
+    cache = Path(_convert_rows.stats.cache_path)  # type: ignore[attr-defined]
     index = sorted(str(p) for p in cache.glob("rows.convert_rows-*.nbi"))
     if path.exists() or not index:  # no index: numba could not write its cache anywhere
         return
