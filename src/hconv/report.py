@@ -122,26 +122,48 @@ def _duration(s: float) -> str:
 
 def user_table(user: dict, console: Console) -> None:
     """What users call: numpy.linalg.solve's time per call on the same rows, and each
-    hconv.convert call as the ratio of that time to its own (above 1: faster than numpy)."""
+    hconv.convert call by each engine as the ratio of that time to its own (above 1: faster)."""
     if not user:
         return
-    calls = list(dict.fromkeys(c for times in user.values() for c in times if c != "numpy.linalg.solve"))
+    engines = list(
+        dict.fromkeys(e for times in user.values() for v in times.values() if isinstance(v, dict) for e in v)
+    )
     t = Table(
-        title="what users call: numpy.linalg.solve time / hconv.convert time, same rows (above 1: faster)",
+        title="what users call: numpy.linalg.solve time / hconv.convert time (above 1: faster)",
         title_justify="left",
         header_style="bold",
     )
     t.add_column("rows", justify="right")
+    t.add_column("I, diagnostics")
     t.add_column("solve", justify="right")
-    for c in calls:
-        t.add_column(c.replace("convert ", "").replace(", no residual", "\nno residual"), justify="right")
+    for e in engines:
+        t.add_column(e, justify="right")
     for n, times in user.items():
         solve = times["numpy.linalg.solve"]
-        t.add_row(
-            n if not n.isdigit() else f"{int(n):,}",
-            _duration(solve),
-            *(f"{solve / times[c]:.2f}" if c in times else "" for c in calls),
-        )
+        first = True
+        for call, by_engine in times.items():
+            if call == "numpy.linalg.solve":
+                continue
+            size = n if not n.isdigit() else f"{int(n):,}"
+            t.add_row(
+                size if first else "",
+                call,
+                _duration(solve) if first else "",
+                *(f"{solve / by_engine[e]:.2f}" if e in by_engine else "" for e in engines),
+            )
+            first = False
+    console.print(t)
+
+
+def cold_table(cold: dict, console: Console) -> None:
+    """A fresh process's first call by engine: import, first and second hconv.convert."""
+    if not cold:
+        return
+    t = Table(title="first call of a fresh process, 100 rows", title_justify="left", header_style="bold")
+    for col in ("engine", "import hconv", "first call", "second call"):
+        t.add_column(col, justify="right" if col != "engine" else "left")
+    for name, c in cold.items():
+        t.add_row(name, _duration(c["import_s"]), _duration(c["first_call_s"]), _duration(c["second_call_s"]))
     console.print(t)
 
 
@@ -150,6 +172,8 @@ def bench_tables(res: BenchResult, console: Console | None = None) -> None:
     console = console or Console()
     console.print(f"[bold]hconv bench[/bold] · {res.rows:,} rows · {res.machine}")
     user_table(res.user, console)
+    cold_table(res.cold, console)
+    console.print("[bold]kernels[/bold] (the arithmetic alone, for comparison; not what a user calls)")
     conds = list(next(iter(res.accuracy.values())))
     t = Table(header_style="bold")
     for col in ("method", "prec", "kernel Mrows/s", "× lapack", "convert Mrows/s"):

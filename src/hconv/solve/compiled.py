@@ -38,18 +38,32 @@ _COMPILED = (
     "refine_on",
     "refine",
     "relative_error",
+    "_goes_on",
     "numbers",
+    "verdict",
     "decide",
     "convert_one",
     "_numbers_chunk",
-    "_step_chunk",
+    "_finish_chunk",
     "convert_rows",
 )
 
 
 #: Inlined where they are called: the arithmetic of the loops that run several rows at once
 #: (inlining the rest too made the first compile several times longer, docs/engines.md).
-_INLINE = ("ldlt", "ldlt_solve", "largest_root", "_split", "_dot_row", "numbers", "refine_step")
+_INLINE = (
+    "ldlt",
+    "ldlt_solve",
+    "largest_root",
+    "_safe",
+    "_split",
+    "_dot_row",
+    "numbers",
+    "verdict",
+    "refine_step",
+    "relative_error",
+    "_goes_on",
+)
 
 
 def _compile() -> dict[str, Any]:

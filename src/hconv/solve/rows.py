@@ -133,7 +133,7 @@ def largest_root(xx: float, yy: float, zz: float, xy: float, xz: float, yz: floa
 def _safe(v: float) -> bool:
     """True when |v| is 0 or within the double-double residual's safe range."""
     m = abs(v)
-    return m == 0.0 or (m < _SAFE and m > 1.0 / _SAFE)
+    return (m == 0.0) | ((m < _SAFE) & (m > 1.0 / _SAFE))  # no branch: verdict's loop runs it
 
 
 def _split(a: float) -> tuple[float, float]:
@@ -276,17 +276,20 @@ def refine(
 
 
 def relative_error(x0: float, x1: float, x2: float, r0: float, r1: float, r2: float) -> float:
-    """:func:`hconv.kernels.metrics.relative_error` for one row."""
+    """:func:`hconv.kernels.metrics.relative_error` for one row; no branch."""
     d0, d1, d2 = x0 - r0, x1 - r1, x2 - r2
     unit = max(max(abs(r0), abs(r1)), abs(r2))
-    if not (unit > 0 and unit <= _MAX):
-        unit = 1.0
+    unit = unit if (unit > 0) & (unit <= _MAX) else 1.0
     d0, d1, d2, r0, r1, r2 = d0 / unit, d1 / unit, d2 / unit, r0 / unit, r1 / unit, r2 / unit
     num = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
     den = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
-    if den > 0:
-        return num / den
-    return 0.0 if num == 0 else math.inf
+    ratio = num / (den if den > 0 else 1.0)
+    return ratio if den > 0 else (0.0 if num == 0 else num * math.inf)
+
+
+def _goes_on(c: float) -> bool:
+    """True when :func:`refine_on` takes another step after a first step whose correction was c."""
+    return (c < 0.25) & (c * c > _STOP) & (c > _TINY)
 
 
 def numbers(
@@ -307,7 +310,12 @@ def numbers(
     return hi, hi_err, lo, d1, d2, d3, l21, l31, l32, w0, w1, w2
 
 
-def decide(
+#: What :func:`verdict` says of a row: the numpy engine must convert it, it has no answer
+#: (singular), or it has one.
+FALLBACK, NO_ANSWER, ANSWER = 0.0, 1.0, 2.0
+
+
+def verdict(
     xx: float,
     yy: float,
     zz: float,
@@ -320,57 +328,86 @@ def decide(
     hi: float,
     hi_err: float,
     lo: float,
+    d1: float,
+    d2: float,
+    d3: float,
+    l32: float,
+    w0: float,
+    w1: float,
+    w2: float,
+    cond_limit: float,
+) -> tuple[float, float, float, float]:
+    """The statuses of one row from its :func:`numbers`, with no branch (``&`` and selects, not
+    ``and`` and ``if``): ``(cond, status code, FALLBACK | NO_ANSWER | ANSWER, safe)``, ``safe``
+    1.0 where the inputs lie within the double-double residual's range (0.0 otherwise). Each test
+    is the numpy engine's (convert._convert_block, spectrum.eigenvalues), and a row that any of
+    them cannot settle is FALLBACK."""
+    # x·0 is 0 for a finite x and NaN for NaN or an infinity (max and comparisons would skip a NaN)
+    finite = (xx + yy + zz + xy + xz + yz + h0 + h1 + h2) * 0.0 == 0.0
+    big = max(max(max(abs(xx), abs(yy)), max(abs(zz), abs(xy))), max(abs(xz), abs(yz)))
+    usable = finite & (big >= 1.0 / ROOT_RANGE) & (big <= ROOT_RANGE)
+    usable &= (min(min(d1, d2), d3) > 0) & (abs(l32) <= _MAX)  # positive definite: LDLᵀ is stable
+    # where the closed form cannot decide, the numpy engine asks LAPACK
+    tr = xx + yy + zz
+    usable &= (abs(lo) <= _MAX) & (lo > 0) & (abs(2.0 * hi - tr) > 1e-9 * tr + 4.0 * hi_err)
+    mid = tr - hi - lo
+    a0, a1, a2 = abs(lo), abs(mid), abs(hi)
+    top = max(a0, a2)
+    small = min(min(a0, a1), a2)
+    cond = top / (small if small > 0 else 1.0) if small > 0 else math.inf
+    code = ILL_CONDITIONED if cond > cond_limit else OK
+    code = NOT_PHYSICAL if hi - mid - lo > TRIANGLE_RTOL * (a0 + a1 + a2) else code
+    singular = small <= _SINGULAR * top
+    code = SINGULAR if singular else code
+    # overflow, or ω on the grid of subnormal numbers (inaccurate): the numpy engine's rules
+    wmax = max(max(abs(w0), abs(w1)), abs(w2))
+    w_ok = ((w0 + w1 + w2) * 0.0 == 0.0) & ((wmax == 0) | (wmax >= _GRID))
+    state = (NO_ANSWER if singular else (ANSWER if w_ok else FALLBACK)) if usable else FALLBACK
+    safe = _safe(xx) & _safe(yy) & _safe(zz) & _safe(xy) & _safe(xz) & _safe(yz) & _safe(h0) & _safe(h1) & _safe(h2)
+    return cond, float(code), state, 1.0 if safe else 0.0
+
+
+def decide(
+    xx: float,
+    yy: float,
+    zz: float,
+    xy: float,
+    xz: float,
+    yz: float,
+    h0: float,
+    h1: float,
+    h2: float,
     f: tuple[float, float, float, float, float, float],
     w0: float,
     w1: float,
     w2: float,
     step: tuple[float, float, float, float],
+    cond: float,
+    code: int,
+    state: float,
+    safe: bool,
     refined: bool,
     diagnostics: bool,
-    cond_limit: float,
 ) -> tuple[float, float, float, float, int, float, bool]:
-    """One row from its :func:`numbers` and the first :func:`refine_step` from their ω (``step``,
-    used by ``refined`` and ``diagnostics`` only): ``(w0, w1, w2, cond, status code, residual,
-    fallback)``; with ``fallback`` True the rest is meaningless and the caller converts the row
-    with the numpy engine."""
+    """One row from its :func:`numbers`, :func:`verdict` and the first :func:`refine_step` from
+    LDLᵀ's ω (``step``, used by ``refined`` and ``diagnostics`` only): ``(w0, w1, w2, cond,
+    status code, residual, fallback)``; with ``fallback`` True the rest is meaningless and the
+    caller converts the row with the numpy engine."""
     nan = math.nan
     no = (nan, nan, nan, nan, OK, nan, True)
-    # x·0 is 0 for a finite x and NaN for NaN or an infinity (max and comparisons would skip a NaN)
-    if (xx + yy + zz + xy + xz + yz + h0 + h1 + h2) * 0.0 != 0.0:
+    if state == FALLBACK:
         return no
-    big = max(max(max(abs(xx), abs(yy)), max(abs(zz), abs(xy))), max(abs(xz), abs(yz)))
-    d1, d2, d3, l21, l31, l32 = f
-    if not (big >= 1.0 / ROOT_RANGE and big <= ROOT_RANGE and min(min(d1, d2), d3) > 0 and abs(l32) <= _MAX):
+    if state == NO_ANSWER:
+        return nan, nan, nan, cond, code, nan, False  # no answer, so no residual either
+    if (refined or diagnostics) and not safe:
         return no
-    tr = xx + yy + zz
-    margin = abs(2.0 * hi - tr)
-    if not (abs(lo) <= _MAX and lo > 0 and margin > 1e-9 * tr + 4.0 * hi_err):
-        return no  # the closed form cannot decide: the numpy engine asks LAPACK
-    mid = tr - hi - lo
-    a0, a1, a2 = abs(lo), abs(mid), abs(hi)
-    top = max(a0, a2)
-    small = min(min(a0, a1), a2)
-    cond = top / small if small > 0 else math.inf
-    code = OK
-    if cond > cond_limit:
-        code = ILL_CONDITIONED
-    if hi - mid - lo > TRIANGLE_RTOL * (a0 + a1 + a2):
-        code = NOT_PHYSICAL
-    if small <= _SINGULAR * top:
-        return nan, nan, nan, cond, SINGULAR, nan, False  # no answer, so no residual either
-    safe = _safe(xx) and _safe(yy) and _safe(zz) and _safe(xy) and _safe(xz) and _safe(yz)
-    safe = safe and _safe(h0) and _safe(h1) and _safe(h2)
     if refined:
-        if not safe:
-            return no
         w0, w1, w2 = refine_on(xx, yy, zz, xy, xz, yz, f, h0, h1, h2, step[0], step[1], step[2], step[3])
-    wmax = max(max(abs(w0), abs(w1)), abs(w2))
-    if not ((w0 + w1 + w2) * 0.0 == 0.0 and (wmax == 0 or wmax >= _GRID)):
-        return no  # overflow, or subnormal ω (inaccurate): the numpy engine's rules
+        wmax = max(max(abs(w0), abs(w1)), abs(w2))
+        if not ((w0 + w1 + w2) * 0.0 == 0.0 and (wmax == 0 or wmax >= _GRID)):
+            return no
     res = nan
     if diagnostics:
-        if not safe:
-            return no
         if refined:  # the reference starts from the refined answer
             x0, x1, x2 = refine(xx, yy, zz, xy, xz, yz, f, h0, h1, h2, w0, w1, w2)
         else:  # from LDLᵀ's answer, where the first step has been taken
@@ -399,63 +436,94 @@ def convert_one(
 ) -> tuple[float, float, float, float, int, float, bool]:
     """One row, as :func:`decide` returns it."""
     hi, hi_err, lo, d1, d2, d3, l21, l31, l32, w0, w1, w2 = numbers(xx, yy, zz, xy, xz, yz, h0, h1, h2)
+    cond, code, state, safe = verdict(
+        xx, yy, zz, xy, xz, yz, h0, h1, h2, hi, hi_err, lo, d1, d2, d3, l32, w0, w1, w2, cond_limit
+    )
     f = (d1, d2, d3, l21, l31, l32)
     step = (math.nan, math.nan, math.nan, math.nan)
-    if refined or diagnostics:
+    if (refined or diagnostics) and state == ANSWER and safe:
         step = refine_step(xx, yy, zz, xy, xz, yz, f, h0, h1, h2, w0, w1, w2)
     return decide(
-        xx, yy, zz, xy, xz, yz, h0, h1, h2, hi, hi_err, lo, f, w0, w1, w2, step, refined, diagnostics, cond_limit
+        xx,
+        yy,
+        zz,
+        xy,
+        xz,
+        yz,
+        h0,
+        h1,
+        h2,
+        f,
+        w0,
+        w1,
+        w2,
+        step,
+        cond,
+        int(code),
+        state,
+        safe == 1.0,
+        refined,
+        diagnostics,
     )
 
 
-#: Rows per chunk of :func:`convert_rows`: its scratch (25 numbers a row) stays in the L1 cache.
+#: Rows per chunk of :func:`convert_rows`: its scratch (34 numbers a row) stays in the L1 cache.
 CHUNK = 128
+#: The scratch's columns (each CHUNK numbers): inputs (I, H), numbers(), verdict(), the first
+#: refine_step(), the answer where one step settles it.
+_H, _NUMBERS, _VERDICT, _STEP, _FINAL, _COLUMNS = 6, 9, 21, 25, 29, 34
 
 
-def _numbers_chunk(a: np.ndarray, m: int) -> None:
-    """:func:`numbers` of the ``m`` rows in scratch ``a``: inputs in columns 0–8 of CHUNK numbers
-    each, results into columns 9–20. One flat array, indexed by constant offsets, so that the
-    compiler can prove the columns apart and run several rows at once (SIMD)."""
+def _numbers_chunk(a: np.ndarray, m: int, cond_limit: float) -> None:
+    """:func:`numbers` and :func:`verdict` of the ``m`` rows in scratch ``a``: inputs in columns
+    0–8 of CHUNK numbers each, results into columns 9–24. One flat array, indexed by constant
+    offsets, so that the compiler can prove the columns apart and run several rows at once."""
     for j in range(m):
-        (
-            a[9 * CHUNK + j],
-            a[10 * CHUNK + j],
-            a[11 * CHUNK + j],
-            a[12 * CHUNK + j],
-            a[13 * CHUNK + j],
-            a[14 * CHUNK + j],
-            a[15 * CHUNK + j],
-            a[16 * CHUNK + j],
-            a[17 * CHUNK + j],
-            a[18 * CHUNK + j],
-            a[19 * CHUNK + j],
-            a[20 * CHUNK + j],
-        ) = numbers(
-            a[j],
-            a[CHUNK + j],
-            a[2 * CHUNK + j],
-            a[3 * CHUNK + j],
-            a[4 * CHUNK + j],
-            a[5 * CHUNK + j],
-            a[6 * CHUNK + j],
-            a[7 * CHUNK + j],
-            a[8 * CHUNK + j],
+        xx, yy, zz = a[j], a[CHUNK + j], a[2 * CHUNK + j]
+        xy, xz, yz = a[3 * CHUNK + j], a[4 * CHUNK + j], a[5 * CHUNK + j]
+        h0, h1, h2 = a[_H * CHUNK + j], a[(_H + 1) * CHUNK + j], a[(_H + 2) * CHUNK + j]
+        hi, hi_err, lo, d1, d2, d3, l21, l31, l32, w0, w1, w2 = numbers(xx, yy, zz, xy, xz, yz, h0, h1, h2)
+        cond, code, state, safe = verdict(
+            xx, yy, zz, xy, xz, yz, h0, h1, h2, hi, hi_err, lo, d1, d2, d3, l32, w0, w1, w2, cond_limit
         )
+        k = _NUMBERS * CHUNK + j
+        a[k], a[k + CHUNK], a[k + 2 * CHUNK] = d1, d2, d3
+        a[k + 3 * CHUNK], a[k + 4 * CHUNK], a[k + 5 * CHUNK] = l21, l31, l32
+        a[k + 6 * CHUNK], a[k + 7 * CHUNK], a[k + 8 * CHUNK] = w0, w1, w2
+        k = _VERDICT * CHUNK + j
+        a[k], a[k + CHUNK], a[k + 2 * CHUNK], a[k + 3 * CHUNK] = cond, code, state, safe
 
 
-def _step_chunk(a: np.ndarray, m: int) -> None:
-    """:func:`refine_step` from the LDLᵀ answer of the ``m`` rows in scratch ``a`` (as
-    :func:`_numbers_chunk` left it), into columns 21–24."""
+def _finish_chunk(a: np.ndarray, m: int, refined: bool, diagnostics: bool) -> None:
+    """Refinement for the ``m`` rows in scratch ``a`` (as :func:`_numbers_chunk` left it) where
+    one step settles it, which is most rows (cond below about 1e8), with no branch: the first
+    :func:`refine_step` from LDLᵀ's answer into columns 25–28; ω and the residual into 29–32;
+    and in 33 whether they are final (1.0), or :func:`decide` must take further steps (0.0)."""
     for j in range(m):
-        f = (
-            a[12 * CHUNK + j], a[13 * CHUNK + j], a[14 * CHUNK + j],
-            a[15 * CHUNK + j], a[16 * CHUNK + j], a[17 * CHUNK + j],
-        )  # fmt: skip
-        a[21 * CHUNK + j], a[22 * CHUNK + j], a[23 * CHUNK + j], a[24 * CHUNK + j] = refine_step(
-            a[j], a[CHUNK + j], a[2 * CHUNK + j], a[3 * CHUNK + j], a[4 * CHUNK + j], a[5 * CHUNK + j], f,
-            a[6 * CHUNK + j], a[7 * CHUNK + j], a[8 * CHUNK + j],
-            a[18 * CHUNK + j], a[19 * CHUNK + j], a[20 * CHUNK + j],
-        )  # fmt: skip
+        xx, yy, zz = a[j], a[CHUNK + j], a[2 * CHUNK + j]
+        xy, xz, yz = a[3 * CHUNK + j], a[4 * CHUNK + j], a[5 * CHUNK + j]
+        h0, h1, h2 = a[_H * CHUNK + j], a[(_H + 1) * CHUNK + j], a[(_H + 2) * CHUNK + j]
+        k = _NUMBERS * CHUNK + j
+        f = (a[k], a[k + CHUNK], a[k + 2 * CHUNK], a[k + 3 * CHUNK], a[k + 4 * CHUNK], a[k + 5 * CHUNK])
+        w0, w1, w2 = a[k + 6 * CHUNK], a[k + 7 * CHUNK], a[k + 8 * CHUNK]
+        x0, x1, x2, c = refine_step(xx, yy, zz, xy, xz, yz, f, h0, h1, h2, w0, w1, w2)
+        final = not _goes_on(c)
+        r0, r1, r2 = x0, x1, x2  # the reference, from exact's answer
+        if refined:  # its answer is x where one step settles it; the reference starts again from there
+            w0, w1, w2 = x0, x1, x2
+            wmax = max(max(abs(w0), abs(w1)), abs(w2))
+            final &= ((w0 + w1 + w2) * 0.0 == 0.0) & ((wmax == 0) | (wmax >= _GRID))
+            r0, r1, r2, c2 = refine_step(xx, yy, zz, xy, xz, yz, f, h0, h1, h2, w0, w1, w2)
+            final &= not _goes_on(c2)
+        res = math.nan
+        if diagnostics:
+            final &= _safe(r0) & _safe(r1) & _safe(r2)
+            res = relative_error(w0, w1, w2, r0, r1, r2)
+        k = _STEP * CHUNK + j
+        a[k], a[k + CHUNK], a[k + 2 * CHUNK], a[k + 3 * CHUNK] = x0, x1, x2, c
+        k = _FINAL * CHUNK + j
+        a[k], a[k + CHUNK], a[k + 2 * CHUNK], a[k + 3 * CHUNK] = w0, w1, w2, res
+        a[k + 4 * CHUNK] = 1.0 if final else 0.0
 
 
 def convert_rows(
@@ -475,15 +543,17 @@ def convert_rows(
     into ``w`` ``(N, 3)``, ``cond``, ``code``, ``residual`` (written only with ``diagnostics``) and
     ``fallback`` ``(N,)``, which marks the rows left for the numpy engine.
 
-    Chunk by chunk: the inputs into a scratch block, then :func:`numbers` and (for ``refined``
-    and ``diagnostics``) the first :func:`refine_step`, in loops with no branch (the compiler
-    runs several rows at once), then :func:`decide` row by row.
+    Chunk by chunk: the inputs into a scratch block; :func:`numbers`, :func:`verdict` and (for
+    ``refined`` and ``diagnostics``) refinement where one step settles it, in loops with no
+    branch (the compiler runs several rows at once); then row by row, the outputs, and
+    :func:`decide` where refinement goes on.
     """
     n = H.shape[1]
+    more = refined or diagnostics
     for c in prange((n + CHUNK - 1) // CHUNK):
         start = c * CHUNK
         m = min(CHUNK, n - start)
-        a = np.empty(25 * CHUNK)
+        a = np.empty(_COLUMNS * CHUNK)
         asym = np.zeros(CHUNK, dtype=np.bool_)
         for j in range(m):
             i = start + j
@@ -495,20 +565,41 @@ def convert_rows(
                 xx, yy, zz, xy, xz, yz = I[0, i], I[1, i], I[2, i], I[3, i], I[4, i], I[5, i]
             a[j], a[CHUNK + j], a[2 * CHUNK + j] = xx, yy, zz
             a[3 * CHUNK + j], a[4 * CHUNK + j], a[5 * CHUNK + j] = xy, xz, yz
-            a[6 * CHUNK + j], a[7 * CHUNK + j], a[8 * CHUNK + j] = H[0, i], H[1, i], H[2, i]
-        _numbers_chunk(a, m)
-        if refined or diagnostics:
-            _step_chunk(a, m)
+            a[_H * CHUNK + j], a[(_H + 1) * CHUNK + j], a[(_H + 2) * CHUNK + j] = H[0, i], H[1, i], H[2, i]
+        _numbers_chunk(a, m, cond_limit)
+        if more:
+            _finish_chunk(a, m, refined, diagnostics)
         for j in range(m):
             i = start + j
-            if asym[j]:
+            v = a[j::CHUNK]  # the row's numbers
+            state = v[_VERDICT + 2]
+            if asym[j] or state == FALLBACK:
                 fallback[i] = True
                 continue
-            v = a[j::CHUNK]  # the row's 25 numbers
-            f = (v[12], v[13], v[14], v[15], v[16], v[17])
+            if state == NO_ANSWER or not more:  # the answer as verdict left it
+                answered = state == ANSWER
+                w[i, 0] = v[_NUMBERS + 6] if answered else math.nan
+                w[i, 1] = v[_NUMBERS + 7] if answered else math.nan
+                w[i, 2] = v[_NUMBERS + 8] if answered else math.nan
+                cond[i], code[i] = v[_VERDICT], int(v[_VERDICT + 1])
+                if diagnostics:
+                    residual[i] = math.nan
+                continue
+            if v[_VERDICT + 3] == 1.0 and v[_FINAL + 4] == 1.0:  # settled in one step
+                w[i, 0], w[i, 1], w[i, 2] = v[_FINAL], v[_FINAL + 1], v[_FINAL + 2]
+                k = int(v[_VERDICT + 1])
+                res = v[_FINAL + 3]
+                if diagnostics:
+                    residual[i] = res
+                    if res > ILL_CONDITIONED_TOL and (k == OK or k > INACCURATE):
+                        k = INACCURATE
+                cond[i], code[i] = v[_VERDICT], k
+                continue
+            f = (v[_NUMBERS], v[_NUMBERS + 1], v[_NUMBERS + 2], v[_NUMBERS + 3], v[_NUMBERS + 4], v[_NUMBERS + 5])
             w0, w1, w2, cj, k, res, fb = decide(
-                v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8], v[9], v[10], v[11],
-                f, v[18], v[19], v[20], (v[21], v[22], v[23], v[24]), refined, diagnostics, cond_limit,
+                v[0], v[1], v[2], v[3], v[4], v[5], v[_H], v[_H + 1], v[_H + 2], f,
+                v[_NUMBERS + 6], v[_NUMBERS + 7], v[_NUMBERS + 8], (v[_STEP], v[_STEP + 1], v[_STEP + 2], v[_STEP + 3]),
+                v[_VERDICT], int(v[_VERDICT + 1]), state, v[_VERDICT + 3] == 1.0, refined, diagnostics,
             )  # fmt: skip
             w[i, 0], w[i, 1], w[i, 2] = w0, w1, w2
             cond[i], code[i], fallback[i] = cj, k, fb

@@ -5,6 +5,7 @@ The CLI's ``convert`` is a thin wrapper over :func:`convert_file`.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import queue
 import threading
@@ -19,7 +20,7 @@ import numpy as np
 import pyarrow as pa
 
 from hconv.errors import StrictError, UsageError
-from hconv.solve import methods, status
+from hconv.solve import engines, methods, status
 from hconv.tables.arrow import convert_table
 from hconv.tables.job import Job
 from hconv.tables.tableio import Output, format_of, open_input
@@ -182,6 +183,8 @@ def convert_file(
     tally = Tally(m.name, job.unit)
     t0 = time.perf_counter()
     with open_input(src, fin, job) as inp, out, BackgroundWriter(out) as writer:
+        if fin == "parquet":
+            job = _engine_for(job, inp.total)
 
         def one(batch: pa.RecordBatch) -> pa.Table:
             return convert_table(batch, source=inp.name, job=job, plan=inp.plan)
@@ -197,6 +200,17 @@ def convert_file(
             writer.write(convert_table(inp.schema.empty_table(), source=inp.name, job=job, plan=inp.plan))
     tally.seconds = time.perf_counter() - t0
     return tally
+
+
+def _engine_for(job: Job, rows: int | None) -> Job:
+    """The Job with auto decided once for a file of ``rows`` rows, where auto would otherwise
+    decide batch by batch (each batch is small, so a large file would start on numpy)."""
+    if job.engine != "auto" or not rows:
+        return job
+    conv = job.conventions
+    if engines.resolve("auto", rows, job.method, job.precision, conv.degenerate, False) != "numba":
+        return job
+    return dataclasses.replace(job, engine="numba")
 
 
 STRICT_ROWS_NAMED = 5

@@ -50,6 +50,8 @@ class Result:
     baselines: dict = field(default_factory=dict)  #: named reference rates and times
     #: what users call, against numpy.linalg.solve on the same rows: N -> call -> seconds per call
     user: dict = field(default_factory=dict)
+    #: engine -> first call of a fresh process: {"import_s", "first_call_s", "second_call_s"}
+    cold: dict = field(default_factory=dict)
     targets: list = field(default_factory=list)  #: [name, measured ratio, required, met]
 
 
@@ -288,45 +290,115 @@ def _repeated(fn: Callable[[], object], k: int) -> Callable[[], None]:
     return job
 
 
-def _calls(h: np.ndarray, i3: np.ndarray, i6: np.ndarray) -> dict[str, Callable[[], object]]:
-    """The calls timed at one size; one body (h of shape (3,)) is passed unstacked, as a physics
-    engine calls it once per step."""
-    import hconv
+def user_engines(n: int) -> tuple[str, ...]:
+    """The engines timed at ``n`` rows: auto (what users get), numpy, numba when installed, and
+    the interpreted row engine where it is meant to serve (a handful of rows)."""
+    from hconv.solve import engines
 
-    rhs = h if h.ndim == 1 else h[..., None]
-    return {
-        "numpy.linalg.solve": lambda: np.linalg.solve(i3, rhs),
-        "convert (N,3,3)": lambda: hconv.convert(h, i3),
-        "convert (N,3,3), no residual": lambda: hconv.convert(h, i3, diagnostics=False),
-        "convert (N,6)": lambda: hconv.convert(h, i6),
-        "convert (N,6), no residual": lambda: hconv.convert(h, i6, diagnostics=False),
-    }
+    return (
+        "auto",
+        "numpy",
+        *(("numba",) if engines.numba_installed() else ()),
+        *(("python",) if n <= 100 else ()),
+    )
+
+
+#: The calls timed at each size: I as users hold it, with the residual or without.
+USER_CALLS = ("(N,3,3)", "(N,3,3), no residual", "(N,6)", "(N,6), no residual")
 
 
 def user_calls(rows: int, repeats: int, seed: int = 0) -> dict:
     """``hconv.convert`` as users call it, against ``numpy.linalg.solve`` on the same rows: at each
     of USER_SIZES up to ``rows``, I as an (N, 3, 3) stack and as (N, 6), with and without the
-    residual, and ``refined`` at cond 1e12. Seconds per call, keyed by size then call."""
+    residual, by each engine; and ``refined`` at cond 1e12. One body is passed unstacked, as a
+    physics engine calls it once per step. The compiled engine is loaded (and compiled if need be)
+    first: its cold start is :func:`cold_start`'s. Returns size -> {"numpy.linalg.solve": seconds,
+    call -> {engine: seconds per call}}."""
     import hconv
+    from hconv.solve import engines
 
+    if engines.numba_installed():
+        from hconv.solve import compiled
+
+        compiled.warm()
     out: dict = {}
     for n in [s for s in USER_SIZES if s <= rows]:
         H, I3 = _stacks(n, seed)
         I6 = _six(I3)
-        calls = _calls(H[0], I3[0], I6[0]) if n == 1 else _calls(H, I3, I6)
+        h, i3, i6 = (H[0], I3[0], I6[0]) if n == 1 else (H, I3, I6)
+        rhs = h if n == 1 else h[..., None]
+        jobs: dict = {("numpy.linalg.solve", ""): lambda i3=i3, rhs=rhs: np.linalg.solve(i3, rhs)}
+        for call in USER_CALLS:
+            i = i3 if call.startswith("(N,3,3)") else i6
+            for engine in user_engines(n):
+                jobs[(call, engine)] = functools.partial(
+                    hconv.convert, h, i, diagnostics="no residual" not in call, engine=engine
+                )
         k = max(1, min(_MOST_CALLS, _ROWS_PER_JOB // n))
-        secs = rounds({name: _repeated(fn, k) for name, fn in calls.items()}, repeats)
-        out[str(n)] = {name: s / k for name, s in secs.items()}
+        secs = rounds({key: _repeated(fn, k) for key, fn in jobs.items()}, repeats)
+        out[str(n)] = _nest(secs, k)
     n = min(rows, REFINED_ROWS)
     H, I3 = _stacks(n, seed, cond=1e12)
-    secs = rounds(
-        {
-            "numpy.linalg.solve": lambda: np.linalg.solve(I3, H[..., None]),
-            "convert refined, no residual": lambda: hconv.convert(H, I3, method="refined", diagnostics=False),
-        },
-        repeats,
-    )
-    out[f"{n} at cond 1e12"] = secs
+    jobs = {("numpy.linalg.solve", ""): lambda: np.linalg.solve(I3, H[..., None])}
+    for engine in user_engines(n):
+        jobs[("refined (N,3,3), no residual", engine)] = functools.partial(
+            hconv.convert, H, I3, method="refined", diagnostics=False, engine=engine
+        )
+    out[f"{n} at cond 1e12"] = _nest(rounds(jobs, repeats), 1)
+    return out
+
+
+def _nest(secs: dict, k: int) -> dict:
+    """{(call, engine): seconds for k calls} as {"numpy.linalg.solve": s, call: {engine: s}} per call."""
+    out: dict = {}
+    for (call, engine), s in secs.items():
+        if call == "numpy.linalg.solve":
+            out[call] = s / k
+        else:
+            out.setdefault(call, {})[engine] = s / k
+    return out
+
+
+_COLD = """
+import sys, time
+t0 = time.perf_counter()
+import numpy as np, hconv
+t1 = time.perf_counter()
+n = int(sys.argv[1])
+I, H = np.tile(np.diag([1.0, 2.0, 2.5]), (n, 1, 1)), np.ones((n, 3))
+res = hconv.convert(H, I, engine=sys.argv[2])
+t2 = time.perf_counter()
+hconv.convert(H, I, engine=sys.argv[2])
+t3 = time.perf_counter()
+print(t1 - t0, t2 - t1, t3 - t2, res.engine)
+"""
+
+
+def cold_start(repeats: int = 3) -> dict:
+    """The first call of a process, by engine, in fresh interpreters: seconds to import hconv, for
+    the first ``hconv.convert`` of 100 rows, and for the second. The numba engine is timed from
+    numba's cache (as after ``hconv engines --compile``) and compiling into an empty one."""
+    from hconv.solve import engines
+
+    cases: dict[str, tuple[str, str | None]] = {"numpy": ("numpy", None)}
+    if engines.numba_installed():
+        cases["numba, from its cache"] = ("numba", None)
+        cases["numba, compiling"] = ("numba", "empty")
+    out: dict = {}
+    for name, (engine, cache) in cases.items():
+        runs = []
+        for _ in range(repeats if cache is None else 1):  # a compile takes seconds: once
+            with tempfile.TemporaryDirectory(prefix="hconv-cold-") as tmp:
+                env = dict(os.environ)
+                env.pop("HCONV_ENGINE", None)
+                if cache:
+                    env["NUMBA_CACHE_DIR"] = tmp
+                proc = subprocess.run(
+                    [sys.executable, "-c", _COLD, "100", engine], capture_output=True, text=True, env=env, check=True
+                )
+            runs.append([float(x) for x in proc.stdout.split()[:3]])
+        imp, first, second = (statistics.median(r[k] for r in runs) for k in range(3))
+        out[name] = {"import_s": imp, "first_call_s": first, "second_call_s": second}
     return out
 
 
@@ -359,15 +431,22 @@ def _roofline(src: str, dst: str) -> None:
             wr.write(pa.Table.from_arrays(list(batch.columns) + cols, schema=pa.schema(list(batch.schema) + fields)))
 
 
-#: What users call, as (size, call, required ratio numpy.linalg.solve time / call time): issue 13.
+#: What users call, as (size, call, engine, required ratio numpy.linalg.solve time / call time):
+#: issue 13. auto is what ``hconv.convert(H, I)`` gives; the numpy engine has targets of its own.
 USER_TARGETS = (
-    ("2000000", "convert (N,3,3), no residual", 10.0),
-    ("2000000", "convert (N,6), no residual", 10.0),
-    ("2000000", "convert (N,3,3)", 5.0),
-    ("2000000", "convert (N,6)", 5.0),
-    ("10000", "convert (N,3,3)", 2.0),
-    ("100", "convert (N,3,3)", 1 / 3),
-    ("1", "convert (N,3,3)", 0.1),
+    ("2000000", "(N,3,3), no residual", "auto", 10.0),
+    ("2000000", "(N,6), no residual", "auto", 10.0),
+    ("2000000", "(N,3,3)", "auto", 5.0),
+    ("2000000", "(N,6)", "auto", 5.0),
+    ("10000", "(N,3,3)", "auto", 2.0),
+    ("10000", "(N,6)", "auto", 2.0),
+    ("100", "(N,3,3)", "auto", 1 / 3),
+    ("100", "(N,3,3)", "numba", 1 / 3),
+    ("1", "(N,3,3)", "auto", 0.1),
+    ("2000000", "(N,3,3), no residual", "numpy", 3.0),
+    ("2000000", "(N,6), no residual", "numpy", 3.0),
+    ("2000000", "(N,3,3)", "numpy", 2.0),
+    ("2000000", "(N,6)", "numpy", 2.0),
 )
 
 
@@ -375,21 +454,17 @@ def user_targets(user: dict) -> list[list]:
     """The targets for what users call, as [name, measured, required] rows: each a ratio of
     numpy.linalg.solve's time to hconv's on the same rows (higher is better)."""
     rows = []
-    for n, call, required in USER_TARGETS:
-        if n in user:
+    for n, call, engine, required in USER_TARGETS:
+        if n in user and engine in user[n].get(call, {}):
             label = "one body" if n == "1" else f"N = {int(n):,}"
-            rows.append(
-                [f"numpy.linalg.solve / {call}, {label}", user[n]["numpy.linalg.solve"] / user[n][call], required]
-            )
+            ratio = user[n]["numpy.linalg.solve"] / user[n][call][engine]
+            rows.append([f"solve / convert {call}, {label}, engine {engine}", ratio, required])
     refined = next((v for k, v in user.items() if k.endswith("at cond 1e12")), None)
     if refined:
-        rows.append(
-            [
-                "numpy.linalg.solve / convert refined (no residual), cond 1e12",
-                refined["numpy.linalg.solve"] / refined["convert refined, no residual"],
-                3.0,
-            ]
-        )
+        for engine, secs in refined["refined (N,3,3), no residual"].items():
+            if engine in ("auto", "numpy"):
+                ratio = refined["numpy.linalg.solve"] / secs
+                rows.append([f"solve / convert refined, no residual, cond 1e12, engine {engine}", ratio, 3.0])
     return rows
 
 
@@ -407,6 +482,8 @@ def run(
     res = Result(rows=rows, machine=describe_machine())
     log("what users call: hconv.convert against numpy.linalg.solve")
     res.user = user_calls(rows, repeats, seed)
+    log("cold start by engine")
+    res.cold = cold_start()
     log("generating inputs")
     I, H, r = _inputs(rows, seed)
     log("kernels")
