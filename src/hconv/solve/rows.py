@@ -57,7 +57,7 @@ _SAFE = float(2.0 ** (np.finfo(np.float64).maxexp // 2.5))
 _SQRT_EPS = math.sqrt(_EPS)
 _TINY = _EPS * _EPS
 _STOP = STOP_TOL * STOP_TOL * _TINY
-_S0, _S1, _S2 = ROOT_START
+_S0, _S1, _S2, _S3, _S4 = ROOT_START
 
 OK = CODE["ok"]
 SINGULAR = CODE["singular"]
@@ -120,7 +120,7 @@ def largest_root(xx: float, yy: float, zz: float, xy: float, xz: float, yz: floa
     r = min(max(det * (0.5 * ip * ip * ip), -1.0), 1.0)
     u = math.sqrt(1.0 + r)
     # c = cos(acos(r)/3) = 1/2 + u·t, t the root of t² + (2u/3)·t³ = 1/6 (spectrum.py says why)
-    t = _S0 + u * (_S1 + u * _S2)
+    t = _S0 + u * (_S1 + u * (_S2 + u * (_S3 + u * _S4)))
     k = (2.0 / 3.0) * u
     for _ in range(ROOT_NEWTON_STEPS):
         t2 = t * t
@@ -567,8 +567,20 @@ def convert_rows(
             a[3 * CHUNK + j], a[4 * CHUNK + j], a[5 * CHUNK + j] = xy, xz, yz
             a[_H * CHUNK + j], a[(_H + 1) * CHUNK + j], a[(_H + 2) * CHUNK + j] = H[0, i], H[1, i], H[2, i]
         _numbers_chunk(a, m, cond_limit)
-        if more:
-            _finish_chunk(a, m, refined, diagnostics)
+        if not more:  # ω, cond and status as verdict left them: no branch either
+            for j in range(m):
+                i = start + j
+                state = a[(_VERDICT + 2) * CHUNK + j]
+                answered = state == ANSWER
+                k = _NUMBERS * CHUNK + j
+                w[i, 0] = a[k + 6 * CHUNK] if answered else math.nan
+                w[i, 1] = a[k + 7 * CHUNK] if answered else math.nan
+                w[i, 2] = a[k + 8 * CHUNK] if answered else math.nan
+                cond[i] = a[_VERDICT * CHUNK + j]
+                code[i] = int(a[(_VERDICT + 1) * CHUNK + j])
+                fallback[i] = asym[j] | (state == FALLBACK)
+            continue
+        _finish_chunk(a, m, refined, diagnostics)
         for j in range(m):
             i = start + j
             v = a[j::CHUNK]  # the row's numbers
