@@ -29,8 +29,15 @@ def test_bench_command_small_run_writes_tables_json_and_chart(tmp_path):
     assert "targets" in out and "document-principal" in out
     # what users call comes first: hconv.convert against numpy.linalg.solve at 1, 100 and 10k rows
     assert list(res["user"])[:3] == ["1", "100", "10000"] and out.index("what users call") < out.index("kernel")
-    assert all(t > 0 for times in res["user"].values() for t in times.values())
-    assert "numpy.linalg.solve / convert (N,3,3), one body" in names
+    for times in res["user"].values():
+        assert times["numpy.linalg.solve"] > 0
+        calls = [v for k, v in times.items() if k != "numpy.linalg.solve"]
+        assert calls and all(set(by) >= {"auto", "numpy"} and min(by.values()) > 0 for by in calls)
+    assert res["user"]["1"]["(N,3,3)"].keys() >= {"auto", "numpy", "python"}
+    assert "solve / convert (N,3,3), one body, engine auto" in names
+    assert "solve / convert (N,3,3), N = 2,000,000, engine auto" not in names  # not measured at 20k rows
+    # a fresh process's first call, by engine
+    assert res["cold"]["numpy"]["first_call_s"] > 0
     assert "pyarrow read+append+write time / hconv convert time" in names
 
 
