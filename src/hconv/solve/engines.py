@@ -10,7 +10,8 @@ numba    :mod:`hconv.solve.rows` compiled by numba (the ``hconv[fast]`` extra), 
          handed to the numpy engine row by row
 python   the same row code, interpreted: no numpy call per row, so the cheapest for one body;
          same scope as numba
-auto     ``python`` for a single row. ``numba`` when it is installed, its code is compiled (in
+auto     ``numba`` once it is loaded in the process; before that, ``python`` for a single row, and
+         ``numba`` when it is installed, its code is compiled (in
          numba's cache, :func:`compiled_ready`) and the work pays for loading it: a batch of at
          least :data:`AUTO_MIN_ROWS` rows, or a process that has already spent
          :data:`START_COST` seconds in the numpy engine on work numba covers (many small calls),
@@ -129,10 +130,10 @@ def resolve(engine: str, n: int, method: str, precision: int, degenerate: str, d
         return "numpy"
     if engine != "auto":
         return engine
+    if _COMPILED in sys.modules:  # loaded already: the fastest at every size, one body included
+        return "numba"
     if n == 1:
         return "python"
-    if _COMPILED in sys.modules:
-        return "numba"
     if (n >= AUTO_MIN_ROWS or _spent >= START_COST) and numba_installed() and compiled_ready():
         return "numba"
     return "numpy"
