@@ -10,6 +10,7 @@ computed the rows itself, so that agreement cannot come from handing every row t
 from __future__ import annotations
 
 import importlib.util
+import sys
 
 import numpy as np
 import pytest
@@ -148,7 +149,8 @@ def test_convert_rows_rotation_covariance(engine, rng):
 
 
 def test_convert_one_body_uses_the_interpreted_row_engine(monkeypatch):
-    monkeypatch.delenv("HCONV_ENGINE", raising=False)  # auto as users get it
+    monkeypatch.delenv("HCONV_ENGINE", raising=False)  # auto as a new process gets it
+    monkeypatch.delitem(sys.modules, "hconv.solve.compiled", raising=False)
     h, i = np.array([1.0, 2.0, 3.0]), np.array([[2.0, 0.1, 0.0], [0.1, 3.0, 0.2], [0.0, 0.2, 4.0]])
     res = hconv.convert(h, i)
     assert res.engine == "python" and res.status == "ok" and res.w.shape == (3,)

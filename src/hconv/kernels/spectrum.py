@@ -77,8 +77,11 @@ def _largest_root(I: Sym3) -> tuple[np.ndarray, np.ndarray]:
     big = max_abs(I)
     s = np.ldexp(1.0, np.clip(np.frexp(np.where(big > 0, big, 1.0))[1], -1000, 1000))
     s[(big >= 1.0 / ROOT_RANGE) & (big <= ROOT_RANGE)] = 1.0
-    inv_s = 1.0 / s
-    a, b, c, d, e, f = (comp * inv_s for comp in I)
+    if np.all(s == 1.0):  # the usual case: no pass over the six columns
+        a, b, c, d, e, f = I
+    else:
+        inv_s = 1.0 / s
+        a, b, c, d, e, f = (comp * inv_s for comp in I)
     q = (a + b + c) * (1.0 / 3.0)
     aq, bq, cq = a - q, b - q, c - q
     p = np.sqrt((aq * aq + bq * bq + cq * cq + 2.0 * (d * d + e * e + f * f)) * (1.0 / 6.0))
