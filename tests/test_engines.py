@@ -72,6 +72,13 @@ def test_resolve_environment_sets_what_auto_means(fresh, monkeypatch):
         _auto(10)
 
 
+def test_for_files_auto_is_numpy_unless_the_environment_says(fresh, monkeypatch):
+    assert engines.for_files("auto") == "numpy"
+    assert engines.for_files("numba") == "numba"  # asked for by name: as asked
+    monkeypatch.setenv("HCONV_ENGINE", "numba")
+    assert engines.for_files("auto") == "numba"
+
+
 def test_resolve_numba_without_numba_names_the_fix(fresh, monkeypatch):
     monkeypatch.setattr(engines, "numba_installed", lambda: False)
     with pytest.raises(UsageError, match=r"--engine numba needs numba: pip install 'hconv\[fast\]'"):

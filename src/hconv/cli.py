@@ -155,7 +155,8 @@ JOB_OPTIONS = {
         typer.Option(
             "auto",
             "--engine",
-            help="numpy, numba (pip install 'hconv\\[fast]') or python; auto: numba for large inputs when installed",
+            help="auto (for files: numpy, the fastest here; docs/engines.md), numpy, numba (pip install "
+            "'hconv\\[fast]') or python",
         ),
     ),
     "quat_order": (

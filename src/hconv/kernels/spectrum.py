@@ -5,8 +5,6 @@ Shapes: tensors are :class:`hconv.kernels.inertia.Sym3` of ``(N,)`` columns [kgÂ
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from hconv.kernels.inertia import Sym3, max_abs

@@ -17,6 +17,7 @@ auto     ``numba`` once it is loaded in the process; before that, ``python`` for
          :data:`START_COST` seconds in the numpy engine on work numba covers (many small calls),
          or numba already loaded. Otherwise ``numpy``. auto never compiles: that takes seconds
          once per machine (``hconv engines --compile``, or any run with ``--engine numba``).
+         For a file conversion (``hconv convert``), auto means numpy: see :func:`for_files`.
          The environment variable ``HCONV_ENGINE`` (numpy, numba or python) makes every
          ``auto`` that engine, for every size: the test suite runs once per engine this way
 =======  ==========================================================================================
@@ -27,10 +28,7 @@ the ``residual`` may differ in the last bits (docs/engines.md says by how much, 
 
 from __future__ import annotations
 
-import hashlib
-import importlib.metadata
 import importlib.util
-import json
 import os
 import sys
 from pathlib import Path
@@ -80,6 +78,9 @@ def spend(seconds: float) -> None:
 def marker_path() -> Path:
     """Where hconv notes that numba has compiled this very row code: one file per version of
     hconv's row code, numba and Python, in the user's cache directory."""
+    import hashlib  # here, not at the top: `hconv one` never needs them (30 ms)
+    import importlib.metadata
+
     source = Path(rows.__file__).read_bytes()
     numba_version = importlib.metadata.version("numba") if numba_installed() else "none"
     key = hashlib.sha256(source + f"{numba_version} {sys.version}".encode()).hexdigest()[:16]
@@ -92,6 +93,8 @@ def compiled_ready() -> bool:
     second, compiling it several seconds): the marker :mod:`hconv.solve.compiled` writes, whose
     cache files still exist."""
     global _ready
+    import json
+
     if _ready is None:
         try:
             files = json.loads(marker_path().read_text())["index"]
@@ -115,6 +118,17 @@ def _from_environment() -> str:
     if value not in ENGINES:
         raise UsageError(f"HCONV_ENGINE must be one of {', '.join(ENGINES)}, got {value!r}; unset it for auto")
     return value
+
+
+def for_files(engine: str) -> str:
+    """The engine a file conversion runs: auto there means numpy, unless HCONV_ENGINE says
+    otherwise. Reading, the Arrow work and writing take most of a file's time on both cores, and
+    the compiled engine would save less than it costs to load, and a core from that overlap
+    (docs/engines.md: 2M rows 1.9 s numpy, 2.6 s numba; 20M rows 22 s and 28 s)."""
+    if engine != "auto":
+        return engine
+    chosen = _from_environment()
+    return "numpy" if chosen == "auto" else chosen
 
 
 def resolve(engine: str, n: int, method: str, precision: int, degenerate: str, diagonal: bool) -> str:

@@ -176,6 +176,8 @@ def convert_file(
         raise UsageError(f"--threads must be 1 or more, got {threads}")
     threads = threads or default_threads()
     job = job or Job(method, precision, diagnostics)
+    if engines.for_files(job.engine) != job.engine:
+        job = dataclasses.replace(job, engine=engines.for_files(job.engine))
     m = methods.get(job.method)
     fin = format_of(src, src_format, "--from")
     fout = format_of(dst, dst_format, "--to")
@@ -183,8 +185,6 @@ def convert_file(
     tally = Tally(m.name, job.unit)
     t0 = time.perf_counter()
     with open_input(src, fin, job) as inp, out, BackgroundWriter(out) as writer:
-        if fin == "parquet":
-            job = _engine_for(job, inp.total)
 
         def one(batch: pa.RecordBatch) -> pa.Table:
             return convert_table(batch, source=inp.name, job=job, plan=inp.plan)
@@ -200,17 +200,6 @@ def convert_file(
             writer.write(convert_table(inp.schema.empty_table(), source=inp.name, job=job, plan=inp.plan))
     tally.seconds = time.perf_counter() - t0
     return tally
-
-
-def _engine_for(job: Job, rows: int | None) -> Job:
-    """The Job with auto decided once for a file of ``rows`` rows, where auto would otherwise
-    decide batch by batch (each batch is small, so a large file would start on numpy)."""
-    if job.engine != "auto" or not rows:
-        return job
-    conv = job.conventions
-    if engines.resolve("auto", rows, job.method, job.precision, conv.degenerate, False) != "numba":
-        return job
-    return dataclasses.replace(job, engine="numba")
 
 
 STRICT_ROWS_NAMED = 5
