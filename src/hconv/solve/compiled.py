@@ -25,51 +25,10 @@ import numpy as np
 
 from hconv.solve import engines, rows
 
-#: The functions of rows that are compiled; convert_rows last, as the one with the parallel loop.
-_COMPILED = (
-    "sym_of_nine",
-    "ldlt",
-    "ldlt_solve",
-    "largest_root",
-    "_safe",
-    "_split",
-    "_dot_row",
-    "refine_step",
-    "refine_on",
-    "refine",
-    "relative_error",
-    "_goes_on",
-    "numbers",
-    "verdict",
-    "decide",
-    "convert_one",
-    "_numbers_chunk",
-    "_finish_chunk",
-    "convert_rows",
-)
-
-
-#: Inlined where they are called: the arithmetic of the loops that run several rows at once
-#: (inlining the rest too made the first compile several times longer, docs/engines.md).
-_INLINE = (
-    "ldlt",
-    "ldlt_solve",
-    "largest_root",
-    "_safe",
-    "_split",
-    "_dot_row",
-    "numbers",
-    "verdict",
-    "refine_step",
-    "relative_error",
-    "_goes_on",
-)
-
-
 def _compile() -> dict[str, Any]:
     space = dict(vars(rows))
     space["prange"] = numba.prange
-    for name in _COMPILED:
+    for name in rows.COMPILED:
         f = getattr(rows, name)
         g = types.FunctionType(f.__code__, space, name, f.__defaults__, f.__closure__)
         g.__module__, g.__qualname__ = f.__module__, f.__qualname__
@@ -77,7 +36,7 @@ def _compile() -> dict[str, Any]:
         # instead of raising; fastmath stays off, so every operation rounds as written.
         # The arithmetic is inlined where it is called (numba's inline="always"), so that a loop
         # over rows is one body the compiler can run several rows of at once.
-        inline: Literal["always", "never"] = "always" if name in _INLINE else "never"
+        inline: Literal["always", "never"] = "always" if name in rows.INLINE else "never"
         space[name] = numba.njit(
             cache=True, nogil=True, error_model="numpy", parallel=name == "convert_rows", inline=inline
         )(g)

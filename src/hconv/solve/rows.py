@@ -46,6 +46,49 @@ METHODS = ("exact", "refined")
 
 prange = range  # the compiled engine makes this numba.prange: rows shared between the cores
 
+#: For the compiled engine (hconv.solve.compiled), kept here so that changing them changes this
+#: file, which is what numba's cache is checked against: the functions that convert_rows calls,
+#: compiled (decide and convert_one serve the interpreted engine only) ...
+COMPILED = (
+    "sym_of_nine",
+    "ldlt",
+    "ldlt_solve",
+    "largest_root",
+    "_safe",
+    "_split",
+    "_dot_row",
+    "refine_step",
+    "relative_error",
+    "_goes_on",
+    "numbers",
+    "verdict",
+    "_numbers_chunk",
+    "_step_chunk",
+    "_on_chunk",
+    "_finish_chunk",
+    "convert_rows",
+)
+
+#: ... and those inlined where they are called: the arithmetic of the loops that run several rows
+#: at once (inlining the rest too made the first compile several times longer), and the
+#: refinement loops, whose column arguments must become constants for the compiler to prove
+#: their reads and writes apart.
+INLINE = (
+    "_step_chunk",
+    "_on_chunk",
+    "ldlt",
+    "ldlt_solve",
+    "largest_root",
+    "_safe",
+    "_split",
+    "_dot_row",
+    "numbers",
+    "verdict",
+    "refine_step",
+    "relative_error",
+    "_goes_on",
+)
+
 _EPS = float(np.finfo(np.float64).eps)
 _MAX = float(np.finfo(np.float64).max)
 _SPLIT = splitter(np.float64)
@@ -467,17 +510,19 @@ def convert_one(
     )
 
 
-#: Rows per chunk of :func:`convert_rows`: its scratch (34 numbers a row) stays in the L1 cache.
+#: Rows per chunk of :func:`convert_rows`: its scratch (37 numbers a row) stays in the L1 cache.
 CHUNK = 128
-#: The scratch's columns (each CHUNK numbers): inputs (I, H), numbers(), verdict(), the first
-#: refine_step(), the answer where one step settles it.
-_H, _NUMBERS, _VERDICT, _STEP, _FINAL, _COLUMNS = 6, 9, 21, 25, 29, 34
+#: The scratch's columns, each CHUNK numbers: the inputs (I's six at 0, H at _H); LDLᵀ's factors
+#: and answer (_NUMBERS); verdict's cond, code, state, safe (_VERDICT); a refinement's x, last
+#: correction c and whether it goes on (_X for the answer's, _R for the reference's); and the
+#: final ω, residual and whether they are final (_FINAL).
+_H, _NUMBERS, _VERDICT, _X, _R, _FINAL, _COLUMNS = 6, 9, 18, 22, 27, 32, 37
 
 
 def _numbers_chunk(a: np.ndarray, m: int, cond_limit: float) -> None:
-    """:func:`numbers` and :func:`verdict` of the ``m`` rows in scratch ``a``: inputs in columns
-    0–8 of CHUNK numbers each, results into columns 9–24. One flat array, indexed by constant
-    offsets, so that the compiler can prove the columns apart and run several rows at once."""
+    """:func:`numbers` and :func:`verdict` of the ``m`` rows in scratch ``a``. One flat array,
+    indexed by constant offsets, so that the compiler can prove the columns apart and run several
+    rows at once (this loop and the others here have no branch)."""
     for j in range(m):
         xx, yy, zz = a[j], a[CHUNK + j], a[2 * CHUNK + j]
         xy, xz, yz = a[3 * CHUNK + j], a[4 * CHUNK + j], a[5 * CHUNK + j]
@@ -494,33 +539,71 @@ def _numbers_chunk(a: np.ndarray, m: int, cond_limit: float) -> None:
         a[k], a[k + CHUNK], a[k + 2 * CHUNK], a[k + 3 * CHUNK] = cond, code, state, safe
 
 
-def _finish_chunk(a: np.ndarray, m: int, refined: bool, diagnostics: bool) -> None:
-    """Refinement for the ``m`` rows in scratch ``a`` (as :func:`_numbers_chunk` left it) where
-    one step settles it, which is most rows (cond below about 1e8), with no branch: the first
-    :func:`refine_step` from LDLᵀ's answer into columns 25–28; ω and the residual into 29–32;
-    and in 33 whether they are final (1.0), or :func:`decide` must take further steps (0.0)."""
+def _step_chunk(a: np.ndarray, m: int, src: int, dst: int) -> None:
+    """The first :func:`refine_step` of every row from the x at column ``src`` into ``dst`` (x,
+    c, and whether :func:`refine_on` would go on), for rows with an answer and safe inputs."""
     for j in range(m):
-        xx, yy, zz = a[j], a[CHUNK + j], a[2 * CHUNK + j]
-        xy, xz, yz = a[3 * CHUNK + j], a[4 * CHUNK + j], a[5 * CHUNK + j]
-        h0, h1, h2 = a[_H * CHUNK + j], a[(_H + 1) * CHUNK + j], a[(_H + 2) * CHUNK + j]
         k = _NUMBERS * CHUNK + j
         f = (a[k], a[k + CHUNK], a[k + 2 * CHUNK], a[k + 3 * CHUNK], a[k + 4 * CHUNK], a[k + 5 * CHUNK])
-        w0, w1, w2 = a[k + 6 * CHUNK], a[k + 7 * CHUNK], a[k + 8 * CHUNK]
-        x0, x1, x2, c = refine_step(xx, yy, zz, xy, xz, yz, f, h0, h1, h2, w0, w1, w2)
-        final = not _goes_on(c)
-        r0, r1, r2 = x0, x1, x2  # the reference, from exact's answer
-        if refined:  # its answer is x where one step settles it; the reference starts again from there
-            w0, w1, w2 = x0, x1, x2
-            wmax = max(max(abs(w0), abs(w1)), abs(w2))
-            final &= ((w0 + w1 + w2) * 0.0 == 0.0) & ((wmax == 0) | (wmax >= _GRID))
-            r0, r1, r2, c2 = refine_step(xx, yy, zz, xy, xz, yz, f, h0, h1, h2, w0, w1, w2)
-            final &= not _goes_on(c2)
+        x0, x1, x2, c = refine_step(
+            a[j], a[CHUNK + j], a[2 * CHUNK + j], a[3 * CHUNK + j], a[4 * CHUNK + j], a[5 * CHUNK + j], f,
+            a[_H * CHUNK + j], a[(_H + 1) * CHUNK + j], a[(_H + 2) * CHUNK + j],
+            a[src * CHUNK + j], a[(src + 1) * CHUNK + j], a[(src + 2) * CHUNK + j],
+        )  # fmt: skip
+        usable = (a[(_VERDICT + 2) * CHUNK + j] == ANSWER) & (a[(_VERDICT + 3) * CHUNK + j] == 1.0)
+        k = dst * CHUNK + j
+        a[k], a[k + CHUNK], a[k + 2 * CHUNK], a[k + 3 * CHUNK] = x0, x1, x2, c
+        a[k + 4 * CHUNK] = 1.0 if usable & _goes_on(c) else 0.0
+
+
+def _on_chunk(a: np.ndarray, m: int, at: int) -> None:
+    """:func:`refine_on` for every row of the chunk at once, from the step at column ``at``: each
+    round takes a step on every row and keeps it where the row goes on, so that each row ends
+    where refine_on would have stopped it; rounds stop when no row goes on."""
+    for _ in range(1, MAX_REFINE_STEPS):
+        going = 0
+        for j in range(m):
+            going += a[(at + 4) * CHUNK + j] == 1.0
+        if going == 0:
+            break
+        for j in range(m):
+            k = _NUMBERS * CHUNK + j
+            f = (a[k], a[k + CHUNK], a[k + 2 * CHUNK], a[k + 3 * CHUNK], a[k + 4 * CHUNK], a[k + 5 * CHUNK])
+            k = at * CHUNK + j
+            x0, x1, x2, c = a[k], a[k + CHUNK], a[k + 2 * CHUNK], a[k + 3 * CHUNK]
+            y0, y1, y2, c_next = refine_step(
+                a[j], a[CHUNK + j], a[2 * CHUNK + j], a[3 * CHUNK + j], a[4 * CHUNK + j], a[5 * CHUNK + j], f,
+                a[_H * CHUNK + j], a[(_H + 1) * CHUNK + j], a[(_H + 2) * CHUNK + j], x0, x1, x2,
+            )  # fmt: skip
+            on = a[k + 4 * CHUNK] == 1.0
+            ratio = c_next / c
+            a[k] = y0 if on else x0
+            a[k + CHUNK] = y1 if on else x1
+            a[k + 2 * CHUNK] = y2 if on else x2
+            a[k + 3 * CHUNK] = c_next if on else c
+            a[k + 4 * CHUNK] = 1.0 if on & (ratio < 0.25) & (c_next * ratio > _STOP) & (c_next > _TINY) else 0.0
+
+
+def _finish_chunk(a: np.ndarray, m: int, refined: bool, diagnostics: bool) -> None:
+    """``refined``'s answer and the residual for the ``m`` rows in scratch ``a``, as
+    :func:`decide` computes them row by row: ω, the residual and whether they are final (1.0; 0.0
+    sends the row to the numpy engine) into column _FINAL."""
+    _step_chunk(a, m, _NUMBERS + 6, _X)  # from LDLᵀ's answer
+    _on_chunk(a, m, _X)
+    w_at = _X if refined else _NUMBERS + 6
+    if refined and diagnostics:  # the reference starts again from the refined answer
+        _step_chunk(a, m, _X, _R)
+        _on_chunk(a, m, _R)
+    r_at = _R if refined else _X
+    for j in range(m):
+        w0, w1, w2 = a[w_at * CHUNK + j], a[(w_at + 1) * CHUNK + j], a[(w_at + 2) * CHUNK + j]
+        wmax = max(max(abs(w0), abs(w1)), abs(w2))
+        final = ((w0 + w1 + w2) * 0.0 == 0.0) & ((wmax == 0) | (wmax >= _GRID))
         res = math.nan
         if diagnostics:
+            r0, r1, r2 = a[r_at * CHUNK + j], a[(r_at + 1) * CHUNK + j], a[(r_at + 2) * CHUNK + j]
             final &= _safe(r0) & _safe(r1) & _safe(r2)
             res = relative_error(w0, w1, w2, r0, r1, r2)
-        k = _STEP * CHUNK + j
-        a[k], a[k + CHUNK], a[k + 2 * CHUNK], a[k + 3 * CHUNK] = x0, x1, x2, c
         k = _FINAL * CHUNK + j
         a[k], a[k + CHUNK], a[k + 2 * CHUNK], a[k + 3 * CHUNK] = w0, w1, w2, res
         a[k + 4 * CHUNK] = 1.0 if final else 0.0
@@ -543,10 +626,10 @@ def convert_rows(
     into ``w`` ``(N, 3)``, ``cond``, ``code``, ``residual`` (written only with ``diagnostics``) and
     ``fallback`` ``(N,)``, which marks the rows left for the numpy engine.
 
-    Chunk by chunk: the inputs into a scratch block; :func:`numbers`, :func:`verdict` and (for
-    ``refined`` and ``diagnostics``) refinement where one step settles it, in loops with no
-    branch (the compiler runs several rows at once); then row by row, the outputs, and
-    :func:`decide` where refinement goes on.
+    Chunk by chunk: the inputs into a scratch block; then :func:`numbers` and :func:`verdict`, and
+    (for ``refined`` and ``diagnostics``) the refinement, each in a loop with no branch over the
+    chunk's rows, which the compiler runs several at a time; then the outputs. The same
+    arithmetic as :func:`convert_one`, row for row.
     """
     n = H.shape[1]
     more = refined or diagnostics
@@ -567,53 +650,26 @@ def convert_rows(
             a[3 * CHUNK + j], a[4 * CHUNK + j], a[5 * CHUNK + j] = xy, xz, yz
             a[_H * CHUNK + j], a[(_H + 1) * CHUNK + j], a[(_H + 2) * CHUNK + j] = H[0, i], H[1, i], H[2, i]
         _numbers_chunk(a, m, cond_limit)
-        if not more:  # ω, cond and status as verdict left them: no branch either
-            for j in range(m):
-                i = start + j
-                state = a[(_VERDICT + 2) * CHUNK + j]
-                answered = state == ANSWER
-                k = _NUMBERS * CHUNK + j
-                w[i, 0] = a[k + 6 * CHUNK] if answered else math.nan
-                w[i, 1] = a[k + 7 * CHUNK] if answered else math.nan
-                w[i, 2] = a[k + 8 * CHUNK] if answered else math.nan
-                cond[i] = a[_VERDICT * CHUNK + j]
-                code[i] = int(a[(_VERDICT + 1) * CHUNK + j])
-                fallback[i] = asym[j] | (state == FALLBACK)
-            continue
-        _finish_chunk(a, m, refined, diagnostics)
+        w_at = _NUMBERS + 6
+        if more:
+            _finish_chunk(a, m, refined, diagnostics)
+            w_at = _FINAL
         for j in range(m):
             i = start + j
-            v = a[j::CHUNK]  # the row's numbers
-            state = v[_VERDICT + 2]
-            if asym[j] or state == FALLBACK:
-                fallback[i] = True
-                continue
-            if state == NO_ANSWER or not more:  # the answer as verdict left it
-                answered = state == ANSWER
-                w[i, 0] = v[_NUMBERS + 6] if answered else math.nan
-                w[i, 1] = v[_NUMBERS + 7] if answered else math.nan
-                w[i, 2] = v[_NUMBERS + 8] if answered else math.nan
-                cond[i], code[i] = v[_VERDICT], int(v[_VERDICT + 1])
-                if diagnostics:
-                    residual[i] = math.nan
-                continue
-            if v[_VERDICT + 3] == 1.0 and v[_FINAL + 4] == 1.0:  # settled in one step
-                w[i, 0], w[i, 1], w[i, 2] = v[_FINAL], v[_FINAL + 1], v[_FINAL + 2]
-                k = int(v[_VERDICT + 1])
-                res = v[_FINAL + 3]
-                if diagnostics:
-                    residual[i] = res
-                    if res > ILL_CONDITIONED_TOL and (k == OK or k > INACCURATE):
-                        k = INACCURATE
-                cond[i], code[i] = v[_VERDICT], k
-                continue
-            f = (v[_NUMBERS], v[_NUMBERS + 1], v[_NUMBERS + 2], v[_NUMBERS + 3], v[_NUMBERS + 4], v[_NUMBERS + 5])
-            w0, w1, w2, cj, k, res, fb = decide(
-                v[0], v[1], v[2], v[3], v[4], v[5], v[_H], v[_H + 1], v[_H + 2], f,
-                v[_NUMBERS + 6], v[_NUMBERS + 7], v[_NUMBERS + 8], (v[_STEP], v[_STEP + 1], v[_STEP + 2], v[_STEP + 3]),
-                v[_VERDICT], int(v[_VERDICT + 1]), state, v[_VERDICT + 3] == 1.0, refined, diagnostics,
-            )  # fmt: skip
-            w[i, 0], w[i, 1], w[i, 2] = w0, w1, w2
-            cond[i], code[i], fallback[i] = cj, k, fb
+            state = a[(_VERDICT + 2) * CHUNK + j]
+            answered = state == ANSWER
+            k = int(a[(_VERDICT + 1) * CHUNK + j])
+            lost = asym[j] | (state == FALLBACK)
+            if more:
+                # refinement needs safe inputs, and its answer must pass the checks again
+                lost |= answered & ((a[(_VERDICT + 3) * CHUNK + j] != 1.0) | (a[(_FINAL + 4) * CHUNK + j] != 1.0))
+            w[i, 0] = a[w_at * CHUNK + j] if answered else math.nan
+            w[i, 1] = a[(w_at + 1) * CHUNK + j] if answered else math.nan
+            w[i, 2] = a[(w_at + 2) * CHUNK + j] if answered else math.nan
             if diagnostics:
+                res = a[(_FINAL + 3) * CHUNK + j] if answered else math.nan
                 residual[i] = res
+                k = INACCURATE if (res > ILL_CONDITIONED_TOL) & ((k == OK) | (k > INACCURATE)) else k
+            cond[i] = a[_VERDICT * CHUNK + j]
+            code[i] = k
+            fallback[i] = lost
