@@ -25,6 +25,7 @@ import numpy as np
 
 from hconv.solve import engines, rows
 
+
 def _compile() -> dict[str, Any]:
     space = dict(vars(rows))
     space["prange"] = numba.prange
