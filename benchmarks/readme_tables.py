@@ -8,6 +8,30 @@ import sys
 
 with open(sys.argv[1] if len(sys.argv) > 1 else "docs/bench.json") as f:
     res = json.load(f)
+user = res.get("user", {})
+engines = list(dict.fromkeys(e for t in user.values() for v in t.values() if isinstance(v, dict) for e in v))
+if user:
+    print("| rows | I, diagnostics | numpy.linalg.solve | " + " | ".join(engines) + " |")
+    print("|---" * (3 + len(engines)) + "|")
+    for n, times in user.items():
+        solve = times["numpy.linalg.solve"]
+        first = True
+        for call, by in times.items():
+            if call == "numpy.linalg.solve":
+                continue
+            size = f"{int(n):,}" if n.isdigit() else n
+            t = f"{solve * 1e6:.1f} µs" if solve < 1e-3 else f"{solve * 1e3:.1f} ms"
+            cells = [size if first else "", call, t if first else ""]
+            cells += [f"{solve / by[e]:.2f}" if e in by else "" for e in engines]
+            print("| " + " | ".join(cells) + " |")
+            first = False
+    print()
+    for name, c in res.get("cold", {}).items():
+        print(
+            f"- first call, {name}: import {c['import_s']:.2f} s, first call {c['first_call_s']:.3f} s, "
+            f"second {c['second_call_s'] * 1e3:.2f} ms"
+        )
+    print()
 conds = list(next(iter(res["accuracy"].values())))
 lapack = res["kernel"]["lapack/64"]
 

@@ -14,7 +14,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 import pytest
-from helpers import run_hconv
+from helpers import run_hconv, run_inprocess
 
 import hconv
 
@@ -349,6 +349,33 @@ def test_methods_json_lists_every_method_with_unit():
     units = {m["name"]: m["unit"] for m in listed}
     assert units["exact"] == "rad/s" and units["document"] == "m^2/s"
     assert all(m["fails"] and m["cost"] for m in listed)
+
+
+def test_engines_lists_each_engine_within_80_columns(capsys, monkeypatch, tmp_path):
+    from hconv.solve import engines
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))  # no marker: not compiled here
+    monkeypatch.setattr(engines, "_ready", None)
+    monkeypatch.setattr(engines, "numba_installed", lambda: True)
+    code, out, _ = run_inprocess("engines", capsys=capsys)
+    assert code == 0 and [ln.split()[0] for ln in out.splitlines() if not ln.startswith(" ")] == [
+        "numpy",
+        "numba",
+        "python",
+        "auto",
+    ]
+    assert "installed, not compiled: run hconv engines --compile" in out
+    assert max(len(ln) for ln in out.splitlines()) <= 80
+    monkeypatch.setattr(engines, "numba_installed", lambda: False)
+    code, out, _ = run_inprocess("engines", capsys=capsys)
+    assert "not installed: pip install 'hconv[fast]'" in out
+    code, _, err = run_inprocess("engines", "--compile", capsys=capsys)
+    assert code == 2 and err.strip() == "hconv: error: --compile needs numba: pip install 'hconv[fast]'"
+
+
+def test_convert_engine_option_rejects_others_in_one_line(tmp_path):
+    proc = run_hconv("convert", "examples/data/scene.csv", str(tmp_path / "o.csv"), "--engine", "gpu")
+    assert proc.returncode == 2 and b"Traceback" not in proc.stderr and b"gpu" in proc.stderr
 
 
 def test_methods_table_renders():
