@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import queue
+import signal
 import threading
 import time
 from collections import deque
@@ -53,6 +54,15 @@ class Tally:
         return {status.STATUSES[k]: int(c) for k, c in enumerate(self.per_status) if c}
 
 
+def main_thread_signals() -> None:
+    """Block Ctrl-C and SIGTERM in the calling (worker) thread and in every thread it starts, such
+    as the compiled engine's pool, so that the kernel delivers them to the main thread: a signal
+    that lands on another thread leaves the main thread asleep in its wait, and a run then went
+    on to the end instead of stopping (seen under the numba engine)."""
+    if hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+
+
 class BackgroundWriter:
     """Writes tables to an :class:`~hconv.tables.tableio.Output` on a second thread, so that encoding
     and compressing one batch (pyarrow releases the GIL) overlaps converting the next.
@@ -72,6 +82,7 @@ class BackgroundWriter:
         self._thread = threading.Thread(target=self._run, name="hconv-writer", daemon=True)
 
     def _run(self) -> None:
+        main_thread_signals()
         while True:
             item = self._q.get()
             if item is self._DONE:
@@ -133,7 +144,7 @@ def ordered_map(fn: Callable[[T], R], items: Iterable[T], threads: int) -> Itera
     if threads <= 1:
         yield from map(fn, items)
         return
-    with ThreadPoolExecutor(threads, thread_name_prefix="hconv-compute") as pool:
+    with ThreadPoolExecutor(threads, thread_name_prefix="hconv-compute", initializer=main_thread_signals) as pool:
         pending: deque = deque()
         try:
             for item in items:
