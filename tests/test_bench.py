@@ -44,3 +44,12 @@ def test_bench_command_small_run_writes_tables_json_and_chart(tmp_path):
 def test_bench_rejects_other_chart_formats(tmp_path):
     proc = run_hconv("bench", "--rows", "1000", "--out", str(tmp_path / "x.gif"))
     assert proc.returncode == 2 and ".png or .svg" in proc.stderr.decode()
+
+
+def test_bench_rejects_rows_below_one_as_usage_error():
+    for value in ("0", "-1"):
+        proc = run_hconv("bench", "--rows", value, "--no-chart")
+        err = proc.stderr.decode()
+        assert (
+            proc.returncode == 2 and "--rows" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+        )

@@ -452,3 +452,14 @@ def test_version_is_one_source():
     assert proc.returncode == 0
     assert proc.stdout.decode().strip() == f"hconv {hconv.__version__}"
     assert importlib.metadata.version("hconv") == hconv.__version__
+
+
+def test_help_short_option_on_every_command():
+    from hconv import cli
+
+    commands = [c.name or c.callback.__name__ for c in cli.app.registered_commands]
+    assert "convert" in commands and "engines" in commands
+    for command in ["", *commands]:
+        args = [command] if command else []
+        short, long = run_hconv(*args, "-h"), run_hconv(*args, "--help")
+        assert short.returncode == 0 and b"Usage:" in short.stdout and short.stdout == long.stdout, command

@@ -35,6 +35,7 @@ if TYPE_CHECKING:
 
 app = typer.Typer(
     add_completion=False,
+    context_settings={"help_option_names": ["-h", "--help"]},  # -h as well, as command-line tools have
     pretty_exceptions_enable=False,
     no_args_is_help=True,
     help="Angular momentum H (kg·m²/s) to angular velocity ω (rad/s), with the residual against I⁻¹H for every row.",
@@ -496,9 +497,11 @@ def generate_cmd(
 @app.command("bench")
 @friendly
 def bench_cmd(
-    rows: int = typer.Option(2_000_000, "--rows", "-n", help="rows per measurement"),
+    rows: int = typer.Option(2_000_000, "--rows", "-n", min=1, help="rows per measurement"),
     repeats: int = typer.Option(3, "--repeats", min=1, help="each speed is the median of this many runs"),
-    memory_rows: int = typer.Option(0, "--memory-rows", help="also measure peak RSS converting this many rows"),
+    memory_rows: int = typer.Option(
+        0, "--memory-rows", min=0, help="also measure peak RSS converting this many rows (0: do not)"
+    ),
     out: str | None = typer.Option("speed-vs-accuracy.png", "--out", "-o", help="chart file, .png or .svg"),
     no_chart: bool = typer.Option(False, "--no-chart", help="print the tables only"),
     json_out: str | None = typer.Option(None, "--json", help="also write every figure to this JSON file"),

@@ -60,9 +60,9 @@ def output_fields(job: Job) -> list[pa.Field]:
 
 def convert_table(
     data: pa.Table | pa.RecordBatch,
-    method: str = "exact",
-    precision: int = 64,
-    diagnostics: bool = True,
+    method: str | None = None,
+    precision: int | None = None,
+    diagnostics: bool | None = None,
     *,
     source: str = "table",
     job: Job | None = None,
@@ -71,8 +71,9 @@ def convert_table(
     """Convert every row of a pyarrow Table or RecordBatch; returns a Table.
 
     The result holds the input columns unchanged, then ω and the diagnostics (see the module
-    docstring). ``job`` carries the conventions, units and mapping (it overrides ``method``,
-    ``precision`` and ``diagnostics``); ``plan`` is the input's layout from
+    docstring). ``method`` (default exact), ``precision`` (64) and ``diagnostics`` (True) make
+    the run configuration; or ``job`` carries it whole, with conventions, units and mapping (then
+    they are refused beside it, rather than one silently winning); ``plan`` is the input's layout from
     :func:`hconv.tables.layout.plan`, for a caller converting many batches of one file. Raises
     :class:`hconv.errors.InputError` or
     ``UsageError`` for a schema or options that cannot be used; per-row problems become statuses.
@@ -86,7 +87,17 @@ def convert_table(
             "make one with pyarrow.table(...)"
         )
     if job is None:
-        job = Job(method, precision, diagnostics)
+        job = Job(
+            "exact" if method is None else method, 64 if precision is None else precision, diagnostics is not False
+        )
+    else:
+        given = {"method": method, "precision": precision, "diagnostics": diagnostics}
+        beside = [name for name, value in given.items() if value is not None]
+        if beside:
+            raise UsageError(
+                f"convert_table: {', '.join(beside)} given beside job=; put them in the Job "
+                f"(Job({beside[0]}=...)), which then holds the whole run configuration"
+            )
     if plan is None:
         plan = layout.plan(data.schema, job, source)
     sets, form = plan.read(data)
