@@ -87,6 +87,9 @@ def test_resolve_numba_without_numba_names_the_fix(fresh, monkeypatch):
         hconv.convert(np.ones(3), np.eye(3), engine="gpu")
     with pytest.raises(UsageError, match="--engine numba needs numba"):
         hconv.Job(engine="numba")
+    monkeypatch.setenv("HCONV_ENGINE", "numba")  # the message names what asked for numba
+    with pytest.raises(UsageError, match=r"HCONV_ENGINE=numba needs numba: .* \(or unset HCONV_ENGINE\)"):
+        hconv.convert(np.ones((5, 3)), np.tile(np.eye(3), (5, 1, 1)))
 
 
 def test_compiled_ready_reads_the_marker_and_its_files(fresh):

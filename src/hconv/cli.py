@@ -156,8 +156,7 @@ JOB_OPTIONS = {
         typer.Option(
             "auto",
             "--engine",
-            help="auto (for files: numpy, the fastest here; docs/engines.md), numpy, numba (pip install "
-            "'hconv\\[fast]') or python",
+            help="auto (for files: numpy; see hconv engines), numpy, numba (pip install 'hconv\\[fast]') or python",
         ),
     ),
     "quat_order": (
@@ -543,7 +542,9 @@ def engines_cmd(
             raise UsageError(f"--compile needs numba: {engines.NUMBA_FIX}")
         from hconv.solve import compiled
 
-        print(f"compiled the numba engine in {compiled.warm():.1f} s")
+        seconds, compiled_now = compiled.warm()
+        done = "compiled the numba engine" if compiled_now else "loaded the numba engine from numba's cache"
+        print(f"{done} in {seconds:.1f} s")
     installed = engines.numba_installed()
     ready = installed and engines.compiled_ready()
     numba_state = "not installed: " + engines.NUMBA_FIX
@@ -553,7 +554,11 @@ def engines_cmd(
     print("numba   exact and refined on tensors, in float64, on every core")
     print(f"        {numba_state}")
     print("python  the numba engine's code, interpreted: one body at a time")
-    print(f"auto    python for one body; numba for {engines.AUTO_MIN_ROWS:,}+ rows once compiled; else numpy")
+    print(f"auto    python for one body; numba for {engines.AUTO_MIN_ROWS:,}+ rows once compiled, or")
+    print(f"        after {engines.START_COST} s of numpy time; else numpy. Files: numpy")
+    forced = os.environ.get("HCONV_ENGINE")
+    if forced:
+        print(f"        HCONV_ENGINE={forced}: every auto is {forced}")
 
 
 @app.command("methods")

@@ -139,6 +139,8 @@ def resolve(engine: str, n: int, method: str, precision: int, degenerate: str, d
     """
     if engine == "auto":
         engine = _from_environment()
+        if engine == "numba" and not numba_installed():
+            raise UsageError(f"HCONV_ENGINE=numba needs numba: {NUMBA_FIX} (or unset HCONV_ENGINE)")
     check_engine(engine)
     if engine == "numpy" or not covers(method, precision, degenerate, diagonal):
         return "numpy"
