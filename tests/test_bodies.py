@@ -123,6 +123,23 @@ def test_convert_pivot_and_free_name_what_they_need(about, missing):
         hconv.convert_table(t, job=Job(conventions=Conventions(about=about)))
 
 
+@pytest.mark.parametrize("form", ["scalar", "sym6"])
+def test_convert_mass_not_positive_with_inertia_is_invalid_input(form):
+    """Without --about too: a body of negative or zero mass but non-zero inertia is not a body;
+    zero mass with zero inertia (a massless link) is singular, as any zero tensor is."""
+    m = [2.0, -5.0, 0.0, np.nan, 0.0]
+    I = [1.0, 1.0, 1.0, 1.0, 0.0]
+    cols = (
+        {"I": I}
+        if form == "scalar"
+        else {"Ixx": I, "Iyy": I, "Izz": I, "Ixy": [0.0] * 5, "Ixz": [0.0] * 5, "Iyz": [0.0] * 5}
+    )
+    t = pa.table({"Hx": [1.0] * 5, "Hy": [0.0] * 5, "Hz": [0.0] * 5, **cols, "m": m})
+    got = hconv.convert_table(t)
+    assert got.column("status").to_pylist() == ["ok", "invalid_input", "invalid_input", "invalid_input", "singular"]
+    assert got.column("wx").to_pylist()[0] == 1.0
+
+
 def test_convert_pivot_bad_mass_row_is_invalid_input():
     t = pa.table(
         {

@@ -109,6 +109,11 @@ def _solve(
             solved_form = forms.get(name)
         else:  # H is about an origin P: take out the orbital term, leaving H about C
             H_solved = frames.momentum_about_com(H_P_B, m_C, r_CP, _given(v_B, "v"))
+    if m is not None:
+        # A mass that is not positive, with an inertia that is not zero, is not a body (a zero
+        # mass with a zero inertia is a massless link, which has no ω to give and goes singular).
+        with np.errstate(invalid="ignore"):
+            bad |= ~(m > 0) & (form.trace(I_given) != 0)
     if bad.any():
         H_solved = np.where(bad, np.nan, H_solved)  # status invalid_input, through core
     res = core.convert_columns(

@@ -13,7 +13,7 @@ from numpy.typing import DTypeLike
 #: Status names in order of precedence; the code of a status is its index.
 STATUSES: tuple[str, ...] = (
     "ok",
-    "invalid_input",  # NaN or Inf in a value the method uses, or a value beyond float32 in --precision 32
+    "invalid_input",  # NaN or Inf in a value used, a value beyond float32 in --precision 32, or mass <= 0 with I != 0
     "not_symmetric",  # a 3×3 tensor whose Iij and Iji differ by more than SYMMETRY_RTOL·max|I|
     "singular",  # smallest |moment| <= SINGULAR_RTOL_EPS·eps·largest |moment|
     "overflow",  # finite input, but ω is beyond the working precision's range
