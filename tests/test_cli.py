@@ -463,3 +463,12 @@ def test_help_short_option_on_every_command():
         args = [command] if command else []
         short, long = run_hconv(*args, "-h"), run_hconv(*args, "--help")
         assert short.returncode == 0 and b"Usage:" in short.stdout and short.stdout == long.stdout, command
+
+
+def test_one_has_no_short_method_option_beside_mass():
+    """--m is the mass; a short -m for --method sat one keystroke away from it."""
+    proc = run_hconv("one", "--H", "1,0,0", "--I", "1", "-m", "5")
+    err = proc.stderr.decode()
+    assert proc.returncode == 2 and "-m" in err and len(err.strip().splitlines()) == 1
+    ok = run_hconv("one", "--H", "1,0,0", "--I", "1", "--m", "5", "--method", "refined")
+    assert ok.returncode == 0 and b"status   = ok" in ok.stdout

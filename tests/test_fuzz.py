@@ -175,7 +175,7 @@ ARG = st.one_of(
     method=st.sampled_from(["exact", "refined", "document", "diagonal", "bogus"]),
 )
 def test_fuzz_one_arguments(capsys, H, I, r, q, method):
-    args = ["one", f"--H={H}", f"--I={I}", "-m", method, "--json"]
+    args = ["one", f"--H={H}", f"--I={I}", "--method", method, "--json"]
     args += [] if r is None else [f"--r={r}"]
     args += [] if q is None else [f"--q={q}"]
     code, out, err = run_inprocess(*args, capsys=capsys)

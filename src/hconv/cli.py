@@ -92,7 +92,7 @@ else:
 #: Job field (or Conventions field) -> (type, typer option). Commands take theirs through
 #: :func:`job_options`, which builds the Job in one place.
 JOB_OPTIONS = {
-    "method": (MethodName, typer.Option("exact", "--method", "-m", help="see `hconv methods`")),
+    "method": (MethodName, typer.Option("exact", "--method", help="see `hconv methods`")),
     "precision": (int, typer.Option(64, "--precision", help="64 or 32: the dtype the method computes in")),
     "frame": (
         Frame,
