@@ -56,7 +56,15 @@ def test_convert_rows_in_equal_rows_out_at_any_batch_size(inputs, tmp_path, caps
         monkeypatch.setattr(tableio, "CSV_BLOCK_BYTES", block)
         dst = tmp_path / f"out-{rows}.{fmt}"
         code, _, err = run_inprocess(
-            "convert", str(d / f"in.{fmt}"), str(dst), "--method", method, "-q", "--threads", str(threads), capsys=capsys
+            "convert",
+            str(d / f"in.{fmt}"),
+            str(dst),
+            "--method",
+            method,
+            "-q",
+            "--threads",
+            str(threads),
+            capsys=capsys,
         )
         assert code == 0, err
         outs.append(

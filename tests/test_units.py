@@ -129,5 +129,7 @@ def test_one_units_and_omega_unit():
 
 
 def test_convert_omega_unit_refused_for_document_methods():
-    proc = run_hconv("one", "--H", "1,0,0", "--I", "2,2,2", "--r", "1,1,0", "--method", "document", "--omega-unit", "deg/s")
+    proc = run_hconv(
+        "one", "--H", "1,0,0", "--I", "2,2,2", "--r", "1,1,0", "--method", "document", "--omega-unit", "deg/s"
+    )
     assert proc.returncode == 2 and b"m^2/s" in proc.stderr
