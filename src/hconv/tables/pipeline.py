@@ -56,9 +56,9 @@ class Tally:
 
 def main_thread_signals() -> None:
     """Block Ctrl-C and SIGTERM in the calling (worker) thread and in every thread it starts, such
-    as the compiled engine's pool, so that the kernel delivers them to the main thread: a signal
-    that lands on another thread leaves the main thread asleep in its wait, and a run then went
-    on to the end instead of stopping (seen under the numba engine)."""
+    as the compiled engine's pool, so that the kernel delivers them to the main thread, which
+    turns them into a clean stop: one that lands on another thread would leave the main thread
+    asleep in its wait until the batch it waits for is done."""
     if hasattr(signal, "pthread_sigmask"):
         signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
 
