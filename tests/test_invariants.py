@@ -147,14 +147,14 @@ def big_file(tmp_path_factory):
     return big
 
 
-@pytest.mark.parametrize(
-    "sig, dst", [(signal.SIGINT, "out.parquet"), (signal.SIGTERM, "out.csv"), (signal.SIGINT, "-")]
-)
 def _terminal_signals() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
     signal.signal(signal.SIGQUIT, signal.SIG_DFL)
 
 
+@pytest.mark.parametrize(
+    "sig, dst", [(signal.SIGINT, "out.parquet"), (signal.SIGTERM, "out.csv"), (signal.SIGINT, "-")]
+)
 def test_convert_interrupted_leaves_no_output_and_no_temporary(big_file, tmp_path, sig, dst):
     big = big_file
     args = [sys.executable, "-m", "hconv", "convert", str(big), dst if dst == "-" else str(tmp_path / dst), "-q"]
