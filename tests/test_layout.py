@@ -64,3 +64,17 @@ def test_parquet_list_length_is_fixed_by_the_first_batch(tmp_path, monkeypatch):
     pipeline.convert_file(str(tmp_path / "good.parquet"), str(tmp_path / "out.parquet"), threads=2)
     w = np.column_stack([pq.read_table(tmp_path / "out.parquet").column(c).to_numpy() for c in ("wx", "wy", "wz")])
     np.testing.assert_array_equal(w, [[1.0, 1.0, 1.0]] * 5 + [[0.0, 0.5, 0.0]] * 5)
+
+
+@pytest.mark.parametrize("name", ["w_unit", "wx", "status", "null_dim"])
+def test_plan_refuses_an_input_column_named_as_an_output(name, tmp_path):
+    """Every name hconv writes, w_unit too (a CSV's unit column), is refused in the input by name;
+    before, a w_unit column gave an output with two w_unit columns that hconv could not read back."""
+    schema = pa.schema([(c, pa.float64()) for c in ("Hx", "Hy", "Hz", "I")] + [(name, pa.string())])
+    with pytest.raises(InputError, match=f"already has output column {name}; rename or drop it"):
+        layout.plan(schema, Job(), "in.csv")
+    src = tmp_path / "in.csv"
+    src.write_text(f"Hx,Hy,Hz,I,{name}\n1,2,3,2,x\n")
+    with pytest.raises(InputError, match=name):
+        pipeline.convert_file(str(src), str(tmp_path / "out.csv"))
+    assert not (tmp_path / "out.csv").exists()

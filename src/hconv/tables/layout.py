@@ -30,7 +30,11 @@ from hconv.tables.sets import OPTIONAL_SETS, QUANTITY, VECTOR_SETS
 W_COLUMNS = ("wx", "wy", "wz")
 NULL_COLUMNS = ("null_x", "null_y", "null_z", "null_dim")
 OUTPUT_COLUMNS = W_COLUMNS + ("residual", "cond", "status")
-RESERVED = OUTPUT_COLUMNS + NULL_COLUMNS
+#: ω's unit, a column of its own in CSV output (in Parquet it is wx, wy, wz's metadata).
+UNIT_COLUMN = "w_unit"
+#: Every name hconv writes: an input that has one is refused, naming it, so that no output holds
+#: a name twice (or one column of the input and another of hconv under one name).
+RESERVED = OUTPUT_COLUMNS + NULL_COLUMNS + (UNIT_COLUMN,)
 
 
 @dataclass(frozen=True)
@@ -215,7 +219,7 @@ def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
     if clash:
         raise InputError(
             f"{source}: already has output column{_plural(clash)} {', '.join(clash)}; "
-            "rename or drop them (is this hconv's own output?)"
+            f"rename or drop {'them' if len(clash) > 1 else 'it'} (is this hconv's own output?)"
         )
     for g in groups.values():
         for c in g.columns:

@@ -35,7 +35,7 @@ from hconv.tables.job import Job
 
 CSV_BLOCK_BYTES = 4 << 20
 PARQUET_BATCH_ROWS = 65536
-UNIT_COLUMN = "w_unit"
+UNIT_COLUMN = layout.UNIT_COLUMN
 
 
 def format_of(path: str, given: str | None, flag: str) -> str:
