@@ -3,8 +3,10 @@ encodings (the allocator settings are in test_allocator.py)."""
 
 from __future__ import annotations
 
+import os
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
@@ -12,6 +14,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from hconv.tables import pipeline
+from hconv.tables.job import Job
 from hconv.tools.scene import make_scene
 
 
@@ -91,3 +94,22 @@ def test_parquet_output_floats_plain_labels_compressed(tmp_path):
     assert codec["wx"] == codec["residual"] == codec["Hx"] == "UNCOMPRESSED"
     assert codec["status"] == codec["body"] == "SNAPPY"
     np.testing.assert_array_equal(pq.read_table(dst).column("Hx").to_numpy(), cols["Hx"])  # nothing lost on the way
+
+
+def test_convert_file_tally_names_the_engine_that_ran(tmp_path):
+    """auto keeps files on numpy; a run the asked engine does not cover is numpy's, and says so."""
+    import importlib.util
+
+    src, dst = "examples/data/scene.parquet", str(tmp_path / "o.parquet")
+    root = Path(__file__).resolve().parents[1]
+    auto = pipeline.convert_file(str(root / src), dst, force=True)
+    forced = os.environ.get("HCONV_ENGINE", "auto")  # CI's second run makes every auto numba
+    assert auto.engines == {"numpy" if forced == "auto" else forced: 400}
+    python = pipeline.convert_file(str(root / src), dst, force=True, job=Job(engine="python"))
+    assert python.engines == {"python": 400}
+    eigen = pipeline.convert_file(str(root / src), dst, force=True, job=Job(method="eigen", engine="python"))
+    assert eigen.engines == {"numpy": 400}
+    if importlib.util.find_spec("numba") is not None:
+        assert pipeline.convert_file(str(root / src), dst, force=True, job=Job(engine="numba")).engines == {
+            "numba": 400
+        }

@@ -26,7 +26,8 @@ def summary(tally: Tally, console: Console | None = None) -> None:
     """Print a run's summary: rows, rows per status, the worst residual and the time taken."""
     console = console or Console(stderr=True)
     rate = f"{tally.rows / tally.seconds:,.0f} rows/s" if tally.seconds > 0 and tally.rows else "-"
-    console.print(f"[bold]hconv convert[/bold] · method {tally.method} · ω in {tally.unit}")
+    engines = " + ".join(tally.engines) or "-"
+    console.print(f"[bold]hconv convert[/bold] · method {tally.method} · ω in {tally.unit} · engine {engines}")
     t = Table(show_header=True, header_style="bold")
     t.add_column("status")
     t.add_column("rows", justify="right")

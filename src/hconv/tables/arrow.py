@@ -98,6 +98,14 @@ def convert_table(
                 f"convert_table: {', '.join(beside)} given beside job=; put them in the Job "
                 f"(Job({beside[0]}=...)), which then holds the whole run configuration"
             )
+    return convert_batch(data, job, plan, source)[0]
+
+
+def convert_batch(
+    data: pa.Table, job: Job, plan: layout.Layout | None = None, source: str = "table"
+) -> tuple[pa.Table, str]:
+    """:func:`convert_table` on a checked Table and Job, and the engine that converted it
+    (``numpy``, ``numba`` or ``python``), which the file pipeline reports."""
     if plan is None:
         plan = layout.plan(data.schema, job, source)
     sets, form = plan.read(data)
@@ -121,7 +129,7 @@ def convert_table(
     meta = dict(data.schema.metadata or {})
     meta.update({b"hconv.method": job.method.encode(), b"hconv.version": __version__.encode()})
     schema = pa.schema(_with_input_units(data.schema, plan) + output_fields(job), metadata=meta)
-    return pa.Table.from_arrays(list(data.columns) + columns, schema=schema)
+    return pa.Table.from_arrays(list(data.columns) + columns, schema=schema), res.engine
 
 
 def _with_input_units(schema: pa.Schema, plan: layout.Layout) -> list[pa.Field]:

@@ -22,7 +22,7 @@ import pyarrow as pa
 
 from hconv.errors import StrictError, UsageError
 from hconv.solve import engines, methods, status
-from hconv.tables.arrow import convert_table
+from hconv.tables.arrow import convert_batch
 from hconv.tables.job import Job
 from hconv.tables.tableio import Output, format_of, open_input
 
@@ -38,8 +38,11 @@ class Tally:
     worst_residual: float = float("nan")
     worst_row: int | None = None  #: 1-based data row of the worst residual
     seconds: float = 0.0
+    engines: dict = field(default_factory=dict)  #: engine -> rows it converted, in order of first use
 
-    def add(self, table: pa.Table) -> None:
+    def add(self, table: pa.Table, engine: str | None = None) -> None:
+        if engine is not None:
+            self.engines[engine] = self.engines.get(engine, 0) + table.num_rows
         st = table.column("status").combine_chunks()
         self.per_status += np.bincount(st.indices.to_numpy(zero_copy_only=False), minlength=len(status.STATUSES))
         if "residual" in table.column_names:
@@ -197,18 +200,18 @@ def convert_file(
     t0 = time.perf_counter()
     with open_input(src, fin, job) as inp, out, BackgroundWriter(out) as writer:
 
-        def one(batch: pa.RecordBatch) -> pa.Table:
-            return convert_table(batch, source=inp.name, job=job, plan=inp.plan)
+        def one(batch: pa.RecordBatch) -> tuple[pa.Table, str]:
+            return convert_batch(pa.Table.from_batches([batch]), job, inp.plan, inp.name)
 
-        for table in ordered_map(one, inp.batches, threads):
+        for table, engine in ordered_map(one, inp.batches, threads):
             if strict:
                 _check_strict(table, tally.rows, inp.name)
             writer.write(table)
-            tally.add(table)
+            tally.add(table, engine)
             if progress is not None:
                 progress(inp.position(), inp.total)
         if tally.rows == 0:  # a header and no rows is a valid empty table
-            writer.write(convert_table(inp.schema.empty_table(), source=inp.name, job=job, plan=inp.plan))
+            writer.write(convert_batch(inp.schema.empty_table(), job, inp.plan, inp.name)[0])
     tally.seconds = time.perf_counter() - t0
     return tally
 
