@@ -33,8 +33,8 @@ def fresh(monkeypatch, tmp_path):
 
 
 def _auto(n: int, **kw) -> str:
-    args = {"method": "exact", "precision": 64, "degenerate": "error", "diagonal": False, **kw}
-    return engines.resolve("auto", n, args["method"], args["precision"], args["degenerate"], args["diagonal"])
+    args = {"method": "exact", "precision": 64, "degenerate": "error", "form": "sym6", **kw}
+    return engines.resolve("auto", n, args["method"], args["precision"], args["degenerate"], args["form"])
 
 
 def test_resolve_auto_one_body_is_python_and_small_batches_numpy(fresh):
@@ -47,8 +47,9 @@ def test_resolve_auto_runs_the_rest_on_numpy(fresh):
     assert _auto(1, method="eigen") == "numpy"
     assert _auto(1, precision=32) == "numpy"
     assert _auto(1, degenerate="pinv") == "numpy"
-    assert _auto(1, diagonal=True) == "numpy"
-    assert engines.resolve("python", 5, "lapack", 64, "error", False) == "numpy"
+    assert _auto(1, form="principal") == "numpy"
+    assert engines.resolve("python", 5, "lapack", 64, "error", "sym6") == "numpy"
+    assert engines.resolve("python", 5, "exact", 64, "error", "sym6", degenerate_rtol=1e-9) == "numpy"
 
 
 def test_resolve_auto_numba_once_compiled_and_worth_it(fresh, monkeypatch):
@@ -66,7 +67,7 @@ def test_resolve_auto_numba_once_compiled_and_worth_it(fresh, monkeypatch):
 def test_resolve_environment_sets_what_auto_means(fresh, monkeypatch):
     monkeypatch.setenv("HCONV_ENGINE", "python")
     assert _auto(10**6) == "python"
-    assert engines.resolve("numpy", 10, "exact", 64, "error", False) == "numpy"  # a named engine wins
+    assert engines.resolve("numpy", 10, "exact", 64, "error", "sym6") == "numpy"  # a named engine wins
     monkeypatch.setenv("HCONV_ENGINE", "fortran")
     with pytest.raises(UsageError, match="HCONV_ENGINE must be one of auto, numpy, numba, python, got 'fortran'"):
         _auto(10)

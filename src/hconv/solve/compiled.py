@@ -1,7 +1,7 @@
 """The numba engine: :mod:`hconv.solve.rows` compiled, its row loop shared between the cores.
 
-Importing this module imports numba (about half a second), so only
-:func:`hconv.solve.engines.resolve` does, and only when the compiled engine will run. The row
+Importing this module imports numba (about half a second), so it is imported only where the
+compiled engine runs, after :func:`hconv.solve.engines.resolve` has chosen it. The row
 code stays plain Python in :mod:`hconv.solve.rows`; here each of its functions is compiled with
 its references to the others pointing at their compiled versions. Compiled code is cached on
 disk (numba's ``cache=True``: beside the module, or in a user cache directory where that is

@@ -188,8 +188,7 @@ def convert_columns(
     n = H.shape[1]
     if m.needs_r and r is None:
         raise ValueError(f"method {method!r} needs the offset r [m]; pass r=...")
-    covered = degenerate_rtol is None and form.name in _ROW_FORMS
-    used = engines.resolve(engine, n, method, precision, degenerate, not covered)
+    used = engines.resolve(engine, n, method, precision, degenerate, form.name, degenerate_rtol)
     if used != "numpy":
         return _convert_rows(used, m, form, I, H, diagnostics, extra_k)
     dtype = options.DTYPES[precision]
@@ -204,14 +203,10 @@ def convert_columns(
     start = time.perf_counter()
     with np.errstate(all="ignore"):  # every row that would warn gets a status instead
         _convert_blocks(n, opts, form, I, H, r, w, cond, code, residual, deg)
-    if covered and engines.covers(method, precision, degenerate, form.diagonal):
+    if engines.covers(method, precision, degenerate, form.name, degenerate_rtol):
         engines.spend(time.perf_counter() - start)  # auto's count of what numba would have saved
     axis, dim = (None, None) if deg is None else (deg.axis, deg.dim)
     return Result(w, residual, cond, code, m.unit, m.name, axis, dim)
-
-
-#: The forms the row engines read, and whether each is nine row-major numbers.
-_ROW_FORMS = {"sym6": False, "full9": True}
 
 
 def _convert_rows(
@@ -229,7 +224,7 @@ def _convert_rows(
     fallback = np.zeros(n, dtype=bool)
     k = extra_k + (m.error_k or {}).get(64, 0.0)
     cond_limit = status.ILL_CONDITIONED_TOL / (k * float(np.finfo(np.float64).eps)) if k else np.inf
-    nine = _ROW_FORMS[form.name]
+    nine = rows.FORMS[form.name]
     if used == "numba":
         from hconv.solve import compiled  # numba's import: only here, when it runs
 

@@ -57,9 +57,17 @@ def numba_installed() -> bool:
     return importlib.util.find_spec("numba") is not None
 
 
-def covers(method: str, precision: int, degenerate: str, diagonal: bool) -> bool:
-    """True when the row engines compute this run themselves (the rest is the numpy engine's)."""
-    return method in rows.METHODS and precision == 64 and degenerate == "error" and not diagonal
+def covers(method: str, precision: int, degenerate: str, form: str, degenerate_rtol: float | None = None) -> bool:
+    """True when the row engines compute this run themselves (the rest is the numpy engine's):
+    their methods and inertia forms (:data:`hconv.solve.rows.METHODS`, ``FORMS``), float64,
+    ``--degenerate error`` with its default threshold."""
+    return (
+        method in rows.METHODS
+        and form in rows.FORMS
+        and precision == 64
+        and degenerate == "error"
+        and degenerate_rtol is None
+    )
 
 
 def check_engine(engine: str) -> None:
@@ -131,7 +139,9 @@ def for_files(engine: str) -> str:
     return "numpy" if chosen == "auto" else chosen
 
 
-def resolve(engine: str, n: int, method: str, precision: int, degenerate: str, diagonal: bool) -> str:
+def resolve(
+    engine: str, n: int, method: str, precision: int, degenerate: str, form: str, degenerate_rtol: float | None = None
+) -> str:
     """The engine that converts ``n`` rows: ``"numpy"``, ``"numba"`` or ``"python"``.
 
     An explicit ``numba`` without numba installed is a UsageError with the fix; a run the row
@@ -142,7 +152,7 @@ def resolve(engine: str, n: int, method: str, precision: int, degenerate: str, d
         if engine == "numba" and not numba_installed():
             raise UsageError(f"HCONV_ENGINE=numba needs numba: {NUMBA_FIX} (or unset HCONV_ENGINE)")
     check_engine(engine)
-    if engine == "numpy" or not covers(method, precision, degenerate, diagonal):
+    if engine == "numpy" or not covers(method, precision, degenerate, form, degenerate_rtol):
         return "numpy"
     if engine != "auto":
         return engine

@@ -41,8 +41,10 @@ from hconv.solve.status import (
     TRIANGLE_RTOL,
 )
 
-#: The methods this engine computes; ``refined`` is code 1 in :func:`convert_rows`.
+#: The methods this engine computes (``refined`` is convert_rows' ``refined=True``), and the
+#: inertia forms it reads, each with whether its numbers are nine row-major (else the six).
 METHODS = ("exact", "refined")
+FORMS = {"sym6": False, "full9": True}
 
 prange = range  # the compiled engine makes this numba.prange: rows shared between the cores
 
