@@ -333,11 +333,11 @@ def test_one_bad_arguments_one_line_exit_2(args, needle):
     assert_one_line_error(run_hconv("one", *args), 2, needle)
 
 
-def test_one_does_not_import_pyarrow_or_rich():
+def test_one_does_not_import_pyarrow_rich_pint_or_numba():
     code = (
         "import sys; sys.argv = ['hconv', 'one', '--H', '1,2,3', '--I', '1,2,2.5'];"
         "from hconv.cli import main\ntry: main()\nexcept SystemExit: pass\n"
-        "print(sorted(m for m in ('pyarrow', 'rich') if m in sys.modules))"
+        "print(sorted(m for m in ('pyarrow', 'rich', 'pint', 'numba') if m in sys.modules))"
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=60)
     assert proc.stdout.decode().splitlines()[-1] == "[]"

@@ -147,7 +147,7 @@ JOB_OPTIONS = {
         typer.Option(
             None,
             "--unit",
-            help="COLUMN=UNIT or SET=UNIT (H, I, r, m, v, w_obs), e.g. I=g*cm**2 (repeatable; non-SI units need pint)",
+            help="COLUMN=UNIT or SET=UNIT (H, I, r, m, v, w_obs), e.g. I=g*cm**2 (repeatable)",
         ),
     ),
     "omega_unit": (str, typer.Option("rad/s", "--omega-unit", help="unit of ω: rad/s, deg/s, rpm, ...")),
@@ -300,7 +300,7 @@ ONE_UNIT_SETS = ("H", "I", "r", "m", "v")
     "unit_options",
     "omega_unit",
     help={
-        "unit_options": f"SET=UNIT for {', '.join(ONE_UNIT_SETS)}, e.g. I=g*cm**2 (repeatable; non-SI units need pint)"
+        "unit_options": f"SET=UNIT for {', '.join(ONE_UNIT_SETS)}, e.g. I=g*cm**2 (repeatable)"
     },
 )
 def one(

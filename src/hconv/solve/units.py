@@ -3,8 +3,8 @@
 hconv computes in SI: H [kg·m²/s], I [kg·m²], r [m], m [kg], v [m/s], ω [rad/s]. A unit given by
 ``--unit COLUMN=UNIT`` or by a Parquet field's ``unit`` metadata is turned into a factor to SI;
 ω can be written in another unit (``--omega-unit``). SI spellings are recognised without pint;
-anything else goes through pint, an optional extra (``pip install 'hconv[units]'``) that is
-imported only then. Only multiplicative units are accepted (no offsets such as °C).
+anything else goes through pint, a dependency that is imported only then, so a run in SI (and
+``hconv one``'s start-up) never pays for it. Only multiplicative units are accepted (no offsets such as °C).
 """
 
 from __future__ import annotations
@@ -61,7 +61,7 @@ def _registry() -> Any:
     try:
         import pint
     except ImportError:
-        raise UsageError("units other than SI need pint; install it with: pip install 'hconv[units]'") from None
+        raise UsageError("units other than SI need pint, which is missing from this installation; reinstall hconv: pip install --force-reinstall hconv") from None
     return pint.UnitRegistry()
 
 
