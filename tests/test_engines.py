@@ -82,11 +82,12 @@ def test_for_files_auto_is_numpy_unless_the_environment_says(fresh, monkeypatch)
 
 def test_resolve_numba_without_numba_names_the_fix(fresh, monkeypatch):
     monkeypatch.setattr(engines, "numba_installed", lambda: False)
-    with pytest.raises(UsageError, match=r"--engine numba needs numba: pip install 'hconv\[fast\]'"):
+    fix = r"engine='numba' needs numba: pip install 'hconv\[fast\]' \(or use engine='auto'\)"
+    with pytest.raises(UsageError, match=fix):
         hconv.convert(np.ones(3), np.eye(3), engine="numba")
-    with pytest.raises(UsageError, match="--engine must be one of auto, numpy, numba, python, got 'gpu'"):
+    with pytest.raises(UsageError, match="engine must be one of auto, numpy, numba, python, got 'gpu'"):
         hconv.convert(np.ones(3), np.eye(3), engine="gpu")
-    with pytest.raises(UsageError, match="--engine numba needs numba"):
+    with pytest.raises(UsageError, match="engine='numba' needs numba"):
         hconv.Job(engine="numba")
     monkeypatch.setenv("HCONV_ENGINE", "numba")  # the message names what asked for numba
     with pytest.raises(UsageError, match=r"HCONV_ENGINE=numba needs numba: .* \(or unset HCONV_ENGINE\)"):

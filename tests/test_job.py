@@ -14,7 +14,7 @@ from hconv.tables.job import Job
 def test_job_mapping_and_units_as_dict_or_pairs():
     assert Job(mapping={"Hx": "Lx", "Hy": "Ly"}) == Job(mapping=(("Hx", "Lx"), ("Hy", "Ly")))
     assert Job(unit_options={"I": "g*cm**2"}).unit_options == (("I", "g*cm**2"),)
-    with pytest.raises(UsageError, match="mapping takes pairs such as"):
+    with pytest.raises(UsageError, match="mapping takes a dict such as"):
         Job(mapping="Hx=Lx")
 
 
@@ -27,8 +27,8 @@ def test_job_is_immutable():
     "kwargs, needle",
     [
         ({"method": "exakt"}, "unknown method 'exakt'; choose one of: exact"),
-        ({"quat_order": "zyxw"}, "--quat-order must be one of wxyz, xyzw, got 'zyxw'"),
-        ({"omega_unit": "parsecs"}, "--omega-unit: 'parsecs'"),
+        ({"quat_order": "zyxw"}, "quat_order must be one of wxyz, xyzw, got 'zyxw'"),
+        ({"omega_unit": "parsecs"}, "omega_unit: 'parsecs'"),
         ({"method": "document", "omega_unit": "deg/s"}, r"gives m\^2/s, which is not an angular velocity"),
         ({"conventions": "world"}, "conventions must be a Conventions, got str"),
     ],
@@ -55,11 +55,11 @@ def test_job_set_factor_reads_whole_set_units():
 @pytest.mark.parametrize(
     "kwargs, needle",
     [
-        ({"mapping": {"Hw": "Lx"}}, "--map Hw=Lx: hconv has no column 'Hw'; map one of"),
-        ({"mapping": (("Hx", "a"), ("Hx", "b"))}, r"--map gives Hx twice \(a and b\)"),
-        ({"mapping": {"Hx": "a", "Hy": "a"}}, "--map points both Hx and Hy at column 'a'"),
-        ({"unit_options": {"I": "furlongs"}}, r"--unit I=furlongs: .furlongs. is not a unit of inertia"),
-        ({"unit_options": {"Hx": "kg"}}, r"--unit Hx=kg: 'kg' is not a unit of angular momentum"),
+        ({"mapping": {"Hw": "Lx"}}, "mapping={'Hw': 'Lx'}: hconv has no column 'Hw'; map one of"),
+        ({"mapping": (("Hx", "a"), ("Hx", "b"))}, r"mapping gives Hx twice \(a and b\)"),
+        ({"mapping": {"Hx": "a", "Hy": "a"}}, "mapping points both Hx and Hy at column 'a'"),
+        ({"unit_options": {"I": "furlongs"}}, r"unit_options=\{'I': 'furlongs'\}: .furlongs. is not a unit of inertia"),
+        ({"unit_options": {"Hx": "kg"}}, r"unit_options=\{'Hx': 'kg'\}: 'kg' is not a unit of angular momentum"),
     ],
 )
 def test_job_map_and_units_checked_when_made_without_the_data(kwargs, needle):

@@ -9,6 +9,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
+from helpers import run_hconv
 
 from hconv.errors import InputError
 from hconv.tables import layout, pipeline
@@ -78,3 +79,28 @@ def test_plan_refuses_an_input_column_named_as_an_output(name, tmp_path):
     with pytest.raises(InputError, match=name):
         pipeline.convert_file(str(src), str(tmp_path / "out.csv"))
     assert not (tmp_path / "out.csv").exists()
+
+
+@pytest.mark.parametrize(
+    "columns, mapping, needle",
+    [
+        # hconv's Hy is read from column Hx, so its Hx has no column: say that, not "missing Hx"
+        (("Hx", "Hy", "Hz", "I1", "I2", "I3"), {"Hy": "Hx"}, "column 'Hx' is read as Hy: mapping={'Hy': 'Hx'}"),
+        (("Hx", "Hy", "Hz", "I1", "I2", "I3"), {"I3": "I1"}, "column 'I1' is read as I3: mapping={'I3': 'I1'}"),
+    ],
+)
+def test_plan_map_taking_a_name_s_own_column_says_so(columns, mapping, needle):
+    schema = pa.schema([(c, pa.float64()) for c in columns])
+    with pytest.raises(InputError) as info:
+        layout.plan(schema, Job(mapping=mapping), "x.csv")
+    msg = str(info.value)
+    assert needle in msg and "give" in msg and "a column too" in msg
+
+
+def test_plan_map_clash_is_spelled_as_the_command_line_does(tmp_path):
+    src = tmp_path / "in.csv"
+    src.write_text("Hx,Hy,Hz,I1,I2,I3\n1,2,3,4,5,6\n")
+    proc = run_hconv("convert", str(src), str(tmp_path / "o.csv"), "--map", "Hy=Hx")
+    err = proc.stderr.decode().strip()
+    assert proc.returncode == 3 and len(err.splitlines()) == 1
+    assert "column 'Hx' is read as Hy: --map Hy=Hx); give Hx a column too, e.g. --map Hx=COLUMN" in err

@@ -23,9 +23,10 @@ def _message(fn) -> str:
 
 
 def test_check_precision_one_message_from_every_entry(tmp_path):
-    want = "--precision must be 64 or 32, got 16"
+    want = "precision must be 64 or 32, got 16"  # Python callers are told the keyword
     assert _message(lambda: hconv.convert(H, I, precision=16)) == want
     assert _message(lambda: Job(precision=16)) == want
+    want = "--precision must be 64 or 32, got 16"  # the command line, its option
     src = tmp_path / "in.csv"
     src.write_text("Hx,Hy,Hz,I\n1,2,3,4\n")
     for args in (
@@ -37,27 +38,24 @@ def test_check_precision_one_message_from_every_entry(tmp_path):
 
 
 def test_check_degenerate_only_for_the_exact_family():
-    want = "--degenerate pinv applies to the exact methods, not to 'document'"
+    want = "degenerate='pinv' applies to the exact methods, not to 'document'"
     r = np.ones(3)
     assert _message(lambda: hconv.convert(H, I, r, method="document", degenerate="pinv")) == want
     assert _message(lambda: Job("document", conventions=Conventions(degenerate="pinv"))) == want
     assert (
-        _message(lambda: Conventions(degenerate_rtol=1.0))
-        == "--degenerate-rtol must be at least 0 and below 1, got 1.0"
+        _message(lambda: Conventions(degenerate_rtol=1.0)) == "degenerate_rtol must be at least 0 and below 1, got 1.0"
     )
-    assert _message(lambda: hconv.convert(H, I, degenerate_rtol=-1e-3)).startswith(
-        "--degenerate-rtol must be at least 0"
-    )
+    assert _message(lambda: hconv.convert(H, I, degenerate_rtol=-1e-3)).startswith("degenerate_rtol must be at least 0")
 
 
 @pytest.mark.parametrize(
     "field, value, option",
     [
-        ("frame", "sideways", "--frame"),
-        ("omega_frame", "up", "--omega-frame"),
-        ("about", "corner", "--about"),
-        ("products", "minus", "--products"),
-        ("degenerate", "drop", "--degenerate"),
+        ("frame", "sideways", "frame"),
+        ("omega_frame", "up", "omega_frame"),
+        ("about", "corner", "about"),
+        ("products", "minus", "products"),
+        ("degenerate", "drop", "degenerate"),
     ],
 )
 def test_conventions_bad_choice_names_the_option_and_choices(field, value, option):

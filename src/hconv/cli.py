@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
+from hconv import errors
 from hconv.errors import HconvError, UsageError
 from hconv.kernels import allocator
 from hconv.solve import forms, options
@@ -229,7 +230,8 @@ def friendly(fn: Callable) -> Callable:
     @functools.wraps(fn)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
-            return fn(*args, **kwargs)
+            with errors.command_line():
+                return fn(*args, **kwargs)
         except HconvError as exc:
             _fail(str(exc), exc.exit_code)
         except KeyboardInterrupt:
@@ -299,9 +301,7 @@ ONE_UNIT_SETS = ("H", "I", "r", "m", "v")
     *DEGENERATE,
     "unit_options",
     "omega_unit",
-    help={
-        "unit_options": f"SET=UNIT for {', '.join(ONE_UNIT_SETS)}, e.g. I=g*cm**2 (repeatable)"
-    },
+    help={"unit_options": f"SET=UNIT for {', '.join(ONE_UNIT_SETS)}, e.g. I=g*cm**2 (repeatable)"},
 )
 def one(
     H: str = typer.Option(..., "--H", help="Hx,Hy,Hz (kg·m²/s)"),

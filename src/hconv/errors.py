@@ -7,6 +7,46 @@ written; 5 rows that are not ok under ``--strict``; 130 interrupted (Ctrl-C or S
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+#: Who reads the messages: Python callers, who pass keywords (``degenerate_rtol=0.5``), or the
+#: command line, whose options are the keywords with dashes (``--degenerate-rtol 0.5``). The CLI
+#: switches to its spelling for the length of a command (:func:`command_line`). A module global,
+#: not a context variable, so that a message made in a worker thread is spelled the same.
+_reader = "python"
+#: Python keywords whose command-line option is not the keyword with dashes.
+FLAGS = {"mapping": "--map", "unit_options": "--unit", "src_format": "--from", "dst_format": "--to"}
+_UNSET = object()
+
+
+@contextmanager
+def command_line() -> Iterator[None]:
+    """Within this block, messages name options as the command line spells them."""
+    global _reader
+    before, _reader = _reader, "cli"
+    try:
+        yield
+    finally:
+        _reader = before
+
+
+def option(name: str, value: object = _UNSET) -> str:
+    """Option ``name`` (its Python keyword), with ``value`` if given, as the reader spells it:
+    ``--omega-unit deg/s`` on the command line, ``omega_unit='deg/s'`` in Python."""
+    if _reader == "cli":
+        flag = FLAGS.get(name, "--" + name.replace("_", "-"))
+        return flag if value is _UNSET else f"{flag} {value}"
+    return name if value is _UNSET else f"{name}={value!r}"
+
+
+def entry(name: str, key: str, value: str) -> str:
+    """One entry of a mapping option: ``--map Hx=Lx`` on the command line, ``mapping={'Hx': 'Lx'}``
+    in Python."""
+    if _reader == "cli":
+        return f"{option(name)} {key}={value}"
+    return f"{name}={{{key!r}: {value!r}}}"
+
 
 class HconvError(Exception):
     """Base class; ``exit_code`` is what the CLI exits with."""

@@ -33,7 +33,7 @@ import os
 import sys
 from pathlib import Path
 
-from hconv.errors import UsageError
+from hconv.errors import UsageError, option
 from hconv.solve import rows
 from hconv.solve.options import check_choice
 
@@ -72,9 +72,9 @@ def covers(method: str, precision: int, degenerate: str, form: str, degenerate_r
 
 def check_engine(engine: str) -> None:
     """The choice, and numba installed when it is asked for by name."""
-    check_choice("--engine", engine, ENGINES)
+    check_choice("engine", engine, ENGINES)
     if engine == "numba" and not numba_installed():
-        raise UsageError(f"--engine numba needs numba: {NUMBA_FIX} (or use --engine auto)")
+        raise UsageError(f"{option('engine', 'numba')} needs numba: {NUMBA_FIX} (or use {option('engine', 'auto')})")
 
 
 def spend(seconds: float) -> None:

@@ -3,8 +3,9 @@
 Every entry point (``hconv.convert``, :class:`Conventions`, :class:`hconv.tables.job.Job` and so
 the CLI) validates an option by calling the function here, so that a bad value gets the same
 :class:`~hconv.errors.UsageError` (a ``ValueError``) and the same message wherever it comes in.
-The CLI builds its choices from the tuples here. Messages name the option as the command line
-spells it; the Python keyword is the same word with underscores.
+The CLI builds its choices from the tuples here. Checks take an option by its Python keyword,
+and messages spell it as the reader does (:func:`hconv.errors.option`): ``--degenerate-rtol``
+on the command line, ``degenerate_rtol=`` in Python.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hconv.errors import UsageError
+from hconv.errors import UsageError, option
 from hconv.solve import methods
 
 #: --precision: the dtype the method computes in (diagnostics are always float64).
@@ -31,25 +32,25 @@ PRODUCTS = ("tensor", "positive")
 QUAT_ORDERS = ("wxyz", "xyzw")
 
 
-def check_choice(option: str, value: object, allowed: tuple) -> None:
-    """UsageError unless ``value`` is one of ``allowed``."""
+def check_choice(name: str, value: object, allowed: tuple) -> None:
+    """UsageError unless ``value`` of option ``name`` (its Python keyword) is one of ``allowed``."""
     if value not in allowed:
-        raise UsageError(f"{option} must be one of {', '.join(map(str, allowed))}, got {value!r}")
+        raise UsageError(f"{option(name)} must be one of {', '.join(map(str, allowed))}, got {value!r}")
 
 
 def check_precision(precision: object) -> None:
     if precision not in PRECISIONS:
-        raise UsageError(f"--precision must be 64 or 32, got {precision!r}")
+        raise UsageError(f"{option('precision')} must be 64 or 32, got {precision!r}")
 
 
 def check_degenerate(mode: str, rtol: float | None, method: str | None = None) -> None:
     """The degenerate mode and threshold and, given a method, that a mode other than error is
     only asked of the exact family."""
-    check_choice("--degenerate", mode, DEGENERATE_MODES)
+    check_choice("degenerate", mode, DEGENERATE_MODES)
     if rtol is not None and not 0 <= rtol < 1:
-        raise UsageError(f"--degenerate-rtol must be at least 0 and below 1, got {rtol!r}")
+        raise UsageError(f"{option('degenerate_rtol')} must be at least 0 and below 1, got {rtol!r}")
     if method is not None and mode != "error" and not methods.get(method).exact:
-        raise UsageError(f"--degenerate {mode} applies to the exact methods, not to {method!r}")
+        raise UsageError(f"{option('degenerate', mode)} applies to the exact methods, not to {method!r}")
 
 
 @dataclass(frozen=True)
@@ -65,10 +66,10 @@ class Conventions:
     degenerate_rtol: float | None = None  #: a moment <= this × trace counts as zero
 
     def __post_init__(self) -> None:
-        check_choice("--frame", self.frame, FRAMES)
-        check_choice("--omega-frame", self.w_frame, FRAMES)
-        check_choice("--about", self.about, ABOUT)
-        check_choice("--products", self.products, PRODUCTS)
+        check_choice("frame", self.frame, FRAMES)
+        check_choice("omega_frame", self.w_frame, FRAMES)
+        check_choice("about", self.about, ABOUT)
+        check_choice("products", self.products, PRODUCTS)
         check_degenerate(self.degenerate, self.degenerate_rtol)
 
     @property
@@ -83,12 +84,12 @@ class Conventions:
         if methods.get(method).needs_r:
             need["r"] = f"method {method!r} needs the offset r"
         if self.about == "pivot":
-            need.setdefault("r", "--about pivot needs r, the centre of mass relative to the pivot")
-            need["m"] = "--about pivot needs the mass m"
+            need.setdefault("r", f"{option('about', 'pivot')} needs r, the centre of mass relative to the pivot")
+            need["m"] = f"{option('about', 'pivot')} needs the mass m"
         if self.about == "free":
-            need.setdefault("r", "--about free needs r, the centre of mass relative to the origin of H")
-            need["m"] = "--about free needs the mass m"
-            need["v"] = "--about free needs v, the velocity of the centre of mass"
+            need.setdefault("r", f"{option('about', 'free')} needs r, the centre of mass relative to the origin of H")
+            need["m"] = f"{option('about', 'free')} needs the mass m"
+            need["v"] = f"{option('about', 'free')} needs v, the velocity of the centre of mass"
         if self.w_frame != self.frame:
             need["q"] = "ω in another frame than H needs the orientation q"
         return need

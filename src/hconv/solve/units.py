@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from hconv.errors import UsageError
+from hconv.errors import UsageError, option
 from hconv.solve.status import UNIT_DENSITY_BAND
 
 #: The SI unit of each quantity, written as pint parses it.
@@ -61,12 +61,15 @@ def _registry() -> Any:
     try:
         import pint
     except ImportError:
-        raise UsageError("units other than SI need pint, which is missing from this installation; reinstall hconv: pip install --force-reinstall hconv") from None
+        raise UsageError(
+            "units other than SI need pint, which is missing from this installation; "
+            "reinstall hconv: pip install --force-reinstall hconv"
+        ) from None
     return pint.UnitRegistry()
 
 
 @functools.cache
-def factor(quantity: str, unit: str, where: str = "--unit") -> float:
+def factor(quantity: str, unit: str, where: str = "unit") -> float:
     """The factor that turns a value in ``unit`` into the SI unit of ``quantity`` (a key of SI).
 
     ``where`` names the source of the unit in error messages (an option, or a file's column).
@@ -98,7 +101,7 @@ def factor(quantity: str, unit: str, where: str = "--unit") -> float:
 
 def omega_factor(unit: str) -> float:
     """The factor from rad/s to ``unit`` (``--omega-unit``), e.g. 180/π for deg/s."""
-    return 1.0 / factor("w", unit, "--omega-unit")
+    return 1.0 / factor("w", unit, option("omega_unit"))
 
 
 def implausible(trace: np.ndarray, m: np.ndarray, both_sides: bool = True) -> np.ndarray:

@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from hconv.errors import UsageError
+from hconv.errors import UsageError, entry, option
 from hconv.solve import engines, methods, options, units
 from hconv.solve.options import Conventions
 from hconv.tables.sets import QUANTITY, all_names, quantity_of
@@ -25,7 +25,9 @@ def _pairs(what: str, value: Any) -> tuple:
     try:
         pairs = tuple((str(a), str(b)) for a, b in items)
     except (TypeError, ValueError):
-        raise UsageError(f"{what} takes pairs such as {{'Hx': 'Lx'}} or (('Hx', 'Lx'),), got {value!r}") from None
+        raise UsageError(
+            f"{what} takes a dict such as {{'Hx': 'Lx'}} or pairs such as (('Hx', 'Lx'),), got {value!r}"
+        ) from None
     return pairs
 
 
@@ -36,13 +38,17 @@ def _check_mapping(pairs: tuple) -> None:
     seen: dict[str, str] = {}
     for name, column in pairs:
         if name not in names:
-            raise UsageError(f"--map {name}={column}: hconv has no column {name!r}; map one of {', '.join(names)}")
+            raise UsageError(
+                f"{entry('mapping', name, column)}: hconv has no column {name!r}; map one of {', '.join(names)}"
+            )
         if name in given and given[name] != column:
-            raise UsageError(f"--map gives {name} twice ({given[name]} and {column}); give it once")
+            raise UsageError(f"{option('mapping')} gives {name} twice ({given[name]} and {column}); give it once")
         given[name] = column
     for name, column in given.items():
         if column in seen:
-            raise UsageError(f"--map points both {seen[column]} and {name} at column {column!r}; one column, one name")
+            raise UsageError(
+                f"{option('mapping')} points both {seen[column]} and {name} at column {column!r}; one column, one name"
+            )
         seen[column] = name
 
 
@@ -75,19 +81,19 @@ class Job:
         for key, unit in self.unit_options:
             quantity = quantity_of(key)
             if quantity is not None:  # a set or one of hconv's names: its unit can be checked now
-                units.factor(quantity, unit, f"--unit {key}={unit}")
+                units.factor(quantity, unit, entry("unit_options", key, unit))
         m = methods.get(self.method)
         options.check_precision(self.precision)
         if not isinstance(self.conventions, Conventions):
             raise UsageError(f"conventions must be a Conventions, got {type(self.conventions).__name__}")
         options.check_degenerate(self.conventions.degenerate, self.conventions.degenerate_rtol, self.method)
-        options.check_choice("--quat-order", self.quat_order, options.QUAT_ORDERS)
+        options.check_choice("quat_order", self.quat_order, options.QUAT_ORDERS)
         engines.check_engine(self.engine)
         # an unknown unit fails now, not mid-run
-        w_factor = units.factor("w", self.omega_unit, "--omega-unit")
+        w_factor = units.factor("w", self.omega_unit, option("omega_unit"))
         if m.unit != methods.RAD_S and w_factor != 1.0:
             raise UsageError(
-                f"--omega-unit {self.omega_unit}: method {self.method!r} gives {m.unit}, "
+                f"{option('omega_unit', self.omega_unit)}: method {self.method!r} gives {m.unit}, "
                 "which is not an angular velocity and cannot be converted"
             )
 
@@ -114,4 +120,4 @@ class Job:
         given = dict(self.unit_options)
         if name not in given:
             return 1.0
-        return units.factor(QUANTITY[name], given[name], f"--unit {name}={given[name]}")
+        return units.factor(QUANTITY[name], given[name], entry("unit_options", name, given[name]))

@@ -21,7 +21,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 
-from hconv.errors import InputError, UsageError
+from hconv.errors import InputError, UsageError, entry, option
 from hconv.solve import forms, units
 from hconv.tables.job import Job
 from hconv.tables.sets import OPTIONAL_SETS, QUANTITY, VECTOR_SETS
@@ -205,15 +205,26 @@ def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
         """The input has hconv's name n (a column that --map gave another name does not count)."""
         return src(n) in present and (n in mapping or n not in used_elsewhere)
 
+    def taken(lack: list) -> str:
+        """Why a lacking name whose column is there is not read: --map gave the column to another name."""
+        back = {column: n for n, column in mapping.items()}
+        c = next((c for c in lack if c not in mapping and c in present and c in back), None)
+        if c is None:
+            return ""
+        return (
+            f" (column {c!r} is read as {back[c]}: {entry('mapping', back[c], c)}); "
+            f"give {c} a column too, e.g. {entry('mapping', c, 'COLUMN')}"
+        )
+
     groups = {}
     need = job.needs()
     for name in VECTOR_SETS:
         if name in OPTIONAL_SETS or name == "H" or name in need:
             why = "H is required" if name == "H" else need.get(name)
-            g = _vector_group(name, schema, has, src, source, why)
+            g = _vector_group(name, schema, has, src, source, why, taken)
             if g is not None:
                 groups[name] = g
-    form, groups["I"] = _inertia_group(schema, has, src, source)
+    form, groups["I"] = _inertia_group(schema, has, src, source, taken)
 
     clash = [] if job.observed else [c for c in RESERVED if c in present]
     if clash:
@@ -240,12 +251,18 @@ def _mapping(pairs: tuple, present: set, source: str) -> dict:
     """The Job's --map pairs (already checked against hconv's names) against this input."""
     for name, column in pairs:
         if column not in present:
-            raise InputError(f"{source}: --map {name}={column}, but there is no column {column!r}")
+            raise InputError(f"{source}: {entry('mapping', name, column)}, but there is no column {column!r}")
     return dict(pairs)
 
 
 def _vector_group(
-    name: str, schema: pa.Schema, has: Callable[[str], bool], src: Callable[[str], str], source: str, why: str | None
+    name: str,
+    schema: pa.Schema,
+    has: Callable[[str], bool],
+    src: Callable[[str], str],
+    source: str,
+    why: str | None,
+    taken: Callable[[list], str],
 ) -> Group | None:
     """The set ``name`` if present; ``why`` (the reason it is needed) makes it required."""
     cols = VECTOR_SETS[name]
@@ -253,9 +270,12 @@ def _vector_group(
     if found and len(found) < len(cols):
         lack = [c for c in cols if c not in found]
         if why:
-            raise InputError(f"{source}: missing column{_plural(lack)} {', '.join(lack)}; {name} is {', '.join(cols)}")
+            raise InputError(
+                f"{source}: missing column{_plural(lack)} {', '.join(lack)}{taken(lack)}; {name} is {', '.join(cols)}"
+            )
         raise InputError(
-            f"{source}: has {', '.join(found)} but not {', '.join(lack)}; give all of {', '.join(cols)} or none"
+            f"{source}: has {', '.join(found)} but not {', '.join(lack)}{taken(lack)}; "
+            f"give all of {', '.join(cols)} or none"
         )
     if found:
         if len(cols) > 1 and has(name) and _is_list(schema.field(src(name)).type):
@@ -282,7 +302,7 @@ def _vector_group(
 
 
 def _inertia_group(
-    schema: pa.Schema, has: Callable[[str], bool], src: Callable[[str], str], source: str
+    schema: pa.Schema, has: Callable[[str], bool], src: Callable[[str], str], source: str, taken: Callable[[list], str]
 ) -> tuple[str | None, Group]:
     """The one inertia form the schema holds, asking :mod:`hconv.solve.forms`' registry."""
     found = {}
@@ -299,7 +319,8 @@ def _inertia_group(
             base = forms.get(form.extends)
             if base.name not in found:
                 raise InputError(
-                    f"{source}: has {', '.join(found[form.name])} but not {', '.join(base.columns)}; "
+                    f"{source}: has {', '.join(found[form.name])} but not {', '.join(base.columns)}"
+                    f"{taken(list(base.columns))}; "
                     f"the {form.count}-number form is the {base.count} plus "
                     f"{', '.join(c for c in form.columns if c not in base.columns)}"
                 )
@@ -308,7 +329,7 @@ def _inertia_group(
         desc = "; ".join(f"{form}: {', '.join(src(c) for c in cols)}" for form, cols in found.items())
         raise InputError(
             f"{source}: the inertia is given in more than one form ({desc}); keep one form, "
-            "or point --map at the columns to use"
+            f"or point {option('mapping')} at the columns to use"
         )
     if not found:
         raise InputError(f"{source}: missing the inertia; give {forms.forms_text()}, or a list column I")
@@ -323,7 +344,8 @@ def _inertia_group(
     lack = [c for c in form.columns if not has(c)]
     if lack:
         raise InputError(
-            f"{source}: has {', '.join(got)} but not {', '.join(lack)}; the {name} form needs {', '.join(own)}"
+            f"{source}: has {', '.join(got)} but not {', '.join(lack)}{taken(lack)}; "
+            f"the {name} form needs {', '.join(own)}"
         )
     return name, Group("I", tuple(src(c) for c in form.columns), False, form.count)
 
@@ -340,7 +362,7 @@ def _with_units(g: Group, schema: pa.Schema, options: tuple, mapping: dict) -> G
         unit, where = None, None
         for key in (c, hname, g.name):
             if key in given:
-                unit, where = given[key], f"--unit {key}={given[key]}"
+                unit, where = given[key], entry("unit_options", key, given[key])
                 break
         if unit is None and b"unit" in meta:
             unit, where = meta[b"unit"].decode(errors="replace"), f"column {c!r} (its unit metadata)"
@@ -358,6 +380,6 @@ def _check_unit_keys(options: tuple, groups: dict, present: set) -> None:
         if key not in known:
             where = "" if key in present else ", nor one of the input"
             raise UsageError(
-                f"--unit {key}={unit}: {key!r} is not a column hconv reads{where}; "
+                f"{entry('unit_options', key, unit)}: {key!r} is not a column hconv reads{where}; "
                 f"use a set (H, I, r, m, v, w_obs) or one of its columns"
             )

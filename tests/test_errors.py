@@ -1,0 +1,44 @@
+"""Messages spell an option as their reader does: Python keywords for callers of the library, the
+command line's options inside a command."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from helpers import run_hconv
+
+import hconv
+from hconv import errors
+from hconv.errors import UsageError
+
+
+def test_option_spelled_as_a_keyword_outside_a_command():
+    assert errors.option("degenerate_rtol") == "degenerate_rtol"
+    assert errors.option("omega_unit", "deg/s") == "omega_unit='deg/s'"
+    assert errors.entry("mapping", "Hx", "Lx") == "mapping={'Hx': 'Lx'}"
+
+
+def test_option_spelled_as_a_flag_inside_a_command_and_restored_after_an_error():
+    with pytest.raises(RuntimeError), errors.command_line():
+        assert errors.option("degenerate_rtol") == "--degenerate-rtol"
+        assert errors.option("omega_unit", "deg/s") == "--omega-unit deg/s"
+        assert errors.entry("mapping", "Hx", "Lx") == "--map Hx=Lx"
+        assert errors.entry("unit_options", "I", "g*cm**2") == "--unit I=g*cm**2"
+        raise RuntimeError
+    assert errors.option("engine", "numba") == "engine='numba'"
+
+
+@pytest.mark.parametrize(
+    "kwargs, python, command",
+    [
+        ({"precision": 16}, "precision must be 64 or 32", ["--precision", "16"]),
+        ({"degenerate_rtol": 2.0}, "degenerate_rtol must be at least 0", ["--degenerate-rtol", "2"]),
+    ],
+)
+def test_option_error_names_the_keyword_in_python_and_the_flag_on_the_command_line(kwargs, python, command):
+    with pytest.raises(UsageError) as info:
+        hconv.convert(np.ones(3), np.eye(3), **kwargs)
+    assert str(info.value).startswith(python) and "--" not in str(info.value)
+    proc = run_hconv("one", "--H", "1,2,3", "--I", "1,2,3", *command)
+    err = proc.stderr.decode()
+    assert proc.returncode == 2 and err.startswith(f"hconv: error: {command[0]} ") and len(err.splitlines()) == 1
