@@ -13,7 +13,8 @@ value:
 - ``NaN``, ``nan``, ``-NaN`` and ``-nan`` are the float NaN; pyarrow makes them null. The other
   null markers pyarrow knows (:data:`NULLS`: the empty field, ``NA``, ``NULL``, ``#N/A``, …)
   become null, but only in a typed column: a text column keeps them as they are;
-- a time of day (``12:30:00``) stays text, since pyarrow cannot cast text to time32.
+- a time of day (``12:30:00``) stays text, since pyarrow cannot cast text to time32, and so
+  does a number with spaces around it (pyarrow's reader trims them, its cast does not).
 
 Floats are IEEE doubles, rounded to nearest, as any float parser gives them (``1.50`` is 1.5,
 ``1e3`` is 1000); ``--keep-text`` (``Job(keep_text=True)``) keeps every such column as text.
