@@ -140,6 +140,18 @@ def test_convert_pipeline_parquet_stdin_to_stdout(tmp_path):
     assert "status" in proc.stderr.decode()  # the summary goes to stderr, never into the data
 
 
+@pytest.mark.parametrize("keep", [False, True])
+def test_convert_pipeline_csv_stdin_to_parquet_types_or_keeps_text(keep):
+    data = (EXAMPLES / "scene.csv").read_bytes()
+    args = ["--keep-text"] if keep else []
+    proc = run_hconv("convert", "-", "-", "--from", "csv", "--to", "parquet", "-q", *args, input=data)
+    assert proc.returncode == 0, proc.stderr.decode()
+    got = pq.read_table(io.BytesIO(proc.stdout))
+    assert got.schema.field("id").type == (pa.string() if keep else pa.int64())
+    assert got.schema.field("w_true_x").type == (pa.string() if keep else pa.float64())
+    assert "--keep-text" in run_hconv("convert", "--help").stdout.decode()
+
+
 def test_convert_empty_tables_give_empty_outputs(tmp_path):
     src = write_csv(tmp_path / "in.csv", CONTRACT[:9], [])
     out = tmp_path / "out.csv"

@@ -98,17 +98,20 @@ def outcome_is_clean(code: int, err: str) -> None:
     rows=st.lists(st.lists(CELLS, min_size=0, max_size=16), max_size=6),
     crlf=st.booleans(),
     bom=st.booleans(),
+    to=st.sampled_from(["csv", "parquet"]),  # into Parquet, the other columns get types (csvtypes)
 )
-def test_fuzz_csv_reader(tmp_path, capsys, header, rows, crlf, bom):
+def test_fuzz_csv_reader(tmp_path, capsys, header, rows, crlf, bom, to):
     buf = io.StringIO()
     csv.writer(buf, lineterminator="\r\n" if crlf else "\n").writerows([header] + rows)
     src = tmp_path / "fuzz.csv"
     src.write_bytes((b"\xef\xbb\xbf" if bom else b"") + buf.getvalue().encode("utf-8", "surrogatepass"))
-    dst = tmp_path / "out.csv"
+    dst = tmp_path / f"out.{to}"
     dst.unlink(missing_ok=True)
     code, _, err = run_inprocess("convert", str(src), str(dst), "-q", capsys=capsys)
     outcome_is_clean(code, err)
-    if code == 0:
+    if code == 0 and to == "parquet":
+        assert pq.read_table(dst).num_rows == len(rows)  # every row kept
+    elif code == 0:
         got = list(csv.reader(io.StringIO(dst.read_text(encoding="utf-8"))))
         assert len(got) == len(rows) + 1  # every row kept
     else:

@@ -31,6 +31,7 @@ def test_job_is_immutable():
         ({"omega_unit": "parsecs"}, "omega_unit: 'parsecs'"),
         ({"method": "document", "omega_unit": "deg/s"}, r"gives m\^2/s, which is not an angular velocity"),
         ({"conventions": "world"}, "conventions must be a Conventions, got str"),
+        ({"keep_text": "no"}, "keep_text must be True or False, got 'no'"),
     ],
 )
 def test_job_bad_option_is_refused_when_made(kwargs, needle):

@@ -3,17 +3,21 @@ encodings (the allocator settings are in test_allocator.py)."""
 
 from __future__ import annotations
 
+import csv
+import io
 import os
+import sys
 import threading
 import time
 from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
+import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 import pytest
 
-from hconv.tables import pipeline
+from hconv.tables import csvtypes, pipeline, tableio
 from hconv.tables.job import Job
 from hconv.tools.scene import make_scene
 
@@ -113,3 +117,134 @@ def test_convert_file_tally_names_the_engine_that_ran(tmp_path):
         assert pipeline.convert_file(str(root / src), dst, force=True, job=Job(engine="numba")).engines == {
             "numba": 400
         }
+
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENE_CSV = ROOT / "examples" / "data" / "scene.csv"
+#: pyarrow's null markers less its NaN spellings (hconv keeps NaN a float): the reference read
+REFERENCE = pacsv.ConvertOptions(null_values=[v for v in pacsv.ConvertOptions().null_values if "nan" not in v.lower()])
+
+
+def test_convert_file_csv_to_parquet_types_the_scene_columns(tmp_path):
+    dst = tmp_path / "s.parquet"
+    pipeline.convert_file(str(SCENE_CSV), str(dst))
+    out = pq.read_table(dst)
+    assert out.schema.field("id").type == pa.int64() and out.schema.field("body").type == pa.string()
+    assert {out.schema.field(f"w_true_{c}").type for c in "xyz"} == {pa.float64()}
+    ref = pacsv.read_csv(SCENE_CSV)  # an independent reference: pyarrow's own CSV reader
+    for name in ("id", "body", "w_true_x", "w_true_y", "w_true_z"):
+        assert out.column(name).equals(ref.column(name)), name
+    scene = pq.read_table(ROOT / "examples" / "data" / "scene.parquet")  # the same scene, never text
+    assert out.column("id").equals(scene.column("id")) and out.column("w_true_x").equals(scene.column("w_true_x"))
+
+
+def late_misfits(n: int = 1000) -> str:
+    """A CSV whose first blocks say int, but whose later ones hold a float, a zip code, text in
+    an empty column and a null marker."""
+    lines = ["id,code,zip,note,count,Hx,Hy,Hz,I"]
+    for k in range(n):
+        code = "3.5" if k == 700 else str(k % 50)
+        zipc = "02134" if k == 650 else str(10000 + k)
+        note = "hello, world" if k == 800 else ""
+        count = "n/a" if k == 500 else str(k)
+        lines.append(f'{k},{code},{zipc},"{note}",{count},1,2,3,2')
+    return "\n".join(lines) + "\n"
+
+
+def check_late_misfits(out: pa.Table, src: Path, n: int = 1000) -> None:
+    assert out.column("id").to_pylist() == list(range(n))  # every row, in order
+    types = {f.name: f.type for f in out.schema}
+    assert (types["code"], types["zip"], types["note"], types["count"]) == (
+        pa.float64(),
+        pa.string(),
+        pa.string(),
+        pa.int64(),
+    )
+    ref = pacsv.read_csv(src, convert_options=REFERENCE)
+    for name in ("id", "code", "note", "count"):  # the types pyarrow infers from the whole file
+        assert out.column(name).equals(ref.column(name)), name
+    assert out.column("zip")[650].as_py() == "02134" and out.column("zip")[0].as_py() == "10000"  # pyarrow: 2134
+    assert out.column("count")[500].as_py() is None
+
+
+def test_convert_file_csv_to_parquet_later_block_that_does_not_fit_types_from_whole_file(tmp_path, monkeypatch):
+    monkeypatch.setattr(tableio, "CSV_BLOCK_BYTES", 512)  # about 25 rows a block: the misfits come late
+    src, dst = tmp_path / "in.csv", tmp_path / "out.parquet"
+    src.write_text(late_misfits())
+    text = pacsv.ConvertOptions(column_types={"code": pa.string()}, include_columns=["code"])
+    first = csvtypes.infer(pacsv.read_csv(src, convert_options=text).slice(0, 25), ["code"])
+    assert first == {"code": pa.int64()}  # the first block alone does say int
+    tally = pipeline.convert_file(str(src), str(dst), threads=2)
+    assert tally.rows == 1000
+    check_late_misfits(pq.read_table(dst), src)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.csv", "out.parquet"]  # no temporary left
+
+
+def test_convert_file_stdin_csv_to_parquet_types_from_whole_file(tmp_path, monkeypatch):
+    monkeypatch.setattr(tableio, "CSV_BLOCK_BYTES", 512)
+    src, dst = tmp_path / "in.csv", tmp_path / "out.parquet"
+    src.write_text(late_misfits())
+    monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BytesIO(src.read_bytes())))
+    pipeline.convert_file("-", str(dst), src_format="csv")
+    check_late_misfits(pq.read_table(dst), src)
+
+
+def test_convert_file_keep_text_keeps_csv_columns_as_text(tmp_path):
+    dst = tmp_path / "s.parquet"
+    pipeline.convert_file(str(SCENE_CSV), str(dst), job=Job(keep_text=True))
+    out = pq.read_table(dst)
+    names = ("id", "body", "w_true_x", "w_true_y", "w_true_z")
+    assert {out.schema.field(c).type for c in names} == {pa.string()}
+    text = pacsv.read_csv(
+        SCENE_CSV, convert_options=pacsv.ConvertOptions(column_types=dict.fromkeys(names, pa.string()))
+    )
+    assert out.select(names).equals(text.select(names))
+
+
+AWKWARD = [  # id, zip, price, sci, note, blank
+    ("0001", "02134", "1.50", "1e3", '"a, b"', ""),
+    ("0002", "10001", "2", "-2.5E-3", '"say ""hi"""', ""),
+    ("0003", "90210", "NaN", "inf", "ünï ω≈1", ""),
+    ("0004", "00501", "", "7", "", ""),
+]
+
+
+def test_convert_file_awkward_csv_exact_in_csv_typed_in_parquet(tmp_path):
+    src = tmp_path / "in.csv"
+    src.write_text(
+        "id,zip,price,sci,note,blank,Hx,Hy,Hz,I\n" + "".join(",".join(r) + ",1,2,3,2\n" for r in AWKWARD),
+        encoding="utf-8",
+    )
+    pipeline.convert_file(str(src), str(tmp_path / "out.csv"))
+    got = list(csv.reader(io.StringIO((tmp_path / "out.csv").read_text(encoding="utf-8"))))
+    want = list(csv.reader(io.StringIO(src.read_text(encoding="utf-8"))))
+    assert [r[:10] for r in got] == want  # CSV to CSV: every field as it went in
+    pipeline.convert_file(str(src), str(tmp_path / "out.parquet"))
+    out = pq.read_table(tmp_path / "out.parquet")
+    types = {f.name: f.type for f in out.schema}
+    assert [types[c] for c in ("id", "zip", "price", "sci", "note", "blank")] == [
+        pa.string(),  # leading zeros: an identifier, not the number 1
+        pa.string(),
+        pa.float64(),
+        pa.float64(),
+        pa.string(),
+        pa.null(),
+    ]
+    assert out.column("id").to_pylist() == [r[0] for r in AWKWARD]
+    assert out.column("note").to_pylist() == [w[4] for w in want[1:]]
+    price = out.column("price").to_pylist()
+    assert price[:2] == [1.5, 2.0] and np.isnan(price[2]) and price[3] is None  # NaN stays NaN, blank is null
+    assert out.column("sci").to_pylist() == [1000.0, -0.0025, float("inf"), 7.0]
+
+
+def test_convert_file_parquet_in_keeps_its_types(tmp_path):
+    src = tmp_path / "in.parquet"
+    cols = make_scene(50, seed=2)
+    t = pa.table(cols).append_column("label", pa.array(["007"] * 50)).append_column("n", pa.array(["1"] * 50))
+    pq.write_table(t, src)
+    for fmt in ("parquet", "csv"):
+        pipeline.convert_file(str(src), str(tmp_path / f"out.{fmt}"))
+    out = pq.read_table(tmp_path / "out.parquet")
+    assert out.select(["id", "label", "n"]).equals(t.select(["id", "label", "n"]))  # strings stay strings
+    back = list(csv.reader(io.StringIO((tmp_path / "out.csv").read_text())))
+    assert {(r[back[0].index("label")], r[back[0].index("n")]) for r in back[1:]} == {("007", "1")}

@@ -164,6 +164,15 @@ JOB_OPTIONS = {
         QuatOrder,
         typer.Option("wxyz", "--quat-order", help="order of a 4-value list column q (named columns need none)"),
     ),
+    "keep_text": (
+        bool,
+        typer.Option(
+            False,
+            "--keep-text",
+            help="CSV to Parquet: keep the columns hconv does not use as text; "
+            "default: typed as pyarrow would (numbers, booleans, dates), except where that changes a value",
+        ),
+    ),
 }
 _CONVENTIONS = ("frame", "omega_frame", "about", "products", "degenerate", "degenerate_rtol")
 SCENE = ("frame", "omega_frame", "about", "products")
@@ -378,7 +387,7 @@ def one(
 
 @app.command("convert")
 @friendly
-@job_options("method", "precision", "engine", *SCENE, *DEGENERATE, *COLUMNS, "omega_unit")
+@job_options("method", "precision", "engine", *SCENE, *DEGENERATE, *COLUMNS, "omega_unit", "keep_text")
 def convert_cmd(
     src: str = typer.Argument(..., metavar="IN", help="input .csv or .parquet, or - for stdin"),
     dst: str = typer.Argument(..., metavar="OUT", help="output .csv or .parquet, or - for stdout"),

@@ -60,7 +60,8 @@ class Job:
     (``--map``; a dict or (name, column) pairs); ``unit_options`` gives units by set, hconv name
     or column (``--unit``; a dict or pairs). ``observed``: the run compares with an observed ω
     (``hconv diagnose``): the ``w_obs`` columns are required, and hconv's output columns may be
-    present in the input.
+    present in the input. ``keep_text`` (``--keep-text``): from CSV into Parquet, the columns
+    hconv does not use stay text instead of getting types (:mod:`hconv.tables.csvtypes`).
     """
 
     method: str = "exact"
@@ -73,6 +74,7 @@ class Job:
     omega_unit: str = "rad/s"
     observed: bool = False
     engine: str = "auto"  #: auto, numpy, numba or python (hconv.solve.engines)
+    keep_text: bool = False  #: CSV to Parquet: the other columns stay text, as in the CSV
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "mapping", _pairs("mapping", self.mapping))
@@ -89,6 +91,8 @@ class Job:
         options.check_degenerate(self.conventions.degenerate, self.conventions.degenerate_rtol, self.method)
         options.check_choice("quat_order", self.quat_order, options.QUAT_ORDERS)
         engines.check_engine(self.engine)
+        if not isinstance(self.keep_text, bool):
+            raise UsageError(f"keep_text must be True or False, got {self.keep_text!r}")
         # an unknown unit fails now, not mid-run
         w_factor = units.factor("w", self.omega_unit, option("omega_unit"))
         if m.unit != methods.RAD_S and w_factor != 1.0:

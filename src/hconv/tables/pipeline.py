@@ -6,6 +6,8 @@ The CLI's ``convert`` is a thin wrapper over :func:`convert_file`.
 from __future__ import annotations
 
 import dataclasses
+import functools
+import itertools
 import os
 import queue
 import signal
@@ -22,9 +24,10 @@ import pyarrow as pa
 
 from hconv.errors import StrictError, UsageError
 from hconv.solve import engines, methods, status
+from hconv.tables import csvtypes, tableio
 from hconv.tables.arrow import convert_batch
 from hconv.tables.job import Job
-from hconv.tables.tableio import Output, format_of, open_input
+from hconv.tables.tableio import Input, Output, format_of, open_input
 
 
 @dataclass
@@ -192,18 +195,55 @@ def convert_file(
     job = job or Job(method, precision, diagnostics)
     if engines.for_files(job.engine) != job.engine:
         job = dataclasses.replace(job, engine=engines.for_files(job.engine))
-    m = methods.get(job.method)
     fin = format_of(src, src_format, "--from")
     fout = format_of(dst, dst_format, "--to")
     out = Output(dst, fout, force=force, input_path=src)  # refuses early, before reading
-    tally = Tally(m.name, job.unit)
     t0 = time.perf_counter()
-    with open_input(src, fin, job) as inp, out, BackgroundWriter(out) as writer:
+    with open_input(src, fin, job) as inp:
+        # CSV's text columns get types in Parquet, the first block's (csvtypes); CSV keeps them as they were
+        typed = fout != "csv" and bool(inp.text) and not job.keep_text
+        run = functools.partial(_convert, job=job, strict=strict, threads=threads, progress=progress)
+        try:
+            tally = run(inp, out, types=None if typed else {})
+        except csvtypes.Retype:  # a later block does not fit them: type from every block, then again
+            tally = None
+        if tally is None:  # outside the except block, so that the first pass's batches are freed
+            inp.batches = iter(())
+            types = csvtypes.whole_file(tableio.text_batches(inp))
+            with tableio.reopen(inp, job) as again:
+                tally = run(again, Output(dst, fout, force=force, input_path=src), types=types)
+    tally.seconds = time.perf_counter() - t0
+    return tally
 
-        def one(batch: pa.RecordBatch) -> tuple[pa.Table, str]:
-            return convert_batch(pa.Table.from_batches([batch]), job, inp.plan, inp.name)
 
-        for table, engine in ordered_map(one, inp.batches, threads):
+def _convert(
+    inp: Input,
+    out: Output,
+    *,
+    job: Job,
+    types: dict | None,
+    strict: bool,
+    threads: int,
+    progress: Callable[[int, int | None], None] | None,
+) -> Tally:
+    """One pass of :func:`convert_file`: every batch of ``inp`` into ``out``. ``types``: the
+    types of ``inp``'s text columns (None: the first batch's; :class:`~hconv.tables.csvtypes.Retype`
+    when a later one does not fit)."""
+    tally = Tally(methods.get(job.method).name, job.unit)
+    batches: Iterator[pa.RecordBatch] = inp.batches
+    if types is None:
+        first = next(batches, None)
+        types = {} if first is None else csvtypes.infer(first, inp.text)
+        batches = itertools.chain([first] if first is not None else [], batches)
+
+    def one(batch: pa.RecordBatch) -> tuple[pa.Table, str]:
+        table = pa.Table.from_batches([batch])
+        if types:
+            table = csvtypes.apply(table, types)
+        return convert_batch(table, job, inp.plan, inp.name)
+
+    with out, BackgroundWriter(out) as writer:
+        for table, engine in ordered_map(one, batches, threads):
             if strict:
                 _check_strict(table, tally.rows, inp.name)
             writer.write(table)
@@ -212,7 +252,6 @@ def convert_file(
                 progress(inp.position(), inp.total)
         if tally.rows == 0:  # a header and no rows is a valid empty table
             writer.write(convert_batch(inp.schema.empty_table(), job, inp.plan, inp.name)[0])
-    tally.seconds = time.perf_counter() - t0
     return tally
 
 

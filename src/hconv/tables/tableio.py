@@ -5,8 +5,10 @@ since Parquet needs to seek). Writing goes to a temporary file next to the outpu
 into place only when the whole run succeeded, so a failed or interrupted run leaves no partial
 output. With "-" as output the finished file is then copied to stdout.
 
-In CSV, the extra columns are read as text so that they come out exactly as they went in, and
-ω's unit goes into a column ``w_unit``; in Parquet it is the ``unit`` metadata of wx, wy, wz.
+From CSV, the columns hconv does not use are read as text (:attr:`Input.text`), so that CSV
+output gives them back exactly as they went in; into Parquet, the pipeline gives them types
+(:mod:`hconv.tables.csvtypes`), unless the Job says ``keep_text``. ω's unit goes into a column
+``w_unit`` in CSV; in Parquet it is the ``unit`` metadata of wx, wy, wz.
 """
 
 from __future__ import annotations
@@ -67,6 +69,9 @@ class Input:
     position: Callable[[], int]  #: rows or bytes read so far
     plan: layout.Layout  #: the input's column sets, planned for the Job
     _closers: list = field(default_factory=list)
+    #: CSV: the columns hconv does not use, read as text (Parquet: none); see hconv.tables.csvtypes
+    text: tuple = ()
+    path: str = ""  #: the file read (for stdin, its spooled copy, which lives as long as this Input)
 
     def close(self) -> None:
         for c in reversed(self._closers):
@@ -209,7 +214,28 @@ def _open_csv(path: str, name: str, job: Job) -> Input:
                 raise _csv_value_error(path, name, names, ropts, exc) from None
             yield batch
 
-    return Input(name, reader.schema, batches(), total, f.tell, plan, [f.close])
+    text = tuple(n for n in names if n not in nums)
+    return Input(name, reader.schema, batches(), total, f.tell, plan, [f.close], text, path)
+
+
+def reopen(inp: Input, job: Job) -> Input:
+    """A CSV input read again from its first row, as a new Input; ``inp`` must stay open
+    meanwhile (for stdin it holds the spooled copy)."""
+    return _open_csv(inp.path, inp.name, job)
+
+
+def text_batches(inp: Input) -> Iterator[pa.RecordBatch]:
+    """A CSV input's text columns (:attr:`Input.text`) from its first row, block by block, as
+    text; stops early where the file stops being readable (reading ``inp`` says why)."""
+    ropts = pacsv.ReadOptions(block_size=CSV_BLOCK_BYTES)
+    copts = pacsv.ConvertOptions(
+        column_types=dict.fromkeys(inp.text, pa.string()), include_columns=list(inp.text), strings_can_be_null=False
+    )
+    try:
+        with pacsv.open_csv(inp.path, read_options=ropts, convert_options=copts) as reader:
+            yield from reader
+    except pa.ArrowInvalid:
+        return
 
 
 _CSV_COLUMN = re.compile(r"In CSV column #(\d+): CSV conversion error to \w+: invalid value '(.*)'")
