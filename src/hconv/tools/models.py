@@ -605,9 +605,9 @@ def _mjcf_rotation(node: Node, kind: str | None, comp: _Compiler) -> np.ndarray:
     z = _unit(node.required("zaxis", (3,), ""), node, "zaxis")
     axis = np.cross([0.0, 0.0, 1.0], z)
     s = float(np.linalg.norm(axis))
-    if s < 1e-10:  # z along ±(0, 0, 1): any axis in the xy plane; MuJoCo's choice is x
-        axis, s = np.array([1.0, 0.0, 0.0]), 1.0
     half = math.atan2(s, z[2]) / 2
+    if s < 1e-10:  # z along ±(0, 0, 1): the turn (none, or half a turn) is about x, as MuJoCo's
+        axis, s = np.array([1.0, 0.0, 0.0]), 1.0
     return _matrix([math.cos(half), *(math.sin(half) * axis / s)])
 
 
