@@ -8,6 +8,9 @@ from __future__ import annotations
 import io
 import math
 import os
+import shutil
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -573,6 +576,19 @@ def test_read_untrusted_input_is_one_line_naming_file_and_fix(tmp_path, name, te
     assert says in msg and "\n" not in msg and msg.startswith(str(path))
 
 
+def test_read_forgives_what_tinyxml_forgives_and_keeps_line_numbers(tmp_path):
+    """Files of a widely used model collection: blank lines before the XML declaration, a NUL
+    after the root, and xacro's namespace left on an expanded URDF."""
+    text = urdf(urdf_link("a", 1.0, np.eye(3)), '<link name="b">\n<inertial><mass value="x"/></inertial></link>')
+    path = tmp_path / "lenient.urdf"
+    expanded = text.replace("<robot", '<robot xmlns:xacro="http://ros.org/wiki/xacro"')
+    path.write_bytes(b"\n\n" + expanded.encode() + b"\0")
+    with pytest.raises(InputError, match=r"lenient.urdf, line 7, <mass> attribute value holds 'x'"):
+        models.read_model(path)
+    path.write_bytes(b"\n\n" + urdf(urdf_link("a", 1.0, np.eye(3))).encode() + b"\0")
+    assert models.read_model(path).bodies[0].status == "ok"
+
+
 def test_read_refuses_entities_hidden_by_another_encoding(tmp_path):
     path = tmp_path / "laughs16.urdf"
     path.write_bytes(LAUGHS.replace('version="1.0"', 'version="1.0" encoding="UTF-16"').encode("utf-16"))
@@ -749,9 +765,13 @@ def test_cli_bodies_writes_files_atomically_and_refuses_to_overwrite(tmp_path):
     assert proc.returncode == 4 and b"is the input file" in proc.stderr
 
 
-def test_cli_bodies_strict_exits_5_when_a_body_is_not_ok():
+def test_cli_bodies_strict_exits_5_when_a_body_is_not_ok(tmp_path):
     proc = run_hconv("bodies", str(EXAMPLES / "arm.urdf"), "--strict")
-    assert proc.returncode == 5 and b"4 of 7 bodies are not ok" in proc.stderr
+    assert proc.returncode == 5 and b"4 of 7 bodies are not ok" in proc.stderr and b"forearm_link" in proc.stdout
+    proc = run_hconv("bodies", str(EXAMPLES / "arm.urdf"), str(tmp_path / "o.csv"), "--strict")
+    assert proc.returncode == 5 and b"nothing was written" in proc.stderr and not (tmp_path / "o.csv").exists()
+    (tmp_path / "good.urdf").write_text(urdf(urdf_link("a", 1.0, np.diag([0.1, 0.2, 0.25]))))
+    assert run_hconv("bodies", str(tmp_path / "good.urdf"), "--strict").returncode == 0
 
 
 @pytest.mark.parametrize(
@@ -900,3 +920,24 @@ def test_mujoco_refuses_at_load_what_hconv_flags_but_not_a_placeholder(tmp_path,
         loaded = False
     # MuJoCo checks a moving body's inertia as it loads; a density check is hconv's alone
     assert loaded == (ours in ("ok", "implausible_density"))
+
+
+def test_readme_bodies_walkthrough_runs_as_written(tmp_path):
+    """The README's sh block and Python block for hconv bodies, run from a folder holding examples/."""
+    if shutil.which("awk") is None:
+        pytest.skip("the walkthrough uses awk")
+    readme = (EXAMPLES.parent.parent / "README.md").read_text()
+    section = readme[readme.index("### A robot model's inertias") :]
+    sh = section[section.index("```sh\n") + 6 :].split("```", 1)[0]
+    py = section[section.index("```python\n") + 10 :].split("```", 1)[0]
+    (tmp_path / "examples").symlink_to(EXAMPLES.parent)
+    script = f'hconv() {{ "{sys.executable}" -m hconv "$@"; }}\nset -e\n' + sh
+    env = dict(os.environ, PYTHONPATH=str(Path(models.__file__).parents[2]))  # this hconv, from any folder
+    proc = subprocess.run(["bash", "-c", script], cwd=tmp_path, capture_output=True, timeout=120, env=env)
+    assert proc.returncode == 0, proc.stderr.decode()
+    t = pacsv.read_csv(tmp_path / "arm-omega.csv")
+    got = dict(zip(t.column("body").to_pylist(), t.column("wz").to_pylist()))
+    assert got["base_link"] == pytest.approx(0.01 / 0.02666666666666667, rel=1e-15)
+    proc = subprocess.run([sys.executable, "-c", py], cwd=tmp_path, capture_output=True, timeout=120, env=env)
+    assert proc.returncode == 0, proc.stderr.decode()
+    assert pq.read_table(tmp_path / "pendulum-bodies.parquet").column("body").to_pylist()[2] == "upper_link/body[1]"

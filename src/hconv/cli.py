@@ -493,20 +493,23 @@ def bodies_cmd(
     from hconv.tools import models
 
     m = models.read_model(model)
+    bad = [b for b in m.bodies if b.status != "ok"]
     if dst is None:
         modelview.show(m)
-    else:
+    elif not (strict and bad):  # as convert --strict: no output when a row is not ok
         models.write_bodies(m, dst, form=form, dst_format=_value(to), force=force)
         if not quiet:
             print(f"hconv bodies: {model} ({m.format}) to {dst}: {modelview.summary_line(m)}", file=sys.stderr)
             for note in m.notes:
                 print(f"note: {note}", file=sys.stderr)
-    bad = [b for b in m.bodies if b.status != "ok"]
     if strict and bad:
         from hconv.errors import StrictError
 
-        first = ", ".join(f"{b.name} ({b.status})" for b in bad[:3])
-        raise StrictError(f"{len(bad)} of {len(m.bodies)} bodies are not ok (--strict): {first}")
+        first = ", ".join(f"{b.name} ({b.status})" for b in bad[:5])
+        raise StrictError(
+            f"{len(bad)} of {len(m.bodies)} bodies are not ok (--strict): {first}"
+            + ("; nothing was written" if dst is not None else "")
+        )
 
 
 @app.command("generate")

@@ -67,6 +67,8 @@ def show(model: Model, console: Console | None = None) -> None:
             c = _cells(b)
             console.print(Text(c[0], style="bold"))
             console.print(Text(f"  m {c[1]} kg · I1, I2, I3 {c[2]}, {c[3]}, {c[4]} kg·m² · {c[5]}"))
+    if any(b.reason for b in model.bodies):
+        console.print()
     for b in model.bodies:
         if b.reason:
             line = Text()

@@ -219,7 +219,7 @@ def _quat(R: np.ndarray) -> np.ndarray:
         s = 2 * math.sqrt(1 + R[2, 2] - R[0, 0] - R[1, 1])
         q = [(R[1, 0] - R[0, 1]) / s, (R[0, 2] + R[2, 0]) / s, (R[1, 2] + R[2, 1]) / s, s / 4]
     v = np.asarray(q) / math.sqrt(sum(x * x for x in q))
-    return -v if v[0] < 0 else v
+    return (-v if v[0] < 0 else v) + 0.0  # + 0.0: no -0.0 in the output
 
 
 def _unit(v: list[float], node: Node, what: str) -> np.ndarray:
@@ -272,10 +272,11 @@ def _name(node: Node, what: str) -> str:
 
 
 def _urdf(root: Node, path: Path, shown: str) -> tuple[list[_Raw], list[str]]:
+    # Only an unexpanded macro counts: many URDFs made by xacro keep its namespace declaration.
     xacro = next((n for n in _walk(root) if n.tag.startswith("xacro:")), None)
-    if xacro is not None or "xmlns:xacro" in root.attrib:
+    if xacro is not None:
         raise error(
-            xacro or root,
+            xacro,
             "is xacro, a macro language that makes URDF",
             "run xacro first (xacro model.urdf.xacro > model.urdf) and give hconv the URDF",
         )

@@ -142,8 +142,19 @@ class _RefusedError(Exception):
 
 
 def parse_bytes(data: bytes, shown: str) -> Node:
-    """Parse ``data`` into a tree of :class:`Node`; InputError naming ``shown`` and the line."""
+    """Parse ``data`` into a tree of :class:`Node`; InputError naming ``shown`` and the line.
+
+    Two slips that other model readers (TinyXML, in urdfdom and Bullet) let pass, and that change
+    nothing in the content, are forgiven: blank lines before the XML declaration, and NUL bytes
+    after the last element (a C string's terminator written out). Lines keep their numbers.
+    """
     _refuse_declarations(data, shown)
+    head = data.lstrip(b" \t\r\n")
+    closes = head.find(b"?>")
+    if head is not data and head.startswith(b"<?xml") and closes >= 0:
+        # the declaration first, as expat wants it, and the blank lines after it: lines keep their numbers
+        data = head[: closes + 2] + data[: len(data) - len(head)] + head[closes + 2 :]
+    data = data.rstrip(b"\x00")
     p = expat.ParserCreate()
     p.SetParamEntityParsing(expat.XML_PARAM_ENTITY_PARSING_NEVER)  # never read an external DTD
     stack: list[Node] = []
