@@ -479,6 +479,48 @@ def compare_cmd(
     report.comparison_tables(c, Console(stderr=True) if dst == "-" else None)
 
 
+@app.command("bodies")
+@friendly
+def bodies_cmd(
+    model: str = typer.Argument(..., metavar="MODEL", help="a URDF, SDF or MJCF (MuJoCo) model file"),
+    dst: str | None = typer.Argument(
+        None, metavar="[OUT]", help="write a row per body to .csv or .parquet (- for stdout); without it, a table"
+    ),
+    form: str = typer.Option(
+        "sym6",
+        "--form",
+        help="the inertia in OUT: sym6 (Ixx, Iyy, Izz, Ixy, Ixz, Iyz in the body frame) or principal "
+        "(I1, I2, I3 and qw, qx, qy, qz: principal axes to body frame)",
+    ),
+    to: Fmt | None = typer.Option(None, "--to", help="output format; needed when OUT is -"),
+    force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
+    strict: bool = typer.Option(False, "--strict", help="exit 5 when a body is not ok"),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="no summary on stderr when writing OUT"),
+) -> None:
+    """Check the inertia of every body of a URDF, SDF or MJCF model; list them, or write them for hconv convert."""
+    from hconv import modelview
+    from hconv.tools import models
+
+    m = models.read_model(model)
+    bad = [b for b in m.bodies if b.status != "ok"]
+    if dst is None:
+        modelview.show(m)
+    elif not (strict and bad):  # as convert --strict: no output when a row is not ok
+        models.write_bodies(m, dst, form=form, dst_format=_value(to), force=force)
+        if not quiet:
+            print(f"hconv bodies: {model} ({m.format}) to {dst}: {modelview.summary_line(m)}", file=sys.stderr)
+            for note in m.notes:
+                print(f"note: {note}", file=sys.stderr)
+    if strict and bad:
+        from hconv.errors import StrictError
+
+        first = ", ".join(f"{b.name} ({b.status})" for b in bad[:5])
+        raise StrictError(
+            f"{len(bad)} of {len(m.bodies)} bodies are not ok (--strict): {first}"
+            + ("; nothing was written" if dst is not None else "")
+        )
+
+
 @app.command("generate")
 @friendly
 def generate_cmd(

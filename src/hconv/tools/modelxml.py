@@ -1,0 +1,291 @@
+"""Model files as untrusted XML: parsed with the standard library's expat, with line numbers, and
+with MuJoCo's ``<include>`` resolved. Nothing here reaches the network or runs what a file says.
+
+What a model file cannot do to hconv (each refusal is one :class:`~hconv.errors.InputError` that
+names the file, the line and the fix):
+
+* declare entities: a DOCTYPE with an internal subset (``<!DOCTYPE x [ ... ]>``) or any
+  ``<!ENTITY`` is refused before parsing, so neither the "billion laughs" expansion nor an external
+  entity (``SYSTEM "file:///etc/passwd"``) is ever seen by the parser. The parser refuses them
+  again if an encoding hid them from that scan, never reads a DTD, and refuses an entity
+  reference that a DTD it did not read might define.
+* pull in other files, except MJCF's ``<include file=...>``: relative to the main model's folder,
+  as MuJoCo resolves it, and only inside that folder; each file at most once (as MuJoCo), which
+  also ends cycles. XInclude is not processed and is refused, since ignoring it would drop bodies.
+* exhaust memory: a file larger than :data:`MAX_BYTES` is refused; only regular files are read
+  (not a FIFO or a device, which could block or never end). Trees are walked without recursion,
+  so a deeply nested file cannot overflow Python's stack.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import stat
+from dataclasses import dataclass, field
+from pathlib import Path
+from xml.parsers import expat
+
+from hconv.errors import InputError
+
+#: The largest model file hconv reads [bytes]. Real URDF, SDF and MJCF files are kilobytes to a
+#: few megabytes (meshes live in files of their own); a file beyond this is not a model.
+MAX_BYTES = 64 << 20
+
+_XINCLUDE = "http://www.w3.org/2001/XInclude"
+_EXTERNAL_DTD = (
+    "has a DOCTYPE that names an external DTD, which hconv never reads (so any entity it defines "
+    "would be lost): remove the DOCTYPE"
+)
+_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
+
+
+@dataclass
+class Node:
+    """One XML element: its tag, attributes, child elements, own text, and where it stands."""
+
+    tag: str
+    attrib: dict[str, str]
+    file: str  #: the file as the user named it (an included file: as the include named it)
+    line: int
+    children: list[Node] = field(default_factory=list)
+    text: str = ""
+
+    @property
+    def where(self) -> str:
+        """``arm.urdf, line 12, <inertia>``: for messages."""
+        return f"{self.file}, line {self.line}, <{self.tag}>"
+
+    def find(self, tag: str) -> Node | None:
+        """The one child ``tag``, or None; InputError when there are several."""
+        found = [c for c in self.children if c.tag == tag]
+        if len(found) > 1:
+            raise error(found[1], f"is the second <{tag}> in <{self.tag}>", f"keep one <{tag}>")
+        return found[0] if found else None
+
+    def findall(self, tag: str) -> list[Node]:
+        return [c for c in self.children if c.tag == tag]
+
+    def numbers(self, name: str, counts: tuple[int, ...], default: str | None = None) -> list[float] | None:
+        """Attribute ``name`` as whitespace-separated finite numbers, ``counts`` of them (or the
+        text of the element when ``name`` is ``""``); ``default`` when absent, None if that is None."""
+        raw = self.text if name == "" else self.attrib.get(name)
+        if raw is None or (name == "" and not raw.strip() and default is not None):
+            raw = default
+        if raw is None:
+            return None
+        what = "its text" if name == "" else f"attribute {name}"
+        return parse_numbers(raw, counts, self, what)
+
+    def required(self, name: str, counts: tuple[int, ...], fix: str) -> list[float]:
+        """Like :meth:`numbers`, but InputError naming ``fix`` when the attribute is absent."""
+        values = self.numbers(name, counts)
+        if values is None:
+            raise error(self, f"has no attribute {name}", fix)
+        return values
+
+
+def error(node: Node, problem: str, fix: str) -> InputError:
+    """One line: where, what is wrong, and how to fix it."""
+    return InputError(f"{node.where} {problem}; {fix}")
+
+
+def parse_numbers(raw: str, counts: tuple[int, ...], node: Node, what: str) -> list[float]:
+    """``raw`` as ``counts`` finite numbers (decimal notation only: no nan, inf, hex or 1_000)."""
+    tokens = raw.split()
+    for t in tokens:
+        if not _NUMBER.fullmatch(t):
+            hint = (
+                "it is a xacro expression: run xacro on the file first (xacro model.urdf.xacro > model.urdf)"
+                if "$" in raw
+                else "write a decimal number such as 0.25 or 1e-3"
+            )
+            raise error(node, f"{what} holds {t!r}, which is not a number", hint)
+    values = [float(t) for t in tokens]
+    big = next((t for t, v in zip(tokens, values) if not abs(v) < float("inf")), None)
+    if big is not None:
+        raise error(node, f"{what} holds {big}, beyond the range of a float", "check the value")
+    if len(values) not in counts:
+        want = " or ".join(str(c) for c in counts)
+        raise error(node, f"{what} holds {len(values)} numbers ({raw.strip()!r}), but takes {want}", "give " + want)
+    return values
+
+
+def _line_of(data: bytes, at: int) -> int:
+    return data.count(b"\n", 0, at) + 1
+
+
+def _refuse_declarations(data: bytes, shown: str) -> None:
+    """Refuse entity declarations before the parser sees them (see the module's docstring)."""
+    at = data.find(b"<!ENTITY")
+    if at >= 0:
+        raise InputError(
+            f"{shown}, line {_line_of(data, at)}: declares an entity (<!ENTITY ...>); hconv reads no "
+            "entity declarations, which can expand without bound or read other files: remove the DOCTYPE "
+            "and write the values out"
+        )
+    at = data.find(b"<!DOCTYPE")
+    if at >= 0:
+        end = data.find(b">", at)
+        decl = data[at : end if end >= 0 else len(data)]
+        if b"[" in decl:
+            raise InputError(
+                f"{shown}, line {_line_of(data, at)}: has a DOCTYPE with declarations ([ ... ]); hconv reads "
+                "no DTD declarations: remove the DOCTYPE"
+            )
+        if b"SYSTEM" in decl or b"PUBLIC" in decl:
+            raise InputError(f"{shown}, line {_line_of(data, at)}: {_EXTERNAL_DTD}")
+
+
+class _RefusedError(Exception):
+    """Raised inside an expat handler; carries the message (the line is the parser's)."""
+
+
+def parse_bytes(data: bytes, shown: str) -> Node:
+    """Parse ``data`` into a tree of :class:`Node`; InputError naming ``shown`` and the line.
+
+    Two slips that other model readers (TinyXML, in urdfdom and Bullet) let pass, and that change
+    nothing in the content, are forgiven: blank lines before the XML declaration, and NUL bytes
+    after the last element (a C string's terminator written out). Lines keep their numbers.
+    """
+    _refuse_declarations(data, shown)
+    head = data.lstrip(b" \t\r\n")
+    closes = head.find(b"?>")
+    if head is not data and head.startswith(b"<?xml") and closes >= 0:
+        # the declaration first, as expat wants it, and the blank lines after it: lines keep their numbers
+        data = head[: closes + 2] + data[: len(data) - len(head)] + head[closes + 2 :]
+    data = data.rstrip(b"\x00")
+    p = expat.ParserCreate()
+    p.SetParamEntityParsing(expat.XML_PARAM_ENTITY_PARSING_NEVER)  # never read an external DTD
+    stack: list[Node] = []
+    roots: list[Node] = []
+    texts: list[list[str]] = []
+
+    def start(tag: str, attrib: dict[str, str]) -> None:
+        if tag.endswith(":include") or any(k.startswith("xmlns") and v == _XINCLUDE for k, v in attrib.items()):
+            raise _RefusedError(f"<{tag}> uses XInclude, which hconv does not follow; paste the included content in")
+        node = Node(tag, dict(attrib), shown, p.CurrentLineNumber)
+        (stack[-1].children if stack else roots).append(node)
+        stack.append(node)
+        texts.append([])
+
+    def end(tag: str) -> None:
+        node = stack.pop()
+        node.text = "".join(texts.pop())
+
+    def chars(s: str) -> None:
+        if texts:
+            texts[-1].append(s)
+
+    def doctype(name: str, sysid: str | None, pubid: str | None, internal: int) -> None:
+        if internal:
+            raise _RefusedError("has a DOCTYPE with declarations ([ ... ]); hconv reads no DTD declarations: remove it")
+        if sysid or pubid:
+            raise _RefusedError(_EXTERNAL_DTD)
+
+    def entity(*args: object) -> None:
+        raise _RefusedError("declares an entity; hconv reads no entity declarations: remove the DOCTYPE")
+
+    def external(*args: object) -> int:
+        raise _RefusedError("refers to an external entity; hconv reads no other files this way: write the values out")
+
+    def skipped(name: str, is_parameter: int) -> None:
+        raise _RefusedError(f"uses the entity &{name}; that no part of the file defines; write the value out")
+
+    p.StartElementHandler = start
+    p.EndElementHandler = end
+    p.CharacterDataHandler = chars
+    p.StartDoctypeDeclHandler = doctype
+    p.EntityDeclHandler = entity
+    p.UnparsedEntityDeclHandler = entity
+    p.ExternalEntityRefHandler = external
+    p.SkippedEntityHandler = skipped
+    try:
+        p.Parse(data, True)
+    except _RefusedError as exc:
+        raise InputError(f"{shown}, line {p.CurrentLineNumber}: {exc}") from None
+    except expat.ExpatError as exc:
+        why = expat.ErrorString(exc.code) or "unknown"
+        why = why.removeprefix("not well-formed ").strip("()")
+        raise InputError(
+            f"{shown}, line {exc.lineno}, column {exc.offset + 1}: not well-formed XML ({why}); fix the XML there"
+        ) from None
+    if not roots:
+        raise InputError(f"{shown}: holds no XML element; give a URDF, SDF or MJCF model")
+    return roots[0]
+
+
+def read(path: Path, shown: str) -> Node:
+    """Parse the model file at ``path`` (named ``shown`` in messages); InputError with the fix."""
+    try:
+        st = os.stat(path)
+    except OSError as exc:
+        raise InputError(f"{shown}: cannot read it ({exc.strerror or exc}); check the path") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise InputError(f"{shown}: is a directory; give the model file inside it")
+    if not stat.S_ISREG(st.st_mode):
+        raise InputError(f"{shown}: is not a regular file (a pipe or a device); save the model to a file first")
+    if st.st_size > MAX_BYTES:
+        raise InputError(
+            f"{shown}: is {st.st_size / (1 << 20):.0f} MiB, larger than any model file hconv reads "
+            f"({MAX_BYTES >> 20} MiB); is it a model (URDF, SDF or MJCF)?"
+        )
+    try:
+        with open(path, "rb") as f:
+            data = f.read(MAX_BYTES + 1)
+    except OSError as exc:
+        raise InputError(f"{shown}: cannot read it ({exc.strerror or exc}); check its permissions") from None
+    if not data.strip():
+        raise InputError(f"{shown}: is empty; give a URDF, SDF or MJCF model")
+    return parse_bytes(data, shown)
+
+
+def expand_includes(root: Node, model: Path, shown: str) -> None:
+    """Replace every ``<include file=...>`` under ``root`` (read from ``model``) by the children of
+    the included file's top element, as MuJoCo does: paths relative to the main model's folder,
+    each file at most once. Walked with a work list, not recursion."""
+    folder = model.resolve().parent
+    seen = {model.resolve(): shown}
+    work: list[tuple[Node, tuple[Path, ...]]] = [(root, (model.resolve(),))]
+    while work:
+        node, chain = work.pop()
+        pending = [(c, chain) for c in node.children]
+        kept = []
+        k = 0
+        while k < len(pending):
+            child, ch = pending[k]
+            k += 1
+            if child.tag != "include":
+                kept.append(child)
+                work.append((child, ch))
+                continue
+            name = child.attrib.get("file")
+            if not name or not name.strip():
+                raise error(child, "has no attribute file", 'name the file to include: <include file="parts.xml"/>')
+            target = _include_target(child, name, folder)
+            if target in ch:
+                cycle = " → ".join([seen[c] for c in ch[ch.index(target) :]] + [name])
+                raise error(child, f"includes {name!r} again inside itself ({cycle}): a cycle", "remove the include")
+            if target in seen:
+                raise error(
+                    child,
+                    f"includes {name!r}, which {seen[target]!r} already brought in",
+                    "include each file once (MuJoCo refuses it too)",
+                )
+            seen[target] = name
+            sub = read(target, name)
+            pending[k:k] = [(c, ch + (target,)) for c in sub.children]
+        node.children = kept
+
+
+def _include_target(node: Node, name: str, folder: Path) -> Path:
+    if "://" in name or name.startswith(("http:", "https:", "file:")):
+        raise error(node, f"names {name!r}, which is not a file path", "hconv reads no URLs: give a path to a file")
+    target = (folder / name).resolve()
+    if folder != target and folder not in target.parents:
+        raise error(
+            node,
+            f"names {name!r}, outside the model's folder {str(folder)!r}",
+            "hconv reads includes from the model's folder only: copy the file there",
+        )
+    return target

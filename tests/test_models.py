@@ -1,0 +1,943 @@
+"""hconv bodies (hconv.tools.models, hconv.tools.modelxml, hconv.modelview): the inertias of
+URDF, SDF and MJCF models against hand-written models with known answers, rotations checked
+against independent parametrisations (elementary matrices, Rodrigues' formula), every status,
+untrusted input, the round trip into hconv convert, and MuJoCo itself where it is installed."""
+
+from __future__ import annotations
+
+import io
+import math
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.csv as pacsv
+import pyarrow.parquet as pq
+import pytest
+from helpers import axis_angle, mp_solve, quats, rodrigues, run_hconv
+from rich.console import Console
+
+from hconv import modelview
+from hconv.errors import InputError, UsageError
+from hconv.tools import models, modelxml
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples" / "models"
+
+
+def model(tmp_path: Path, name: str, text: str) -> models.Model:
+    path = tmp_path / name
+    path.write_text(text)
+    return models.read_model(path)
+
+
+def by_name(m: models.Model) -> dict[str, models.Body]:
+    return {b.name: b for b in m.bodies}
+
+
+def Rx(a):  # noqa: N802 - elementary rotations, written apart from the code under test
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+
+
+def Ry(a):  # noqa: N802
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+
+def Rz(a):  # noqa: N802
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+
+
+ELEMENTARY = {"x": Rx, "y": Ry, "z": Rz}
+
+
+def euler_reference(seq: str, angles) -> np.ndarray:
+    """MuJoCo's eulerseq as its documentation defines it, with matrices: a lower-case axis moves
+    with the frame (the rotation multiplies on the right), an upper-case one is fixed (on the left)."""
+    R = np.eye(3)
+    for ch, a in zip(seq, angles):
+        turn = ELEMENTARY[ch.lower()](a)
+        R = R @ turn if ch.islower() else turn @ R
+    return R
+
+
+def box(m, a, b, c):
+    return np.diag([m / 12 * (b * b + c * c), m / 12 * (a * a + c * c), m / 12 * (a * a + b * b)])
+
+
+def cylinder(m, r, h):
+    """About the centre; the axis is z."""
+    side = m * (3 * r * r + h * h) / 12
+    return np.diag([side, side, m * r * r / 2])
+
+
+def num(x) -> str:
+    return repr(float(x))
+
+
+def nums(v) -> str:
+    return " ".join(num(x) for x in v)
+
+
+def urdf_link(name, m, I, xyz="0 0 0", rpy="0 0 0"):
+    return (
+        f'<link name="{name}"><inertial><origin xyz="{xyz}" rpy="{rpy}"/><mass value="{num(m)}"/>'
+        f'<inertia ixx="{num(I[0, 0])}" ixy="{num(I[0, 1])}" ixz="{num(I[0, 2])}" iyy="{num(I[1, 1])}" '
+        f'iyz="{num(I[1, 2])}" izz="{num(I[2, 2])}"/></inertial></link>'
+    )
+
+
+def urdf(*links):
+    return '<?xml version="1.0"?>\n<robot name="r">\n' + "\n".join(links) + "\n</robot>\n"
+
+
+def mjcf(bodies, compiler=""):
+    return f"<mujoco>{compiler}<worldbody>{bodies}</worldbody></mujoco>"
+
+
+def assert_tensor(got, want, rtol=1e-14):
+    assert np.abs(got - want).max() <= rtol * np.abs(want).max()
+
+
+# --- known answers ---------------------------------------------------------------------------
+
+
+def test_read_urdf_box_gives_the_box_formula_and_its_centre(tmp_path):
+    I = box(4.0, 0.2, 0.3, 0.5)
+    b = model(tmp_path, "box.urdf", urdf(urdf_link("box", 4.0, I, xyz="0.1 -0.2 0.3"))).bodies[0]
+    assert (b.name, b.m, b.status, b.reason) == ("box", 4.0, "ok", "")
+    assert b.p_BC_B.tolist() == [0.1, -0.2, 0.3]
+    assert_tensor(b.I_C_B, I, 0)
+    assert np.allclose(b.moments, np.sort(np.diag(I)), rtol=1e-15, atol=0)
+
+
+def test_read_urdf_rotated_inertial_matches_elementary_rotations(tmp_path):
+    I_C_I = cylinder(1.5, 0.05, 0.4)
+    rpy = (0.3, -1.1, 2.5)
+    text = urdf(urdf_link("c", 1.5, I_C_I, rpy=" ".join(repr(a) for a in rpy)))
+    b = model(tmp_path, "c.urdf", text).bodies[0]
+    R = Rz(rpy[2]) @ Ry(rpy[1]) @ Rx(rpy[0])  # fixed axes X, Y, Z
+    assert_tensor(b.I_C_B, R @ I_C_I @ R.T)
+    # the principal frame puts the moments back: I = R(q)·diag(I1, I2, I3)·R(q)ᵀ, q a unit quaternion, qw >= 0
+    w, x, y, z = b.q_B
+    Rq = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+    assert w >= 0 and abs(np.linalg.norm(b.q_B) - 1) < 1e-15
+    assert_tensor(Rq @ np.diag(b.moments) @ Rq.T, b.I_C_B)
+
+
+def test_read_urdf_defaults_origin_to_the_link_frame(tmp_path):
+    text = urdf(
+        '<link name="a"><inertial><mass value="2"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/>'
+        "</inertial></link>",
+        '<link name="b"><inertial><origin xyz="1 2 3"/><mass value="2"/>'
+        '<inertia ixx="1" ixy="0.1" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>',
+    )
+    a, b = model(tmp_path, "d.urdf", text).bodies
+    assert a.p_BC_B.tolist() == [0, 0, 0] and b.p_BC_B.tolist() == [1, 2, 3]
+    assert b.I_C_B[0, 1] == 0.1 and b.I_C_B[1, 0] == 0.1  # products taken as tensor entries
+
+
+def test_read_sdf_pose_in_radians_degrees_and_quaternions(tmp_path):
+    I = cylinder(1.0, 0.1, 0.05)
+    six = "".join(f"<{k}>{num(v)}</{k}>" for k, v in zip(("ixx", "iyy", "izz"), np.diag(I)))
+
+    def link(name, pose):
+        return f"<link name='{name}'><inertial>{pose}<mass>1</mass><inertia>{six}</inertia></inertial></link>"
+
+    u, th = np.array([[0.2, -0.3, 0.9]]) / np.linalg.norm([0.2, -0.3, 0.9]), np.array([0.7])
+    qw, qx, qy, qz = quats(u, th)[0]
+    text = (
+        "<sdf version='1.9'><model name='m'>"
+        + link("rad", "<pose>1 2 3 0.1 0.2 0.3</pose>")
+        + link("deg", "<pose degrees='true'>0 0 0 10 20 30</pose>")
+        + link("quat", f"<pose rotation_format='quat_xyzw'>0 0 0 {nums([qx, qy, qz, qw])}</pose>")
+        + link("none", "")
+        + "</model></sdf>"
+    )
+    got = by_name(model(tmp_path, "p.sdf", text))
+    assert got["rad"].p_BC_B.tolist() == [1, 2, 3]
+    for name, R in (
+        ("rad", Rz(0.3) @ Ry(0.2) @ Rx(0.1)),
+        ("deg", Rz(math.radians(30)) @ Ry(math.radians(20)) @ Rx(math.radians(10))),
+        ("quat", rodrigues(u, th)[0]),
+        ("none", np.eye(3)),
+    ):
+        assert got[name].status == "ok"
+        assert_tensor(got[name].I_C_B, R @ I @ R.T)
+
+
+def test_read_sdf_relative_to_follows_frames_links_and_joints(tmp_path):
+    I = box(2.0, 0.1, 0.2, 0.3)
+    inertia = "".join(f"<{k}>{num(v)}</{k}>" for k, v in zip(("ixx", "iyy", "izz"), np.diag(I)))
+
+    def link(name, pose, inertial_pose):
+        return (
+            f"<link name='{name}'>{pose}<inertial>{inertial_pose}<mass>2</mass>"
+            f"<inertia>{inertia}</inertia></inertial></link>"
+        )
+
+    text = (
+        "<sdf version='1.9'><model name='m'>"
+        + link("base", "<pose>0 0 1 0 0 0.5</pose>", "")
+        + link("a", "<pose relative_to='base'>1 0 0 0 0 0</pose>", "<pose relative_to='hub'>0 0 0.1 0 0 0</pose>")
+        + "<frame name='hub' attached_to='a'><pose relative_to='a'>0.2 0 0 0.4 0 0</pose></frame>"
+        + link("b", "<pose>0 0 0 0 0 0</pose>", "<pose relative_to='base'>0 0 0 0 0 0</pose>")
+        + link("c", "", "<pose relative_to='j'>0 0 0 0 0 0</pose>")
+        + "<joint name='j' type='revolute'><parent>base</parent><child>c</child>"
+        + "<pose>0 0.3 0 0 0.6 0</pose></joint>"
+        + link("d", "", "<pose relative_to='d'>0 0 0 0.7 0 0</pose>")
+        + "</model></sdf>"
+    )
+    got = by_name(model(tmp_path, "f.sdf", text))
+    # a: hub is a's frame moved by (0.2, 0, 0) and turned by roll 0.4; the inertial 0.1 up hub's z
+    R = Rx(0.4)
+    assert np.allclose(got["a"].p_BC_B, [0.2, 0, 0] + R @ [0, 0, 0.1], rtol=0, atol=1e-15)
+    assert_tensor(got["a"].I_C_B, R @ I @ R.T)
+    # b is at the model's origin, unturned; base is 1 up and turned by yaw 0.5
+    assert np.allclose(got["b"].p_BC_B, [0, 0, 1], rtol=0, atol=1e-15)
+    assert_tensor(got["b"].I_C_B, Rz(0.5) @ I @ Rz(0.5).T)
+    # a joint's pose is relative to its child link
+    assert np.allclose(got["c"].p_BC_B, [0, 0.3, 0], rtol=0, atol=1e-15)
+    assert_tensor(got["c"].I_C_B, Ry(0.6) @ I @ Ry(0.6).T)
+    assert_tensor(got["d"].I_C_B, Rx(0.7) @ I @ Rx(0.7).T)
+
+
+@pytest.mark.parametrize(
+    "ref, why",
+    [
+        ("other::frame", "another model's scope"),
+        ("nowhere", "there is no frame 'nowhere'"),
+        ("f1", "form a cycle"),
+        ("world", "frame 'world'"),
+    ],
+)
+def test_read_sdf_relative_to_an_unplaceable_frame_is_unresolved_frame(tmp_path, ref, why):
+    text = (
+        "<sdf version='1.9'><model name='m'>"
+        "<frame name='f1'><pose relative_to='f2'/></frame><frame name='f2'><pose relative_to='f1'/></frame>"
+        f"<link name='a'><inertial><pose relative_to='{ref}'/><mass>1</mass></inertial></link>"
+        "<link name='b'><inertial><mass>2</mass><inertia><ixx>0.1</ixx><iyy>0.1</iyy><izz>0.1</izz></inertia>"
+        "</inertial></link></model></sdf>"
+    )
+    got = by_name(model(tmp_path, "u.sdf", text))
+    assert got["a"].status == "unresolved_frame" and why in got["a"].reason
+    assert np.isnan(got["a"].m) and np.isnan(got["a"].I_C_B).all()
+    assert got["b"].status == "ok"
+
+
+def test_read_sdf_defaults_and_scoped_names(tmp_path):
+    text = (
+        "<sdf version='1.9'><world name='w'>"
+        "<model name='m1'><link name='bare'/><link name='auto'><inertial auto='true'/></link>"
+        "<link name='nomass'><inertial><inertia><ixx>1</ixx><iyy>1</iyy><izz>1</izz></inertia></inertial></link>"
+        "<model name='inner'><link name='l'><inertial><mass>3</mass></inertial></link></model></model>"
+        "<model name='m2'><link name='l'><inertial><mass>1</mass><inertia><ixx>0.1</ixx><iyy>0.1</iyy>"
+        "<izz>0.1</izz></inertia></inertial></link></model>"
+        "<include><uri>model://elsewhere</uri></include>"
+        "</world></sdf>"
+    )
+    m = model(tmp_path, "w.sdf", text)
+    got = by_name(m)
+    assert list(got) == ["m1::bare", "m1::auto", "m1::nomass", "m1::inner::l", "m2::l"]
+    assert got["m1::bare"].status == "no_inertial" and "m = 1 kg and I = diag(1, 1, 1)" in got["m1::bare"].reason
+    assert got["m1::auto"].status == "no_inertial" and "auto" in got["m1::auto"].reason
+    assert got["m1::nomass"].m == 1.0 and "no <mass>: SDF's default, 1 kg" in got["m1::nomass"].reason
+    assert np.allclose(got["m1::inner::l"].moments, [1, 1, 1]) and "SDF's default" in got["m1::inner::l"].reason
+    assert got["m2::l"].status == "ok"
+    assert any("model://elsewhere" in n for n in m.notes)
+
+
+def test_read_mjcf_euler_is_in_degrees_unless_the_compiler_says_radian(tmp_path):
+    I_C_I = np.diag([0.1, 0.2, 0.25])
+    inertial = '<inertial pos="0 0 0" mass="1" diaginertia="0.1 0.2 0.25" euler="{}"/>'
+    deg = model(tmp_path, "deg.xml", mjcf(f"<body name='b'>{inertial.format('30 0 0')}</body>")).bodies[0]
+    rad = model(
+        tmp_path,
+        "rad.xml",
+        mjcf(f"<body name='b'>{inertial.format('0.5 0 0')}</body>", '<compiler angle="radian"/>'),
+    ).bodies[0]
+    assert_tensor(deg.I_C_B, Rx(math.radians(30)) @ I_C_I @ Rx(math.radians(30)).T)
+    assert_tensor(rad.I_C_B, Rx(0.5) @ I_C_I @ Rx(0.5).T)
+
+
+def test_read_mjcf_the_last_compiler_setting_counts_for_the_whole_model(tmp_path):
+    text = (
+        "<mujoco><compiler angle='radian'/><worldbody><body name='b'>"
+        "<inertial pos='0 0 0' mass='1' diaginertia='0.1 0.2 0.25' euler='30 0 0'/></body></worldbody>"
+        "<compiler angle='degree' eulerseq='XYZ'/></mujoco>"
+    )
+    b = model(tmp_path, "two.xml", text).bodies[0]
+    R = Rx(math.radians(30))
+    assert_tensor(b.I_C_B, R @ np.diag([0.1, 0.2, 0.25]) @ R.T)
+
+
+@pytest.mark.parametrize("seq", ["xyz", "XYZ", "zyx", "ZYX", "zyz", "xYz", "XyZ", "yzx", "YxY"])
+@pytest.mark.parametrize("angle", ["degree", "radian"])
+def test_read_mjcf_eulerseq_matches_elementary_rotations(tmp_path, seq, angle):
+    angles = np.array([0.4, -1.2, 2.2])
+    given = np.degrees(angles) if angle == "degree" else angles
+    I_C_I = np.diag([0.1, 0.2, 0.25])
+    text = mjcf(
+        f"<body name='b'><inertial pos='0 0 0' mass='1' diaginertia='0.1 0.2 0.25' "
+        f"euler='{' '.join(repr(float(a)) for a in given)}'/></body>",
+        f'<compiler angle="{angle}" eulerseq="{seq}"/>',
+    )
+    R = euler_reference(seq, angles)
+    assert_tensor(model(tmp_path, "e.xml", text).bodies[0].I_C_B, R @ I_C_I @ R.T, 1e-13)
+
+
+def test_read_mjcf_quat_axisangle_xyaxes_and_zaxis_match_rodrigues(tmp_path):
+    rng = np.random.default_rng(15)
+    u, th = axis_angle(rng, 4)
+    Rs, qs = rodrigues(u, th), quats(u, th)
+    I_C_I = np.diag([0.3, 0.5, 0.7])
+    f = nums
+    zaxis = np.array([0.3, -0.4, 0.5])
+    zunit = zaxis / np.linalg.norm(zaxis)
+    bodies = "".join(
+        f"<body name='{n}'><inertial pos='0 0 0' mass='1' diaginertia='0.3 0.5 0.7' {a}/></body>"
+        for n, a in (
+            ("quat", f"quat='{f(3 * qs[0])}'"),  # not normalised: MuJoCo normalises it
+            ("axisangle", f"axisangle='{f(2 * u[1])} {num(math.degrees(th[1]))}'"),
+            ("xyaxes", f"xyaxes='{f(2 * Rs[2][:, 0])} {f(Rs[2][:, 1] + 0.5 * Rs[2][:, 0])}'"),
+            ("zaxis", f"zaxis='{f(zaxis)}'"),
+            ("down", "zaxis='0 0 -2'"),
+        )
+    )
+    got = by_name(model(tmp_path, "o.xml", mjcf(bodies)))
+    axis = np.cross([0, 0, 1], zunit)
+    Rz_ref = rodrigues((axis / np.linalg.norm(axis))[None], np.array([math.acos(zunit[2])]))[0]
+    for name, R in (
+        ("quat", Rs[0]),
+        ("axisangle", Rs[1]),
+        ("xyaxes", Rs[2]),
+        ("zaxis", Rz_ref),
+        ("down", Rx(math.pi)),
+    ):
+        assert_tensor(got[name].I_C_B, R @ I_C_I @ R.T, 1e-14)
+
+
+def test_read_mjcf_fullinertia_is_ixx_iyy_izz_ixy_ixz_iyz_in_the_body_frame(tmp_path):
+    text = mjcf("<body name='b'><inertial pos='1 2 3' mass='2' fullinertia='0.4 0.5 0.6 -0.01 0.02 -0.03'/></body>")
+    b = model(tmp_path, "full.xml", text).bodies[0]
+    assert b.I_C_B.tolist() == [[0.4, -0.01, 0.02], [-0.01, 0.5, -0.03], [0.02, -0.03, 0.6]]
+    assert b.p_BC_B.tolist() == [1, 2, 3]
+
+
+def test_read_mjcf_nested_bodies_are_listed_in_order_with_path_names(tmp_path):
+    inertial = "<inertial pos='0 0 0' mass='1' diaginertia='1 1 1'/>"
+    text = mjcf(
+        f"<body name='a'>{inertial}<body>{inertial}<body name='c'/><frame><body>{inertial}</body></frame></body>"
+        f"<body>{inertial}</body></body><body>{inertial}</body>"
+    )
+    names = [b.name for b in model(tmp_path, "n.xml", text).bodies]
+    assert names == ["a", "a/body[1]", "c", "a/body[1]/body[2]", "a/body[2]", "world/body[2]"]
+
+
+def test_read_mjcf_include_is_relative_to_the_main_model_and_nests(tmp_path):
+    (tmp_path / "parts").mkdir()
+    (tmp_path / "main.xml").write_text(
+        "<mujoco><worldbody><body name='base'><inertial pos='0 0 0' mass='1' diaginertia='1 1 1'/>"
+        "<include file='parts/arm.xml'/></body></worldbody></mujoco>"
+    )
+    # nested includes are relative to the main model's folder too, as MuJoCo reads them
+    (tmp_path / "parts" / "arm.xml").write_text(
+        "<mujoco><include file='parts/hand.xml'/><body name='arm'>"
+        "<inertial pos='0 0 0' mass='2' diaginertia='1 1 1'/></body></mujoco>"
+    )
+    (tmp_path / "parts" / "hand.xml").write_text(
+        "<mujoco><body name='hand'><inertial pos='0 0 0' mass='3' diaginertia='1 1 1'/></body></mujoco>"
+    )
+    m = models.read_model(tmp_path / "main.xml")
+    assert [(b.name, b.m) for b in m.bodies] == [("base", 1.0), ("hand", 3.0), ("arm", 2.0)]
+
+
+def test_read_mjcf_compiler_in_an_included_file_counts(tmp_path):
+    (tmp_path / "settings.xml").write_text("<mujoco><compiler angle='radian'/></mujoco>")
+    (tmp_path / "m.xml").write_text(
+        "<mujoco><include file='settings.xml'/><worldbody><body name='b'>"
+        "<inertial pos='0 0 0' mass='1' diaginertia='0.1 0.2 0.25' euler='0.5 0 0'/></body></worldbody></mujoco>"
+    )
+    b = models.read_model(tmp_path / "m.xml").bodies[0]
+    assert_tensor(b.I_C_B, Rx(0.5) @ np.diag([0.1, 0.2, 0.25]) @ Rx(0.5).T)
+
+
+def test_read_mjcf_notes_what_mujoco_does_that_hconv_does_not(tmp_path):
+    text = (
+        "<mujoco><compiler inertiafromgeom='true' balanceinertia='true'/><worldbody>"
+        "<body name='a'><inertial pos='0 0 0' mass='1' diaginertia='1 1 1'/></body>"
+        "<body name='b'><geom size='0.1'/></body><replicate count='3'><body name='r'/></replicate>"
+        "</worldbody></mujoco>"
+    )
+    m = model(tmp_path, "g.xml", text)
+    notes = " ".join(m.notes)
+    assert "inertiafromgeom" in notes and "balanceinertia" in notes and "<replicate>" in notes
+    got = by_name(m)
+    assert got["b"].status == "no_inertial" and "geoms" in got["b"].reason
+
+
+# --- statuses --------------------------------------------------------------------------------
+
+
+def status_of(tmp_path, m, I, name="x.urdf"):
+    b = model(tmp_path, name, urdf(urdf_link("l", m, np.asarray(I, dtype=float)))).bodies[0]
+    return b.status, b.reason
+
+
+def test_check_not_physical_gives_the_margin_as_a_share_of_the_trace(tmp_path):
+    s, why = status_of(tmp_path, 1.0, np.diag([0.1, 0.1, 0.3]))
+    assert s == "not_physical"
+    assert "exceeds I1 + I2 = 0.2 kg·m² by 20 % of the trace" in why and "no products, so no sign slip" in why
+
+
+def test_check_not_physical_says_when_negated_products_would_be_valid(tmp_path):
+    # valid with the products -0.003 (moments 0.004, 0.013, 0.013); given +0.003 as CAD reports them
+    I = 0.01 * np.ones((3, 3)) * 0.3 + np.diag([0.007] * 3)
+    s, why = status_of(tmp_path, 1.2, I)
+    assert s == "not_physical" and "with the products negated it would be valid" in why
+    s, _ = status_of(tmp_path, 1.2, I * np.where(np.eye(3, dtype=bool), 1, -1), "y.urdf")
+    assert s == "ok"
+
+
+def test_check_not_physical_allows_the_boundary_bodies_within_hconvs_tolerance(tmp_path):
+    # a thin plate: I3 = I1 + I2 exactly, and one rounding off it
+    assert status_of(tmp_path, 1.0, np.diag([0.1, 0.2, 0.30000000000000004]))[0] == "ok"
+
+
+@pytest.mark.parametrize(
+    "m, I, want, says",
+    [
+        (1.0, [0, 0, 0], "singular", "I = 0 with m = 1 kg: a point mass"),
+        (1.0, [0, 0.1, 0.1], "singular", "1 of them zero, a line mass"),
+        (1.0, [-0.1, 0.3, 0.3], "not_positive_definite", "I1 = -0.1 kg·m² < 0"),
+        (0.0, [0, 0, 0], "massless", "a frame, not a body"),
+        (0.0, [0.1, 0.1, 0.1], "massless_with_inertia", "m = 0 with I ≠ 0"),
+        (-1.0, [0.1, 0.1, 0.1], "negative_mass", "m = -1 kg < 0"),
+        (0.05, [1, 1, 1], "implausible_density", "far too much inertia for 0.05 kg. A placeholder"),
+        (1000.0, [1e-9, 1e-9, 1e-9], "implausible_density", "far too little inertia for 1e+03 kg"),
+        (2.0, [0.01, 0.02, 0.025], "ok", ""),
+    ],
+)
+def test_check_status_and_reason(tmp_path, m, I, want, says):
+    s, why = status_of(tmp_path, m, np.diag(I))
+    assert s == want
+    assert says in why if says else why == ""
+
+
+def test_check_implausible_density_names_both_causes(tmp_path):
+    _, why = status_of(tmp_path, 0.05, np.eye(3))
+    assert "placeholder" in why and "g·cm²" in why and "3.8e-05 kg/m³" in why
+    _, why = status_of(tmp_path, 1000.0, 1e-9 * np.eye(3), "y.urdf")
+    assert "placeholder" in why and "the mass in g read as kg" in why
+
+
+def test_check_reason_names_the_other_statuses_that_apply(tmp_path):
+    s, why = status_of(tmp_path, -1.0, np.diag([0.1, 0.1, 0.3]))
+    assert s == "negative_mass" and "also not_physical: I3 = 0.3 exceeds" in why
+
+
+def test_check_no_inertial_in_every_format(tmp_path):
+    assert by_name(model(tmp_path, "a.urdf", urdf('<link name="l"/>')))["l"].status == "no_inertial"
+    assert by_name(model(tmp_path, "a.sdf", "<sdf><model name='m'><link name='l'/></model></sdf>"))["l"].status == (
+        "no_inertial"
+    )
+    b = model(tmp_path, "a.xml", mjcf("<body name='l'><geom size='1'/></body>")).bodies[0]
+    assert b.status == "no_inertial" and "MuJoCo infers the mass and inertia from the body's geoms" in b.reason
+    assert np.isnan(b.q_B).all() and np.isnan(b.moments).all()
+
+
+# --- untrusted input -------------------------------------------------------------------------
+
+LAUGHS = (
+    '<?xml version="1.0"?>\n<!DOCTYPE lolz [\n <!ENTITY lol "lol">\n'
+    + "".join(f' <!ENTITY lol{k} "{("&lol" + (str(k - 1) if k > 1 else "") + ";") * 10}">\n' for k in range(1, 10))
+    + ']>\n<robot name="&lol9;"/>\n'
+)
+
+
+@pytest.mark.parametrize(
+    "name, text, says",
+    [
+        ("laughs.urdf", LAUGHS, "laughs.urdf, line 3: declares an entity"),
+        (
+            "xxe.urdf",
+            '<?xml version="1.0"?>\n<!DOCTYPE r [<!ENTITY x SYSTEM "file:///etc/passwd">]>\n<robot name="&x;"/>',
+            "xxe.urdf, line 2: declares an entity",
+        ),
+        (
+            "param.urdf",
+            '<!DOCTYPE r [<!ENTITY % p SYSTEM "http://example.invalid/p.dtd"> %p;]><robot/>',
+            "declares an entity",
+        ),
+        ("subset.urdf", "<!DOCTYPE r [<!ATTLIST robot name CDATA 'x'>]><robot/>", "DOCTYPE with declarations"),
+        ("dtd.urdf", '<!DOCTYPE robot SYSTEM "http://example.invalid/r.dtd">\n<robot/>', "names an external DTD"),
+        ("undefined.urdf", '<robot name="&nope;"/>', "line 1, column 1: not well-formed XML (undefined entity)"),
+        (
+            "xi.urdf",
+            '<robot xmlns:xi="http://www.w3.org/2001/XInclude">\n<xi:include href="/etc/passwd"/></robot>',
+            "uses XInclude",
+        ),
+        ("xacro.urdf", '<robot xmlns:xacro="http://x"><xacro:property name="a" value="1"/></robot>', "run xacro"),
+        ("open.urdf", '<robot name="r">\n<link name="a">\n</robot>', "open.urdf, line 3, column 3: not well-formed"),
+        ("html.urdf", "<html/>", "<html> is the root element, so this is not a model"),
+        ("empty.urdf", "", "empty.urdf: is empty"),
+        ("junk.urdf", "\x00\x01PK\x03", "not well-formed XML"),
+        ("noname.urdf", urdf("<link/>"), 'name the link: <link name="...">'),
+        (
+            "nomass.urdf",
+            urdf(
+                '<link name="a"><inertial>\n<inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/>'
+                "</inertial></link>"
+            ),
+            "nomass.urdf, line 3, <inertial> has no <mass>; add <mass",
+        ),
+        (
+            "noiyz.urdf",
+            urdf(
+                '<link name="a"><inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" izz="1"/>'
+                "</inertial></link>"
+            ),
+            "<inertia> has no attribute iyz; URDF's <inertia> needs all of",
+        ),
+        ("text.urdf", urdf('<link name="a"><inertial><mass value="heavy"/></inertial></link>'), "holds 'heavy'"),
+        ("nan.urdf", urdf('<link name="a"><inertial><mass value="nan"/></inertial></link>'), "holds 'nan'"),
+        ("big.urdf", urdf('<link name="a"><inertial><mass value="1e999"/></inertial></link>'), "beyond the range"),
+        ("expr.urdf", urdf('<link name="a"><inertial><mass value="${m}"/></inertial></link>'), "run xacro"),
+        (
+            "rpy.urdf",
+            urdf('<link name="a"><inertial><origin rpy="0 0"/><mass value="1"/></inertial></link>'),
+            "attribute rpy holds 2 numbers ('0 0'), but takes 3",
+        ),
+        (
+            "two.urdf",
+            urdf('<link name="a"><inertial><mass value="1"/></inertial><inertial/></link>'),
+            "is the second <inertial> in <link>",
+        ),
+        ("nopos.xml", mjcf("<body><inertial mass='1' diaginertia='1 1 1'/></body>"), "has no attribute pos"),
+        (
+            "orient.xml",
+            mjcf("<body><inertial pos='0 0 0' mass='1' diaginertia='1 1 1' quat='1 0 0 0' euler='0 0 0'/></body>"),
+            "has both quat and euler",
+        ),
+        (
+            "fullq.xml",
+            mjcf("<body><inertial pos='0 0 0' mass='1' fullinertia='1 1 1 0 0 0' quat='1 0 0 0'/></body>"),
+            "fullinertia is in the body frame and takes no orientation",
+        ),
+        (
+            "both.xml",
+            mjcf("<body><inertial pos='0 0 0' mass='1' fullinertia='1 1 1 0 0 0' diaginertia='1 1 1'/></body>"),
+            "has both diaginertia and fullinertia",
+        ),
+        (
+            "zeroq.xml",
+            mjcf("<body><inertial pos='0 0 0' mass='1' diaginertia='1 1 1' quat='0 0 0 0'/></body>"),
+            "quat has zero length",
+        ),
+        (
+            "parallel.xml",
+            mjcf("<body><inertial pos='0 0 0' mass='1' diaginertia='1 1 1' xyaxes='1 0 0 2 0 0'/></body>"),
+            "xyaxes' y axis, less its part along x, has zero length",
+        ),
+        ("angle.xml", "<mujoco><compiler angle='grad'/></mujoco>", "has angle='grad'"),
+        ("seq.xml", "<mujoco><compiler eulerseq='xyw'/></mujoco>", "has eulerseq='xyw'"),
+        ("rot.sdf", "<sdf><model name='m'><link name='l'><inertial><pose rotation_format='q'/>", "not well-formed"),
+        (
+            "rot2.sdf",
+            "<sdf><model name='m'><link name='l'><inertial><pose rotation_format='q'/></inertial></link></model></sdf>",
+            "has rotation_format='q'",
+        ),
+        (
+            "deg.sdf",
+            "<sdf><model name='m'><link name='l'><inertial><pose degrees='maybe'>0 0 0 0 0 0</pose></inertial>"
+            "</link></model></sdf>",
+            "has degrees='maybe'",
+        ),
+    ],
+)
+def test_read_untrusted_input_is_one_line_naming_file_and_fix(tmp_path, name, text, says):
+    path = tmp_path / name
+    path.write_text(text)
+    with pytest.raises(InputError) as e:
+        models.read_model(path)
+    msg = str(e.value)
+    assert says in msg and "\n" not in msg and msg.startswith(str(path))
+
+
+def test_read_forgives_what_tinyxml_forgives_and_keeps_line_numbers(tmp_path):
+    """Files of a widely used model collection: blank lines before the XML declaration, a NUL
+    after the root, and xacro's namespace left on an expanded URDF."""
+    text = urdf(urdf_link("a", 1.0, np.eye(3)), '<link name="b">\n<inertial><mass value="x"/></inertial></link>')
+    path = tmp_path / "lenient.urdf"
+    expanded = text.replace("<robot", '<robot xmlns:xacro="http://ros.org/wiki/xacro"')
+    path.write_bytes(b"\n\n" + expanded.encode() + b"\0")
+    with pytest.raises(InputError, match=r"lenient.urdf, line 7, <mass> attribute value holds 'x'"):
+        models.read_model(path)
+    path.write_bytes(b"\n\n" + urdf(urdf_link("a", 1.0, np.eye(3))).encode() + b"\0")
+    assert models.read_model(path).bodies[0].status == "ok"
+
+
+def test_read_refuses_entities_hidden_by_another_encoding(tmp_path):
+    path = tmp_path / "laughs16.urdf"
+    path.write_bytes(LAUGHS.replace('version="1.0"', 'version="1.0" encoding="UTF-16"').encode("utf-16"))
+    t0 = time.perf_counter()
+    with pytest.raises(InputError, match="DOCTYPE with declarations"):
+        models.read_model(path)
+    assert time.perf_counter() - t0 < 1
+
+
+@pytest.mark.parametrize(
+    "files, says",
+    [
+        ({"m.xml": "<mujoco><include file='m.xml'/></mujoco>"}, "includes 'm.xml' again inside itself"),
+        (
+            {"m.xml": "<mujoco><include file='a.xml'/></mujoco>", "a.xml": "<mujoco><include file='m.xml'/></mujoco>"},
+            "a cycle",
+        ),
+        (
+            {"m.xml": "<mujoco><include file='a.xml'/><include file='a.xml'/></mujoco>", "a.xml": "<mujoco/>"},
+            "which 'a.xml' already brought in",
+        ),
+        ({"m.xml": "<mujoco><include file='gone.xml'/></mujoco>"}, "gone.xml: cannot read it"),
+        ({"m.xml": "<mujoco><include file='../outside.xml'/></mujoco>"}, "outside the model's folder"),
+        ({"m.xml": "<mujoco><include file='/etc/hostname'/></mujoco>"}, "outside the model's folder"),
+        ({"m.xml": "<mujoco><include file='http://example.invalid/a.xml'/></mujoco>"}, "hconv reads no URLs"),
+        ({"m.xml": "<mujoco><include/></mujoco>"}, "has no attribute file"),
+        ({"m.xml": "<mujoco><include file='a.xml'/></mujoco>", "a.xml": "<mujoco><body>"}, "a.xml, line 1"),
+    ],
+)
+def test_read_mjcf_include_refusals(tmp_path, files, says):
+    (tmp_path / "sub").mkdir()
+    for name, text in files.items():
+        (tmp_path / "sub" / name).write_text(text)
+    (tmp_path / "outside.xml").write_text("<mujoco/>")
+    with pytest.raises(InputError) as e:
+        models.read_model(tmp_path / "sub" / "m.xml")
+    assert says in str(e.value) and "\n" not in str(e.value)
+
+
+def test_read_refuses_a_fifo_without_blocking(tmp_path):
+    fifo = tmp_path / "model.urdf"
+    os.mkfifo(fifo)
+    with pytest.raises(InputError, match="is not a regular file"):
+        models.read_model(fifo)
+
+
+def test_read_refuses_a_file_beyond_the_size_limit(tmp_path, monkeypatch):
+    monkeypatch.setattr(modelxml, "MAX_BYTES", 100)
+    path = tmp_path / "big.urdf"
+    path.write_text(urdf(urdf_link("a", 1.0, np.eye(3))))
+    with pytest.raises(InputError, match="larger than any model file hconv reads"):
+        models.read_model(path)
+
+
+def test_read_deep_nesting_needs_no_recursion(tmp_path):
+    depth = 5000
+    inertial = "<inertial pos='0 0 0' mass='1' diaginertia='1 1 1'/>"
+    text = mjcf("<body>" + inertial + "".join("<body>" + inertial for _ in range(depth)) + "</body>" * (depth + 1))
+    assert len(model(tmp_path, "deep.xml", text).bodies) == depth + 1
+
+
+# --- output ----------------------------------------------------------------------------------
+
+
+def test_table_columns_are_hconvs_input_contract(tmp_path):
+    m = models.read_model(EXAMPLES / "arm.urdf")
+    t6, tp = m.table("sym6"), m.table("principal")
+    common = ["body", "m", "rx", "ry", "rz"]
+    assert t6.column_names == common + ["Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz", "inertia_status", "inertia_reason"]
+    assert tp.column_names == common + ["I1", "I2", "I3", "qw", "qx", "qy", "qz", "inertia_status", "inertia_reason"]
+    assert t6.schema.field("Ixx").metadata == {b"unit": b"kg*m**2"} and t6.schema.field("rx").metadata[b"unit"] == b"m"
+    with pytest.raises(UsageError, match="sym6 or principal"):
+        m.table("full9")
+
+
+@pytest.mark.parametrize("form, ext", [("sym6", "csv"), ("principal", "parquet")])
+def test_roundtrip_bodies_into_convert_gives_inverse_inertia_times_H(tmp_path, form, ext):
+    """Bodies with rotated inertials written by hconv bodies, read by hconv convert with an H per
+    row: ω is I⁻¹H for the tensor built here from the same numbers (Rodrigues, 50-digit solve)."""
+    rng = np.random.default_rng(7)
+    n = 6
+    u, th = axis_angle(rng, n)
+    Rs, qs = rodrigues(u, th), quats(u, th)
+    moments = rng.uniform(0.5, 1.0, (n, 3))
+    moments[:, 2] = np.minimum(moments[:, 2], moments[:, 0] + moments[:, 1])
+    bodies = "".join(
+        f"<body name='b{k}'><inertial pos='{k} 0 0' mass='2' quat='{nums(qs[k])}' "
+        f"diaginertia='{nums(moments[k])}'/><freejoint/><geom size='0.1'/></body>"
+        for k in range(n)
+    )
+    (tmp_path / "m.xml").write_text(mjcf(bodies))
+    out = tmp_path / f"bodies.{ext}"
+    proc = run_hconv("bodies", str(tmp_path / "m.xml"), str(out), "--form", form)
+    assert proc.returncode == 0, proc.stderr.decode()
+    t = pacsv.read_csv(out) if ext == "csv" else pq.read_table(out)
+    H = rng.normal(size=(n, 3))
+    t = t.append_column("Hx", pa.array(H[:, 0])).append_column("Hy", pa.array(H[:, 1]))
+    t = t.append_column("Hz", pa.array(H[:, 2]))
+    src = tmp_path / f"with-H.{ext}"
+    (pacsv.write_csv if ext == "csv" else pq.write_table)(t, src)
+    proc = run_hconv("convert", str(src), str(tmp_path / f"omega.{ext}"), "-q")
+    assert proc.returncode == 0, proc.stderr.decode()
+    res = pacsv.read_csv(tmp_path / f"omega.{ext}") if ext == "csv" else pq.read_table(tmp_path / f"omega.{ext}")
+    w = np.column_stack([res.column(c).to_numpy() for c in ("wx", "wy", "wz")])
+    I = np.einsum("nij,nj,nkj->nik", Rs, moments, Rs)
+    assert np.abs(w - mp_solve(I, H)).max() <= 1e-13 * np.abs(w).max()
+    assert set(res.column("status").to_pylist()) == {"ok"}
+    assert res.column("body").to_pylist() == [f"b{k}" for k in range(n)]
+
+
+def test_show_fits_80_columns_without_cutting_a_name_or_a_number():
+    for path in sorted(EXAMPLES.glob("*.*")):
+        if path.name == "pendulum-arm.xml":
+            continue
+        m = models.read_model(path)
+        buf = io.StringIO()
+        modelview.show(m, Console(file=buf, width=80, force_terminal=True, color_system=None))
+        lines = buf.getvalue().splitlines()
+        assert max(len(line) for line in lines) <= 80
+        names = {b.name for b in m.bodies}
+        rows: dict[str, str] = {}
+        for line in lines:  # the table's row comes first; the reasons below start with the name too
+            if line.split() and line.split()[0] in names:
+                rows.setdefault(line.split()[0], line)
+        for b in m.bodies:
+            assert b.name in rows and rows[b.name].split()[-1] == b.status
+            for x in (b.m, *b.moments):
+                assert ("-" if x != x else f"{x:.4g}") in rows[b.name].split()
+
+
+def test_show_lists_bodies_whose_names_do_not_fit(tmp_path):
+    long = "a_link_whose_name_is_far_too_long_for_a_table_row_at_eighty_columns_wide"
+    m = model(tmp_path, "l.urdf", urdf(urdf_link(long, 1.0, np.diag([0.1, 0.1, 0.3]))))
+    buf = io.StringIO()
+    modelview.show(m, Console(file=buf, width=80, force_terminal=True, color_system=None))
+    text = buf.getvalue()
+    assert max(len(line) for line in text.splitlines()) <= 80
+    assert long in text.splitlines() and "not_physical" in text
+
+
+# --- the command -----------------------------------------------------------------------------
+
+
+def test_cli_bodies_in_a_pipe_is_tab_separated():
+    proc = run_hconv("bodies", str(EXAMPLES / "arm.urdf"))
+    assert proc.returncode == 0, proc.stderr.decode()
+    lines = proc.stdout.decode().splitlines()
+    assert lines[0].startswith("# hconv bodies") and lines[2] == "body\tm\tI1\tI2\tI3\tstatus\treason"
+    rows = {r.split("\t")[0]: r.split("\t") for r in lines[3:]}
+    assert rows["base_link"][1:6] == [
+        "4.0",
+        "0.016666666666666666",
+        "0.016666666666666666",
+        "0.02666666666666667",
+        "ok",
+    ]
+    assert rows["forearm_link"][5] == "not_physical" and "sign slip" in rows["forearm_link"][6]
+
+
+def test_cli_bodies_writes_files_atomically_and_refuses_to_overwrite(tmp_path):
+    out = tmp_path / "arm.csv"
+    proc = run_hconv("bodies", str(EXAMPLES / "arm.urdf"), str(out))
+    assert proc.returncode == 0 and b"7 bodies: 3 ok" in proc.stderr
+    assert pacsv.read_csv(out).num_rows == 7
+    proc = run_hconv("bodies", str(EXAMPLES / "arm.urdf"), str(out))
+    assert proc.returncode == 4 and b"already exists; pass --force" in proc.stderr
+    assert run_hconv("bodies", str(EXAMPLES / "arm.urdf"), str(out), "--force", "-q").stderr == b""
+    proc = run_hconv("bodies", str(EXAMPLES / "arm.urdf"), "-", "--to", "csv", "-q")
+    assert proc.stdout.startswith(b"body,m,rx,ry,rz,Ixx,")
+    proc = run_hconv("bodies", str(EXAMPLES / "arm.urdf"), str(tmp_path / "x.csv"), "--form", "full9")
+    assert proc.returncode == 2 and b"sym6 or principal" in proc.stderr
+    assert not (tmp_path / "x.csv").exists()
+    proc = run_hconv("bodies", str(EXAMPLES / "arm.urdf"), str(EXAMPLES / "arm.urdf"), "--to", "csv", "--force")
+    assert proc.returncode == 4 and b"is the input file" in proc.stderr
+
+
+def test_cli_bodies_strict_exits_5_when_a_body_is_not_ok(tmp_path):
+    proc = run_hconv("bodies", str(EXAMPLES / "arm.urdf"), "--strict")
+    assert proc.returncode == 5 and b"4 of 7 bodies are not ok" in proc.stderr and b"forearm_link" in proc.stdout
+    proc = run_hconv("bodies", str(EXAMPLES / "arm.urdf"), str(tmp_path / "o.csv"), "--strict")
+    assert proc.returncode == 5 and b"nothing was written" in proc.stderr and not (tmp_path / "o.csv").exists()
+    (tmp_path / "good.urdf").write_text(urdf(urdf_link("a", 1.0, np.diag([0.1, 0.2, 0.25]))))
+    assert run_hconv("bodies", str(tmp_path / "good.urdf"), "--strict").returncode == 0
+
+
+@pytest.mark.parametrize(
+    "text", [LAUGHS, "<robot><link name='a'><inertial><mass value='x'/></inertial></link></robot>", "<robot>"]
+)
+def test_cli_bodies_bad_model_is_one_line_exit_3(tmp_path, text):
+    path = tmp_path / "bad.urdf"
+    path.write_text(text)
+    proc = run_hconv("bodies", str(path))
+    err = proc.stderr.decode()
+    assert proc.returncode == 3 and err.startswith(f"hconv: error: {path}") and err.count("\n") == 1
+    assert "Traceback" not in err and proc.stdout == b""
+
+
+def test_readme_examples_have_the_statuses_the_readme_shows():
+    want = {
+        "arm.urdf": {
+            "base_footprint": "massless",
+            "base_link": "ok",
+            "shoulder_link": "ok",
+            "upper_arm_link": "ok",
+            "forearm_link": "not_physical",
+            "camera_link": "implausible_density",
+            "tool0": "no_inertial",
+        },
+        "rover.sdf": {
+            "chassis": "ok",
+            "left_wheel": "ok",
+            "right_wheel": "ok",
+            "mast": "no_inertial",
+            "antenna": "implausible_density",
+        },
+        "pendulum.xml": {"base": "ok", "upper_link": "ok", "upper_link/body[1]": "ok", "bob": "no_inertial"},
+    }
+    for name, statuses in want.items():
+        got = models.read_model(EXAMPLES / name)
+        assert {b.name: b.status for b in got.bodies} == statuses
+    rover = by_name(models.read_model(EXAMPLES / "rover.sdf"))
+    # both wheels turn the cylinder's axis onto y, one by degrees, one through a frame
+    for wheel in ("left_wheel", "right_wheel"):
+        assert np.allclose(np.diag(rover[wheel].I_C_B), [0.0027083333333333334, 0.005, 0.0027083333333333334])
+    arm = by_name(models.read_model(EXAMPLES / "arm.urdf"))
+    assert_tensor(arm["shoulder_link"].I_C_B, np.diag([0.0021875, 0.001875, 0.0021875]), 1e-15)
+
+
+# --- MuJoCo, the independent reference -------------------------------------------------------
+
+
+def mujoco_bodies(mujoco, path):
+    mj = mujoco.MjModel.from_xml_path(str(path))
+    out = {}
+    for k in range(1, mj.nbody):
+        q = mj.body_iquat[k]
+        R = rodrigues_from_quat(q)
+        out[k] = (mj.body_mass[k], mj.body_ipos[k].copy(), R @ np.diag(mj.body_inertia[k]) @ R.T, mj.body_inertia[k])
+    return out
+
+
+def rodrigues_from_quat(q):
+    q = np.asarray(q) / np.linalg.norm(q)
+    th = 2 * math.atan2(np.linalg.norm(q[1:]), q[0])
+    axis = q[1:] / np.linalg.norm(q[1:]) if np.linalg.norm(q[1:]) > 0 else np.array([1.0, 0, 0])
+    return rodrigues(axis[None], np.array([th]))[0]
+
+
+@pytest.mark.parametrize("angle, seq", [("degree", "xyz"), ("radian", "XYZ"), ("degree", "zYx"), ("radian", "yzy")])
+def test_mujoco_agrees_on_mass_centre_tensor_and_principal_moments(tmp_path, angle, seq):
+    mujoco = pytest.importorskip("mujoco")
+    rng = np.random.default_rng(42)
+    scale = 180 / math.pi if angle == "degree" else 1.0
+    f = nums
+    parts = []
+    for k in range(40):
+        c = rng.uniform(0.05, 1.0, 3)  # second moments of a random solid: always a valid tensor
+        moments = np.array([c[1] + c[2], c[0] + c[2], c[0] + c[1]])
+        u, th = axis_angle(rng, 2)
+        kind = ["quat", "axisangle", "euler", "xyaxes", "zaxis", "none", "full"][k % 7]
+        if kind == "full":
+            R = rodrigues(u, th)[0]
+            I = R @ np.diag(moments) @ R.T
+            spec = f"fullinertia='{f([I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]])}'"
+        else:
+            spec = (
+                f"diaginertia='{f(moments)}'"
+                + {
+                    "quat": f" quat='{f(quats(u, th)[0])}'",
+                    "axisangle": f" axisangle='{f(u[0])} {num(th[0] * scale)}'",
+                    "euler": f" euler='{f(rng.uniform(-3, 3, 3) * scale)}'",
+                    "xyaxes": f" xyaxes='{f(rng.normal(size=6))}'",
+                    "zaxis": f" zaxis='{f(rng.normal(size=3))}'",
+                    "none": "",
+                }[kind]
+            )
+        pos = f(rng.normal(size=3))
+        parts.append(
+            f"<body name='b{k}'><freejoint/><geom size='0.1'/>"
+            f"<inertial pos='{pos}' mass='{num(rng.uniform(0.1, 5))}' {spec}/></body>"
+        )
+    path = tmp_path / "random.xml"
+    path.write_text(mjcf("".join(parts), f"<compiler angle='{angle}' eulerseq='{seq}'/>"))
+    ours = models.read_model(path).bodies
+    theirs = mujoco_bodies(mujoco, path)
+    for k, b in enumerate(ours, 1):
+        m, ipos, I, moments = theirs[k]
+        assert b.status == "ok" and b.m == m
+        assert np.allclose(b.p_BC_B, ipos, rtol=0, atol=1e-15)
+        assert np.abs(b.I_C_B - I).max() <= 1e-12 * np.trace(I), b.name
+        assert np.allclose(b.moments, np.sort(moments), rtol=1e-12, atol=0)
+
+
+def test_mujoco_agrees_on_the_shipped_example():
+    mujoco = pytest.importorskip("mujoco")
+    ours = [b for b in models.read_model(EXAMPLES / "pendulum.xml").bodies]
+    theirs = mujoco_bodies(mujoco, EXAMPLES / "pendulum.xml")
+    for k, b in enumerate(ours, 1):
+        if b.status == "no_inertial":  # MuJoCo's is inferred from the geom; hconv lists none
+            assert theirs[k][0] > 0 and np.isnan(b.m)
+            continue
+        m, ipos, I, _ = theirs[k]
+        assert b.m == m and np.allclose(b.p_BC_B, ipos, rtol=0, atol=1e-15)
+        assert np.abs(b.I_C_B - I).max() <= 1e-12 * np.trace(I)
+
+
+@pytest.mark.parametrize(
+    "inertial, ours",
+    [
+        ("mass='1' diaginertia='0.1 0.1 0.3'", "not_physical"),
+        ("mass='1' diaginertia='0 0 0'", "singular"),
+        ("mass='0' diaginertia='0 0 0'", "massless"),
+        ("mass='0' diaginertia='0.1 0.1 0.1'", "massless_with_inertia"),
+        ("mass='-1' diaginertia='0.1 0.1 0.1'", "negative_mass"),
+        ("mass='1' fullinertia='0.1 0.1 0.1 0.2 0 0'", "not_positive_definite"),
+        ("mass='1' diaginertia='0.01 0.02 0.025'", "ok"),
+        ("mass='0.05' diaginertia='1 1 1'", "implausible_density"),
+    ],
+)
+def test_mujoco_refuses_at_load_what_hconv_flags_but_not_a_placeholder(tmp_path, inertial, ours):
+    mujoco = pytest.importorskip("mujoco")
+    path = tmp_path / "m.xml"
+    path.write_text(mjcf(f"<body name='b'><freejoint/><geom size='0.1'/><inertial pos='0 0 0' {inertial}/></body>"))
+    assert models.read_model(path).bodies[0].status == ours
+    try:
+        mujoco.MjModel.from_xml_path(str(path))
+        loaded = True
+    except ValueError:
+        loaded = False
+    # MuJoCo checks a moving body's inertia as it loads; a density check is hconv's alone
+    assert loaded == (ours in ("ok", "implausible_density"))
+
+
+def test_readme_bodies_walkthrough_runs_as_written(tmp_path):
+    """The README's sh block and Python block for hconv bodies, run from a folder holding examples/."""
+    if shutil.which("awk") is None:
+        pytest.skip("the walkthrough uses awk")
+    readme = (EXAMPLES.parent.parent / "README.md").read_text()
+    section = readme[readme.index("### A robot model's inertias") :]
+    sh = section[section.index("```sh\n") + 6 :].split("```", 1)[0]
+    py = section[section.index("```python\n") + 10 :].split("```", 1)[0]
+    (tmp_path / "examples").symlink_to(EXAMPLES.parent)
+    script = f'hconv() {{ "{sys.executable}" -m hconv "$@"; }}\nset -e\n' + sh
+    env = dict(os.environ, PYTHONPATH=str(Path(models.__file__).parents[2]))  # this hconv, from any folder
+    proc = subprocess.run(["bash", "-c", script], cwd=tmp_path, capture_output=True, timeout=120, env=env)
+    assert proc.returncode == 0, proc.stderr.decode()
+    t = pacsv.read_csv(tmp_path / "arm-omega.csv")
+    got = dict(zip(t.column("body").to_pylist(), t.column("wz").to_pylist()))
+    assert got["base_link"] == pytest.approx(0.01 / 0.02666666666666667, rel=1e-15)
+    proc = subprocess.run([sys.executable, "-c", py], cwd=tmp_path, capture_output=True, timeout=120, env=env)
+    assert proc.returncode == 0, proc.stderr.decode()
+    assert pq.read_table(tmp_path / "pendulum-bodies.parquet").column("body").to_pylist()[2] == "upper_link/body[1]"
