@@ -14,7 +14,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 import pytest
-from helpers import run_hconv, run_inprocess
+from helpers import run_hconv, run_inprocess, run_on_terminal
 
 import hconv
 
@@ -382,6 +382,41 @@ def test_methods_table_renders():
     out = run_hconv("methods").stdout.decode()
     for name in hconv.METHODS:
         assert name in out
+
+
+NARROW = [
+    (["methods"], (80, 60)),
+    (["diagnose", str(EXAMPLES / "engine-log.csv")], (80, 60)),
+    (["compare", str(EXAMPLES / "scene.parquet")], (80, 60)),
+    (["stability", "--no-chart", "--rows", "4"], (80,)),
+    (["engines"], (80, 60)),
+    (["one", "--H", "1,2,3", "--I", "2.5,2.5,4,-0.5,0,0", "--r", "0.1,0.2,0.3", "--method", "document"], (80,)),
+    (["convert", str(EXAMPLES / "scene.csv"), "out.csv"], (80, 60)),
+    (["generate", "g.csv", "--rows", "10"], (80, 60)),
+]
+
+
+@pytest.mark.parametrize("args,width", [(a, w) for a, widths in NARROW for w in widths], ids=lambda x: str(x)[:12])
+def test_commands_on_a_narrow_terminal_cut_nothing(tmp_path, args, width):
+    """What a user at an 80- or 60-column terminal sees: no line runs over, no '…' stands for a
+    cut name or number, and every method name the command shows is whole."""
+    code, shown = run_on_terminal(*args, columns=width, cwd=tmp_path)
+    assert code == 0, shown
+    lines = shown.splitlines()
+    assert max(len(ln) for ln in lines) <= width, max(lines, key=len)
+    assert "…" not in shown and "Traceback" not in shown
+    if args[0] in ("methods", "compare", "stability"):
+        for name in hconv.METHODS:
+            assert any(name in ln for ln in lines), name
+
+
+def test_methods_in_a_pipe_is_tab_separated_text():
+    proc = run_hconv("methods")
+    lines = proc.stdout.decode().splitlines()
+    assert proc.returncode == 0 and "\x1b" not in proc.stdout.decode() and not set("┃━│─") & set(proc.stdout.decode())
+    assert lines[0].split("\t")[:3] == ["method", "unit", "exact"]
+    assert [ln.split("\t")[0] for ln in lines[1:]] == list(hconv.METHODS)
+    assert {len(ln.split("\t")) for ln in lines} == {7}
 
 
 def test_convert_table_accepts_record_batch():

@@ -373,7 +373,8 @@ def one(
     if res.null_dim is not None and res.null_dim[0]:
         print(f"dropped  = {int(res.null_dim[0])} axis" + (f" {axis}" if axis else "es"))
     if unit_out == methods.M2_S:
-        print(f"note: {unit_out} is not a unit of angular velocity; see 'The seed's three questions' in the README")
+        print(f"note: {unit_out} is not a unit of angular velocity;")
+        print("      see 'The seed's three questions' in the README")
 
 
 @app.command("convert")
@@ -403,7 +404,7 @@ def convert_cmd(
         job=job, src_format=_value(from_), dst_format=_value(to), force=force, strict=strict, threads=threads
     )
     if sys.stderr.isatty() and dst != "-" and not quiet:
-        with report.ProgressBar(f"converting {src}") as bar:
+        with report.ProgressBar(f"converting {os.path.basename(src)}") as bar:  # the path crowded out the bar
             tally = pipeline.convert_file(src, dst, progress=bar, **kwargs)
     else:
         tally = pipeline.convert_file(src, dst, **kwargs)
@@ -550,15 +551,34 @@ def engines_cmd(
     numba_state = "not installed: " + engines.NUMBA_FIX
     if installed:
         numba_state = "installed, compiled" if ready else "installed, not compiled: run hconv engines --compile"
-    print("numpy   every method and option; always there (the reference)")
-    print("numba   exact and refined on tensors, in float64, on every core")
-    print(f"        {numba_state}")
-    print("python  the numba engine's code, interpreted: one body at a time")
-    print(f"auto    python for one body; numba for {engines.AUTO_MIN_ROWS:,}+ rows once compiled, or")
-    print(f"        after {engines.START_COST} s of numpy time; else numpy. Files: numpy")
+    auto = (
+        f"python for one body; numba for {engines.AUTO_MIN_ROWS:,}+ rows once compiled, or after "
+        f"{engines.START_COST}\xa0s of numpy time; else numpy. Files: numpy"
+    )
     forced = os.environ.get("HCONV_ENGINE")
-    if forced:
-        print(f"        HCONV_ENGINE={forced}: every auto is {forced}")
+    _listing(
+        [
+            ("numpy", "every method and option; always there (the reference)"),
+            ("numba", "exact and refined on tensors, in float64, on every core", numba_state),
+            ("python", "the numba engine's code, interpreted: one body at a time"),
+            ("auto", auto, *([f"HCONV_ENGINE={forced}: every auto is {forced}"] if forced else [])),
+        ]
+    )
+
+
+def _listing(entries: list[tuple[str, ...]]) -> None:
+    """Print ``(name, paragraph, ...)`` entries as a name column beside paragraphs wrapped at
+    spaces to 80 columns, or to a narrower terminal, so that no line is cut or runs over. A
+    no-break space keeps a number with its unit."""
+    import shutil
+    import textwrap
+
+    width = min(80, shutil.get_terminal_size().columns) if sys.stdout.isatty() else 80
+    for name, *paragraphs in entries:
+        for k, text in enumerate(paragraphs):
+            first = f"{name:<8}" if k == 0 else " " * 8
+            lines = textwrap.fill(text, width, initial_indent=first, subsequent_indent=" " * 8, break_on_hyphens=False)
+            print(lines.replace("\xa0", " "))
 
 
 @app.command("methods")
