@@ -16,7 +16,7 @@ from rich.console import Console
 from hconv import report
 from hconv.solve.methods import METHODS
 from hconv.tables.pipeline import Tally
-from hconv.tools import compare, diagnose, stability
+from hconv.tools import bench, compare, diagnose, stability
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples" / "data"
 BOX = set("┏┓┗┛┃━┡┩╇┳┻│─└┘├┤┼┌┐")
@@ -137,6 +137,37 @@ def test_stability_tables_never_cut_a_number(points, width):
     report.stability_tables(pts, sweeps, plain)
     rows = assert_plain(shown(plain), [])
     assert numbers <= {x.rstrip("*") for r in rows for x in r}
+
+
+def bench_result() -> bench.Result:
+    nan = float("nan")
+    keys = [f"{m}/{p}" for m in METHODS for p in (64, 32)]
+    acc = {k: {"10000": [1e-16, 3e-16], "1e+08": [nan, nan] if k.endswith("/32") else [0.0, 2e-16]} for k in keys}
+    return bench.Result(
+        rows=1000,
+        machine="a machine",
+        kernel={k: 1e6 for k in keys},
+        convert={k: 2e5 for k in keys},
+        accuracy=acc,
+        targets=[
+            ["exact kernel / lapack kernel", 12.5, 10, True],
+            ["plain script time / hconv convert time", 3.1, 5, False],
+        ],
+    )
+
+
+@pytest.mark.parametrize("width", [80, 60])
+def test_bench_tables_say_flagged_where_no_row_had_an_answer(width):
+    console = terminal(width)
+    report.bench_tables(bench_result(), console)
+    lines = shown(console)
+    assert_fits(lines, width, list(METHODS) + ["1e-16 / 3e-16", "0 / 2e-16", "flagged", "12.50"])
+    text = "\n".join(lines)
+    assert "nan" not in text and "flagged: every row was flagged" in text
+    plain = pipe()
+    report.bench_tables(bench_result(), plain)
+    rows = assert_plain(shown(plain), ["flagged", "document-principal"])
+    assert not any("nan" in x for r in rows for x in r)
 
 
 def test_summary_fits_terminal_and_is_plain_in_a_pipe():

@@ -261,6 +261,7 @@ def stability_tables(points: list[Point], sweeps: tuple[Sweep, ...], console: Co
         return text + ("*" if p is not None and p.flagged >= 0.5 else "")
 
     cols = [Col(n, right=True) for n in names]
+    legend = "*: most rows flagged; —: no row had an answer"
     for sw in sweeps:
         for prec in (64, 32):
             rows = []
@@ -271,7 +272,7 @@ def stability_tables(points: list[Point], sweeps: tuple[Sweep, ...], console: Co
                 console,
                 [Col(sw.xlabel, right=True), *cols],
                 rows,
-                title=f"{sw.title}, float{prec}: worst relative error vs I⁻¹H (* most rows flagged)",
+                title=f"{sw.title}, float{prec}: worst relative error vs I⁻¹H ({legend})",
             )
 
 
@@ -326,6 +327,13 @@ def cold_table(cold: dict, console: Console) -> None:
     show(console, cols, rows, title="first call of a fresh process, 100 rows")
 
 
+def _error_pair(median: float, worst: float) -> str:
+    """A method's median and worst error, or "flagged" where no row had an answer to score."""
+    if not (np.isfinite(median) and np.isfinite(worst)):
+        return "flagged"
+    return " / ".join("0" if x == 0 else f"{x:.0e}" for x in (median, worst))
+
+
 def bench_tables(res: BenchResult, console: Console | None = None) -> None:
     """The benchmark: a row per method and precision, then the targets as measured ratios."""
     console = console or Console()
@@ -348,11 +356,13 @@ def bench_tables(res: BenchResult, console: Console | None = None) -> None:
                 f"{speed / 1e6:.2f}",
                 f"{speed / lapack:.2f}",
                 f"{res.convert[key] / 1e6:.2f}",
-                *(f"{m:.0e} / {w:.0e}" for m, w in errs),
+                *(_error_pair(m, w) for m, w in errs),
             ]
         )
     kernels = Text.assemble(("kernels", "bold"), " (the arithmetic alone, for comparison; not what a user calls)")
     show(console, cols, rows, title=kernels, keys=2)
+    if any(x == "flagged" for r in rows for x in r):
+        note(console, "flagged: every row was flagged and has no ω, so there is no error to measure")
     cols = [Col("target", prose=True), Col("measured", right=True), Col("required", right=True), Col("met", right=True)]
     rows = [
         [
