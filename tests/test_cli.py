@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -498,6 +499,35 @@ def test_help_short_option_on_every_command():
         args = [command] if command else []
         short, long = run_hconv(*args, "-h"), run_hconv(*args, "--help")
         assert short.returncode == 0 and b"Usage:" in short.stdout and short.stdout == long.stdout, command
+
+
+def test_help_at_80_columns_splits_no_choice():
+    """Every command's --help at 80 columns: no line runs over, and every choice of every option
+    shows whole on one line (as a metavar, [exact|refined|c/holesky|...] was split mid-name)."""
+    import re
+
+    import click
+    import typer
+
+    from hconv import cli
+
+    root = typer.main.get_command(cli.app)
+    for name, command in [("", root), *root.commands.items()]:  # type: ignore[attr-defined]
+        proc = subprocess.run(
+            [sys.executable, "-m", "hconv", *([name] if name else []), "--help"],
+            capture_output=True,
+            env=dict(os.environ, COLUMNS="80"),
+            timeout=60,
+        )
+        text = proc.stdout.decode()
+        lines = text.splitlines()
+        assert proc.returncode == 0 and max(len(ln) for ln in lines) <= 80, name
+        assert "…" not in text, name
+        for param in command.params:
+            if isinstance(param.type, click.Choice):
+                for choice in param.type.choices:
+                    whole = re.compile(rf"(?<![\w-]){re.escape(str(choice))}(?![\w-])")
+                    assert any(whole.search(ln) for ln in lines), (name, param.name, choice)
 
 
 def test_one_has_no_short_method_option_beside_mass():

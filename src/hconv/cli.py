@@ -92,7 +92,12 @@ else:
 #: Job field (or Conventions field) -> (type, typer option). Commands take theirs through
 #: :func:`job_options`, which builds the Job in one place.
 JOB_OPTIONS = {
-    "method": (MethodName, typer.Option("exact", "--method", help="see `hconv methods`")),
+    # The long choice lists get a metavar and are listed in the help text, where they wrap between
+    # names; as the metavar they were split mid-name at 80 columns.
+    "method": (
+        MethodName,
+        typer.Option("exact", "--method", metavar="METHOD", help=f"{', '.join(METHODS)} (see hconv methods)"),
+    ),
     "precision": (int, typer.Option(64, "--precision", help="64 or 32: the dtype the method computes in")),
     "frame": (
         Frame,
@@ -156,6 +161,7 @@ JOB_OPTIONS = {
         typer.Option(
             "auto",
             "--engine",
+            metavar="ENGINE",
             help="auto (for files: numpy; see hconv engines), numpy, numba (pip install 'hconv\\[fast]') or python",
         ),
     ),
