@@ -530,6 +530,30 @@ def test_help_at_80_columns_splits_no_choice():
                     assert any(whole.search(ln) for ln in lines), (name, param.name, choice)
 
 
+def test_show_completion_bash_prints_the_script_for_hconv():
+    proc = run_hconv("--show-completion", "bash")
+    script = proc.stdout.decode()
+    assert proc.returncode == 0, proc.stderr.decode()
+    assert "_HCONV_COMPLETE=complete_bash" in script and script.rstrip().endswith("hconv")
+    assert run_hconv("--show-completion", "zsh").stdout.startswith(b"#compdef hconv")
+    assert_one_line_error(run_hconv("--show-completion", "tcsh"), 2, "'tcsh' is not one of")
+
+
+def test_completion_completes_choices_and_adds_no_option_to_commands():
+    env = dict(os.environ, _HCONV_COMPLETE="complete_bash", COMP_WORDS="hconv convert --method doc", COMP_CWORD="3")
+    proc = subprocess.run([sys.executable, "-m", "hconv"], capture_output=True, env=env, timeout=60)
+    assert proc.returncode == 0 and proc.stdout.decode().split() == ["document", "document-principal"]
+    import typer
+
+    from hconv import cli
+
+    root = typer.main.get_command(cli.app)
+    assert {"install_completion", "show_completion"} <= {p.name for p in root.params}
+    for name, command in root.commands.items():  # type: ignore[attr-defined]
+        assert not {p.name for p in command.params} & {"install_completion", "show_completion"}, name
+        assert b"completion" not in run_hconv(name, "--help").stdout, name
+
+
 def test_one_has_no_short_method_option_beside_mass():
     """--m is the mass; a short -m for --method sat one keystroke away from it."""
     proc = run_hconv("one", "--H", "1,0,0", "--I", "1", "-m", "5")

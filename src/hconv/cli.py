@@ -34,7 +34,7 @@ if TYPE_CHECKING:
 
 
 app = typer.Typer(
-    add_completion=False,
+    add_completion=False,  # _root offers completion, for the shell named rather than one guessed
     context_settings={"help_option_names": ["-h", "--help"]},  # -h as well, as command-line tools have
     pretty_exceptions_enable=False,
     no_args_is_help=True,
@@ -50,10 +50,48 @@ def _print_version(value: bool) -> None:
         raise typer.Exit(0)
 
 
+#: The shells typer writes completion scripts for.
+SHELLS = ("bash", "zsh", "fish", "powershell", "pwsh")
+if TYPE_CHECKING:
+    Shell = str
+else:
+    Shell = Enum("Shell", {s: s for s in SHELLS}, type=str)
+
+
+def _completion(ctx: typer.Context, param: Any, value: Any) -> None:
+    """Install or print typer's completion script for the shell given. typer's own options guess
+    the shell from the parent processes, and ignore one named after them."""
+    if value is None or ctx.resilient_parsing:
+        return
+    from typer import completion
+
+    completion.completion_init()
+    run = completion.install_callback if param.name == "install_completion" else completion.show_callback
+    run(ctx, param, str(value.value))
+
+
 @app.callback()
 def _root(
     version: bool = typer.Option(
         False, "--version", is_eager=True, callback=_print_version, help="print hconv's version and exit"
+    ),
+    install_completion: Shell | None = typer.Option(
+        None,
+        "--install-completion",
+        metavar="SHELL",
+        is_eager=True,
+        expose_value=False,
+        callback=_completion,
+        help="install tab completion for SHELL (bash, zsh, fish, powershell or pwsh) in the shells started after",
+    ),
+    show_completion: Shell | None = typer.Option(
+        None,
+        "--show-completion",
+        metavar="SHELL",
+        is_eager=True,
+        expose_value=False,
+        callback=_completion,
+        help="print the completion script for SHELL, to install it by hand",
     ),
 ) -> None:
     """Angular momentum H (kg·m²/s) to angular velocity ω (rad/s), with the residual against I⁻¹H for every row."""
@@ -659,8 +697,12 @@ def _sigterm(signum: int, frame: object) -> None:  # let the atomic writer clean
 def main() -> None:
     signal.signal(signal.SIGTERM, _sigterm)
     allocator.tune()
+    if os.environ.get("_HCONV_COMPLETE"):  # the shell asks for completions (hconv --install-completion)
+        from typer import completion
+
+        completion.completion_init()
     try:
-        rv = app(standalone_mode=False)
+        rv = app(prog_name="hconv", standalone_mode=False)
     except Exception as exc:  # click's usage errors: one line, like every other hconv error
         if not (hasattr(exc, "format_message") and hasattr(exc, "exit_code")):
             raise
