@@ -334,6 +334,39 @@ def test_one_bad_arguments_one_line_exit_2(args, needle):
     assert_one_line_error(run_hconv("one", *args), 2, needle)
 
 
+@pytest.mark.parametrize(
+    "args,hint",
+    [
+        (["--q", "0,0,0,0"], "q = 0,0,0,0 is not a rotation (zero norm); give a unit quaternion w,x,y,z"),
+        (["--q", "nan,0,0,1"], "q = nan,0,0,1 is not finite"),
+        (["--H", "1,nan,3"], "H = 1,nan,3 is not finite"),
+        (["--I", "1,inf,3"], "I = 1,inf,3 is not finite"),
+        (["--m", "-5"], "m = -5 is not positive, but a body with inertia needs m > 0"),
+        (["--m", "0"], "m = 0 is not positive"),
+        (["--about", "pivot", "--m", "-1", "--r", "1,0,0"], "m = -1 is a negative mass"),
+        (["--about", "free", "--m", "1", "--r", "1,0,0", "--v", "nan,0,0"], "v = nan,0,0 is not finite"),
+        (["--method", "document", "--r", "nan,0,0"], "r = nan,0,0 is not finite"),
+        (["--precision", "32", "--H", "1e39,0,0"], "H = 1e39,0,0 is beyond float32's range"),
+        (["--about", "pivot", "--m", "1e300", "--r", "1e200,0,0"], "every value is finite, but one overflows"),
+    ],
+)
+def test_one_invalid_input_says_which_value_on_stderr(capsys, args, hint):
+    base = {"--H": "1,2,3", "--I": "1,2,3"}
+    for a, b in zip(args[::2], args[1::2]):
+        base[a] = b
+    argv = [x for kv in base.items() for x in kv]
+    code, out, err = run_inprocess("one", *argv, capsys=capsys)
+    assert code == 0 and "status   = invalid_input" in out  # stdout as ever; the hint beside it
+    assert err.startswith(f"hconv: {hint}") and len(err.splitlines()) == 1, err
+    code, out, err_json = run_inprocess("one", *argv, "--json", capsys=capsys)
+    assert json.loads(out)["status"] == "invalid_input" and err_json == err
+
+
+def test_one_valid_input_prints_nothing_on_stderr(capsys):
+    code, out, err = run_inprocess("one", "--H", "1,2,3", "--I", "1,2,3", "--r", "nan,0,0", capsys=capsys)
+    assert code == 0 and "status   = ok" in out and err == ""  # r is not used by exact
+
+
 def test_one_does_not_import_pyarrow_or_rich():
     code = (
         "import sys; sys.argv = ['hconv', 'one', '--H', '1,2,3', '--I', '1,2,2.5'];"

@@ -380,7 +380,8 @@ def one(
         if key not in ONE_UNIT_SETS:
             raise UsageError(f"--unit {key}={value}: hconv one takes a unit per set: {', '.join(ONE_UNIT_SETS)}")
     for name in list(sets):
-        sets[name] = np.asarray(sets[name], dtype=np.float64)[:, None] * job.set_factor(name)
+        with np.errstate(over="ignore"):  # an overflow is the status invalid_input, not a warning
+            sets[name] = np.asarray(sets[name], dtype=np.float64)[:, None] * job.set_factor(name)
     need = job.needs()
     missing = [k for k in need if k not in sets]
     if missing:
@@ -390,6 +391,10 @@ def one(
     w = [float(x) * scale for x in res.w[0]]
     residual = float(res.residual[0]) if res.residual is not None else float("nan")
     cond, state = float(res.cond[0]), str(res.status[0])
+    if state == "invalid_input":  # the status says that, not which value: say it beside, on stderr
+        causes = bodies.invalid_inputs(sets, form.name, job.method, job.precision, job.conventions)
+        given = {"H": H, "I": I, "r": r, "q": q, "v": v, "m": None if mass is None else f"{mass:g}"}
+        print(_invalid_hint(causes, given, job.precision), file=sys.stderr)
     axis = (
         None
         if res.null_axis is None or not np.isfinite(res.null_axis[0]).all()
@@ -419,6 +424,30 @@ def one(
     if unit_out == methods.M2_S:
         print(f"note: {unit_out} is not a unit of angular velocity;")
         print("      see 'The seed's three questions' in the README")
+
+
+#: What is wrong and what to give instead, per cause that hconv.solve.bodies.invalid_inputs names.
+INVALID_HINTS = {
+    "not_finite": "is not finite (NaN or infinity); give finite numbers",
+    "zero_quaternion": "is not a rotation (zero norm); give a unit quaternion w,x,y,z",
+    "mass_not_positive": "is not positive, but a body with inertia needs m > 0 (a massless link has I = 0)",
+    "mass_negative": "is a negative mass; give m >= 0",
+    "beyond_float32": "is beyond float32's range (3.4e+38) for --precision 32; use --precision 64",
+}
+
+
+def _invalid_hint(causes: list[tuple[str, str]], given: dict[str, str | None], precision: int) -> str:
+    """One line for stderr: the first value that makes ``hconv one``'s input invalid, and the fix."""
+    if not causes:
+        return (
+            f"hconv: every value is finite, but one overflows float{precision} on the way to ω "
+            "(the rotation by q or the change of point, --about); give smaller values"
+        )
+    name, problem = causes[0]
+    text = given[name] or ""
+    if problem == "not_finite" and all(math.isfinite(float(x)) for x in text.split(",")):
+        return f"hconv: {name} = {text} overflows float64 once converted to SI units (--unit); give smaller values"
+    return f"hconv: {name} = {text} {INVALID_HINTS[problem]}"
 
 
 @app.command("convert")
