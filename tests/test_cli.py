@@ -6,8 +6,10 @@ import csv
 import io
 import json
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -282,7 +284,75 @@ def test_convert_failure_midway_leaves_no_partial_output(tmp_path):
     no_leftovers(tmp_path, {"big.csv"})
 
 
-# Interrupts (SIGINT, SIGTERM, to a file and to stdout): tests/test_invariants.py
+# Interrupts during a conversion (SIGINT, SIGTERM, to a file and to stdout): tests/test_invariants.py
+
+
+def _terminal_signals() -> None:  # as from a terminal: the test runner may have these ignored
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGQUIT, signal.SIG_DFL)
+
+
+ENTRIES = {
+    "python -m hconv": [sys.executable, "-m", "hconv"],
+    "console script": [str(Path(sys.executable).parent / "hconv")],
+}
+
+
+def _catches(pid: int, sig: int) -> bool:
+    """Whether process ``pid`` has a handler for ``sig`` (its SigCgt mask in /proc)."""
+    status = Path(f"/proc/{pid}/status").read_text()
+    mask = next(ln.split()[1] for ln in status.splitlines() if ln.startswith("SigCgt:"))
+    return bool(int(mask, 16) >> (sig - 1) & 1)
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads the signal masks in /proc")
+@pytest.mark.parametrize("entry", list(ENTRIES))
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_interrupt_while_starting_exits_130_in_one_line(tmp_path, entry, sig):
+    """Ctrl-C or SIGTERM in the first tenths of a second, while numpy, typer and hconv.cli are
+    imported: exit 130 and at most one line, never a traceback.
+
+    The delays count from the end of the interpreter's own start, which this sitecustomize marks
+    (after importing runpy, the rest of `python -m`'s own start); a signal before that meets
+    CPython's start-up, which prints its own traceback whatever hconv does. "first" sends it as
+    soon as the process handles SIGTERM: hconv's first line has run."""
+    command = ENTRIES[entry]
+    if not Path(command[0]).exists():
+        pytest.skip(f"no {command[0]}")
+    marker = tmp_path / "started"
+    (tmp_path / "sitecustomize.py").write_text(f"import runpy\nopen({str(marker)!r}, 'w').close()\n")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tmp_path), os.environ.get("PYTHONPATH", "")]))
+    for delay in ("first", 0.05, 0.1, 0.2):
+        marker.unlink(missing_ok=True)
+        args = [*command, "stability", "--no-chart"]  # seconds long: the signal lands before it ends
+        proc = subprocess.Popen(
+            args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, preexec_fn=_terminal_signals
+        )
+        deadline = time.monotonic() + 30
+        while not marker.exists() and time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(0.001)
+        if delay == "first":
+            while not _catches(proc.pid, signal.SIGTERM) and time.monotonic() < deadline and proc.poll() is None:
+                pass
+        else:
+            time.sleep(delay)
+        proc.send_signal(sig)
+        out, err = proc.communicate(timeout=60)
+        text = err.decode()
+        assert proc.returncode == 130 and "Traceback" not in text, (delay, proc.returncode, text)
+        assert text.strip() in ("", "hconv: error: interrupted; no output was written"), (delay, text)
+        assert out == b""
+
+
+def test_import_hconv_keeps_the_programs_signal_handlers():
+    """Only the hconv command ends at once on Ctrl-C while starting; a program importing hconv keeps its own."""
+    code = (
+        "import signal, hconv; "
+        "print(signal.getsignal(signal.SIGINT) is signal.default_int_handler, "
+        "signal.getsignal(signal.SIGTERM) == signal.SIG_DFL)"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=60, preexec_fn=_terminal_signals)
+    assert proc.stdout.decode().split() == ["True", "True"]
 
 
 # --- hconv one and hconv methods -------------------------------------------------------------

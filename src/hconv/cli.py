@@ -20,7 +20,8 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from hconv.errors import HconvError, UsageError
+from hconv import _signals
+from hconv.errors import INTERRUPTED, HconvError, UsageError
 from hconv.kernels import allocator
 from hconv.solve import forms, options
 from hconv.solve.engines import ENGINES
@@ -273,11 +274,12 @@ def friendly(fn: Callable) -> Callable:
     @functools.wraps(fn)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
+            _signals.hand_over(_sigterm)  # from here an interrupt is caught below, and cleans up
             return fn(*args, **kwargs)
         except HconvError as exc:
             _fail(str(exc), exc.exit_code)
         except KeyboardInterrupt:
-            _fail("interrupted; no output was written", 130)
+            _fail(INTERRUPTED, 130)
         except BrokenPipeError:  # the reader stopped early (`| head`): its choice, not a failure
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
             raise typer.Exit(0) from None
@@ -724,7 +726,16 @@ def _sigterm(signum: int, frame: object) -> None:  # let the atomic writer clean
 
 
 def main() -> None:
-    signal.signal(signal.SIGTERM, _sigterm)
+    try:
+        _main()
+    except KeyboardInterrupt:  # after the command, before the exit
+        print(f"hconv: error: {INTERRUPTED}", file=sys.stderr)
+        sys.exit(130)
+
+
+def _main() -> None:
+    if not _signals.starting():  # in the command, friendly installs it (_signals)
+        signal.signal(signal.SIGTERM, _sigterm)
     allocator.tune()
     if os.environ.get("_HCONV_COMPLETE"):  # the shell asks for completions (hconv --install-completion)
         from typer import completion

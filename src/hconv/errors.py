@@ -7,6 +7,9 @@ written; 5 rows that are not ok under ``--strict``; 130 interrupted (Ctrl-C or S
 
 from __future__ import annotations
 
+#: What an interrupted run says after ``hconv: error:``, wherever the interrupt lands.
+INTERRUPTED = "interrupted; no output was written"
+
 
 class HconvError(Exception):
     """Base class; ``exit_code`` is what the CLI exits with."""
