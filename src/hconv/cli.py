@@ -734,7 +734,7 @@ def main() -> None:
 
 
 def _main() -> None:
-    if not _signals.starting():  # in the command, friendly installs it (_signals)
+    if not _signals.starting():  # in the hconv command SIGTERM ends it until friendly hands it over
         signal.signal(signal.SIGTERM, _sigterm)
     allocator.tune()
     if os.environ.get("_HCONV_COMPLETE"):  # the shell asks for completions (hconv --install-completion)
