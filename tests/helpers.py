@@ -135,3 +135,39 @@ def run_inprocess(*args: str, capsys) -> tuple[int, str, str]:
         sys.argv = old
     out, err = capsys.readouterr()
     return code, out, err
+
+
+def run_on_terminal(*args: str, columns: int = 80, cwd=None) -> tuple[int, str]:
+    """Run the real command with stdout and stderr on a terminal ``columns`` wide, as a user at a
+    terminal sees it; returns (exit code, what the terminal showed, colours and cursor moves removed)."""
+    import fcntl
+    import pty
+    import re
+    import struct
+    import termios
+
+    leader, follower = pty.openpty()
+    fcntl.ioctl(follower, termios.TIOCSWINSZ, struct.pack("HHHH", 50, columns, 0, 0))
+    env = dict(os.environ, COLUMNS=str(columns), TERM="xterm-256color")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hconv", *args],
+        stdout=follower,
+        stderr=follower,
+        stdin=subprocess.DEVNULL,
+        cwd=cwd,
+        env=env,
+    )
+    os.close(follower)
+    chunks = []
+    while True:
+        try:
+            data = os.read(leader, 65536)
+        except OSError:  # the terminal closes (EIO) once the command has exited
+            break
+        if not data:
+            break
+        chunks.append(data)
+    os.close(leader)
+    code = proc.wait(timeout=120)
+    text = b"".join(chunks).decode().replace("\r\n", "\n")
+    return code, re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", text)

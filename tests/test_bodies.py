@@ -156,3 +156,45 @@ def test_convert_pivot_bad_mass_row_is_invalid_input():
     got = hconv.convert_table(t, job=PIVOT)
     assert got.column("status").to_pylist() == ["ok", "invalid_input", "invalid_input"]
     assert got.column("wx").to_pylist()[0] == 0.5  # 1 / (1 + 1·1²)
+
+
+def test_invalid_inputs_names_a_cause_exactly_when_the_status_is_invalid_input(rng):
+    """Random single bodies, with NaN, ±Inf, a zero q, a bad mass or a value beyond float32 planted
+    in random sets: invalid_inputs names a set exactly when solve says invalid_input, and names
+    the planted one; hconv one prints why from these names."""
+    from hconv.solve import bodies
+
+    abouts = {"same": Conventions(), "pivot": Conventions(about="pivot"), "free": Conventions(about="free")}
+    for _ in range(300):
+        conv = abouts[rng.choice(list(abouts))]
+        method = str(rng.choice(["exact", "document", "eigen"]))
+        precision = int(rng.choice([64, 32]))
+        sets = {
+            "H": rng.normal(size=3),
+            "I": np.array([2.0, 3.0, 4.0, 0.1, 0.0, 0.0]),
+            "q": rng.normal(size=4),
+            "r": rng.normal(size=3),
+            "m": np.array([1.5]),
+            "v": rng.normal(size=3),
+        }
+        name = str(rng.choice(list(sets)))
+        planted = str(rng.choice(["nan", "inf", "zero_q", "mass", "big"]))
+        if planted == "zero_q":
+            sets["q"][:] = 0.0
+        elif planted == "mass":
+            sets["m"][:] = rng.choice([0.0, -2.0])
+        elif planted == "big":
+            sets[name][0] = 1e39
+        else:
+            sets[name][rng.integers(len(sets[name]))] = float(planted) * rng.choice([-1, 1])
+        sets = {k: v[:, None] for k, v in sets.items()}
+        state = bodies.solve(sets, "sym6", method, precision, conv).status[0]
+        causes = bodies.invalid_inputs(sets, "sym6", method, precision, conv)
+        if planted == "big" and name in ("m", "v"):  # finite, within range; the shift overflows float32
+            assert not causes  # and hconv one says a value overflowed on the way
+            continue
+        assert bool(causes) == (state == "invalid_input"), (planted, name, method, precision, conv, causes)
+        if planted in ("nan", "inf") and causes:
+            assert (name, "not_finite") in causes
+        if planted == "zero_q":
+            assert ("q", "zero_quaternion") in causes

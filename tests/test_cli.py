@@ -5,8 +5,11 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +17,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 import pytest
-from helpers import run_hconv, run_inprocess
+from helpers import run_hconv, run_inprocess, run_on_terminal
 
 import hconv
 
@@ -293,7 +296,75 @@ def test_convert_failure_midway_leaves_no_partial_output(tmp_path):
     no_leftovers(tmp_path, {"big.csv"})
 
 
-# Interrupts (SIGINT, SIGTERM, to a file and to stdout): tests/test_invariants.py
+# Interrupts during a conversion (SIGINT, SIGTERM, to a file and to stdout): tests/test_invariants.py
+
+
+def _terminal_signals() -> None:  # as from a terminal: the test runner may have these ignored
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGQUIT, signal.SIG_DFL)
+
+
+ENTRIES = {
+    "python -m hconv": [sys.executable, "-m", "hconv"],
+    "console script": [str(Path(sys.executable).parent / "hconv")],
+}
+
+
+def _catches(pid: int, sig: int) -> bool:
+    """Whether process ``pid`` has a handler for ``sig`` (its SigCgt mask in /proc)."""
+    status = Path(f"/proc/{pid}/status").read_text()
+    mask = next(ln.split()[1] for ln in status.splitlines() if ln.startswith("SigCgt:"))
+    return bool(int(mask, 16) >> (sig - 1) & 1)
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads the signal masks in /proc")
+@pytest.mark.parametrize("entry", list(ENTRIES))
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_interrupt_while_starting_exits_130_in_one_line(tmp_path, entry, sig):
+    """Ctrl-C or SIGTERM in the first tenths of a second, while numpy, typer and hconv.cli are
+    imported: exit 130 and at most one line, never a traceback.
+
+    The delays count from the end of the interpreter's own start, which this sitecustomize marks
+    (after importing runpy, the rest of `python -m`'s own start); a signal before that meets
+    CPython's start-up, which prints its own traceback whatever hconv does. "first" sends it as
+    soon as the process handles SIGTERM: hconv's first line has run."""
+    command = ENTRIES[entry]
+    if not Path(command[0]).exists():
+        pytest.skip(f"no {command[0]}")
+    marker = tmp_path / "started"
+    (tmp_path / "sitecustomize.py").write_text(f"import runpy\nopen({str(marker)!r}, 'w').close()\n")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tmp_path), os.environ.get("PYTHONPATH", "")]))
+    for delay in ("first", 0.05, 0.1, 0.2):
+        marker.unlink(missing_ok=True)
+        args = [*command, "stability", "--no-chart"]  # seconds long: the signal lands before it ends
+        proc = subprocess.Popen(
+            args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, preexec_fn=_terminal_signals
+        )
+        deadline = time.monotonic() + 30
+        while not marker.exists() and time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(0.001)
+        if delay == "first":
+            while not _catches(proc.pid, signal.SIGTERM) and time.monotonic() < deadline and proc.poll() is None:
+                pass
+        else:
+            time.sleep(delay)
+        proc.send_signal(sig)
+        out, err = proc.communicate(timeout=60)
+        text = err.decode()
+        assert proc.returncode == 130 and "Traceback" not in text, (delay, proc.returncode, text)
+        assert text.strip() in ("", "hconv: error: interrupted; no output was written"), (delay, text)
+        assert out == b""
+
+
+def test_import_hconv_keeps_the_programs_signal_handlers():
+    """Only the hconv command ends at once on Ctrl-C while starting; a program importing hconv keeps its own."""
+    code = (
+        "import signal, hconv; "
+        "print(signal.getsignal(signal.SIGINT) is signal.default_int_handler, "
+        "signal.getsignal(signal.SIGTERM) == signal.SIG_DFL)"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=60, preexec_fn=_terminal_signals)
+    assert proc.stdout.decode().split() == ["True", "True"]
 
 
 # --- hconv one and hconv methods -------------------------------------------------------------
@@ -345,6 +416,39 @@ def test_one_bad_arguments_one_line_exit_2(args, needle):
     assert_one_line_error(run_hconv("one", *args), 2, needle)
 
 
+@pytest.mark.parametrize(
+    "args,hint",
+    [
+        (["--q", "0,0,0,0"], "q = 0,0,0,0 is not a rotation (zero norm); give a unit quaternion w,x,y,z"),
+        (["--q", "nan,0,0,1"], "q = nan,0,0,1 is not finite"),
+        (["--H", "1,nan,3"], "H = 1,nan,3 is not finite"),
+        (["--I", "1,inf,3"], "I = 1,inf,3 is not finite"),
+        (["--m", "-5"], "m = -5 is not positive, but a body with inertia needs m > 0"),
+        (["--m", "0"], "m = 0 is not positive"),
+        (["--about", "pivot", "--m", "-1", "--r", "1,0,0"], "m = -1 is a negative mass"),
+        (["--about", "free", "--m", "1", "--r", "1,0,0", "--v", "nan,0,0"], "v = nan,0,0 is not finite"),
+        (["--method", "document", "--r", "nan,0,0"], "r = nan,0,0 is not finite"),
+        (["--precision", "32", "--H", "1e39,0,0"], "H = 1e39,0,0 is beyond float32's range"),
+        (["--about", "pivot", "--m", "1e300", "--r", "1e200,0,0"], "every value is finite, but one overflows"),
+    ],
+)
+def test_one_invalid_input_says_which_value_on_stderr(capsys, args, hint):
+    base = {"--H": "1,2,3", "--I": "1,2,3"}
+    for a, b in zip(args[::2], args[1::2]):
+        base[a] = b
+    argv = [x for kv in base.items() for x in kv]
+    code, out, err = run_inprocess("one", *argv, capsys=capsys)
+    assert code == 0 and "status   = invalid_input" in out  # stdout as ever; the hint beside it
+    assert err.startswith(f"hconv: {hint}") and len(err.splitlines()) == 1, err
+    code, out, err_json = run_inprocess("one", *argv, "--json", capsys=capsys)
+    assert json.loads(out)["status"] == "invalid_input" and err_json == err
+
+
+def test_one_valid_input_prints_nothing_on_stderr(capsys):
+    code, out, err = run_inprocess("one", "--H", "1,2,3", "--I", "1,2,3", "--r", "nan,0,0", capsys=capsys)
+    assert code == 0 and "status   = ok" in out and err == ""  # r is not used by exact
+
+
 def test_one_does_not_import_pyarrow_rich_pint_or_numba():
     code = (
         "import sys; sys.argv = ['hconv', 'one', '--H', '1,2,3', '--I', '1,2,2.5'];"
@@ -394,6 +498,41 @@ def test_methods_table_renders():
     out = run_hconv("methods").stdout.decode()
     for name in hconv.METHODS:
         assert name in out
+
+
+NARROW = [
+    (["methods"], (80, 60)),
+    (["diagnose", str(EXAMPLES / "engine-log.csv")], (80, 60)),
+    (["compare", str(EXAMPLES / "scene.parquet")], (80, 60)),
+    (["stability", "--no-chart", "--rows", "4"], (80,)),
+    (["engines"], (80, 60)),
+    (["one", "--H", "1,2,3", "--I", "2.5,2.5,4,-0.5,0,0", "--r", "0.1,0.2,0.3", "--method", "document"], (80,)),
+    (["convert", str(EXAMPLES / "scene.csv"), "out.csv"], (80, 60)),
+    (["generate", "g.csv", "--rows", "10"], (80, 60)),
+]
+
+
+@pytest.mark.parametrize("args,width", [(a, w) for a, widths in NARROW for w in widths], ids=lambda x: str(x)[:12])
+def test_commands_on_a_narrow_terminal_cut_nothing(tmp_path, args, width):
+    """What a user at an 80- or 60-column terminal sees: no line runs over, no '…' stands for a
+    cut name or number, and every method name the command shows is whole."""
+    code, shown = run_on_terminal(*args, columns=width, cwd=tmp_path)
+    assert code == 0, shown
+    lines = shown.splitlines()
+    assert max(len(ln) for ln in lines) <= width, max(lines, key=len)
+    assert "…" not in shown and "Traceback" not in shown
+    if args[0] in ("methods", "compare", "stability"):
+        for name in hconv.METHODS:
+            assert any(name in ln for ln in lines), name
+
+
+def test_methods_in_a_pipe_is_tab_separated_text():
+    proc = run_hconv("methods")
+    lines = proc.stdout.decode().splitlines()
+    assert proc.returncode == 0 and "\x1b" not in proc.stdout.decode() and not set("┃━│─") & set(proc.stdout.decode())
+    assert lines[0].split("\t")[:3] == ["method", "unit", "exact"]
+    assert [ln.split("\t")[0] for ln in lines[1:]] == list(hconv.METHODS)
+    assert {len(ln.split("\t")) for ln in lines} == {7}
 
 
 def test_convert_table_accepts_record_batch():
@@ -475,6 +614,59 @@ def test_help_short_option_on_every_command():
         args = [command] if command else []
         short, long = run_hconv(*args, "-h"), run_hconv(*args, "--help")
         assert short.returncode == 0 and b"Usage:" in short.stdout and short.stdout == long.stdout, command
+
+
+def test_help_at_80_columns_splits_no_choice():
+    """Every command's --help at 80 columns: no line runs over, and every choice of every option
+    shows whole on one line (as a metavar, [exact|refined|c/holesky|...] was split mid-name)."""
+    import re
+
+    import click
+    import typer
+
+    from hconv import cli
+
+    root = typer.main.get_command(cli.app)
+    for name, command in [("", root), *root.commands.items()]:  # type: ignore[attr-defined]
+        proc = subprocess.run(
+            [sys.executable, "-m", "hconv", *([name] if name else []), "--help"],
+            capture_output=True,
+            env=dict(os.environ, COLUMNS="80"),
+            timeout=60,
+        )
+        text = proc.stdout.decode()
+        lines = text.splitlines()
+        assert proc.returncode == 0 and max(len(ln) for ln in lines) <= 80, name
+        assert "…" not in text, name
+        for param in command.params:
+            if isinstance(param.type, click.Choice):
+                for choice in param.type.choices:
+                    whole = re.compile(rf"(?<![\w-]){re.escape(str(choice))}(?![\w-])")
+                    assert any(whole.search(ln) for ln in lines), (name, param.name, choice)
+
+
+def test_show_completion_bash_prints_the_script_for_hconv():
+    proc = run_hconv("--show-completion", "bash")
+    script = proc.stdout.decode()
+    assert proc.returncode == 0, proc.stderr.decode()
+    assert "_HCONV_COMPLETE=complete_bash" in script and script.rstrip().endswith("hconv")
+    assert run_hconv("--show-completion", "zsh").stdout.startswith(b"#compdef hconv")
+    assert_one_line_error(run_hconv("--show-completion", "tcsh"), 2, "'tcsh' is not one of")
+
+
+def test_completion_completes_choices_and_adds_no_option_to_commands():
+    env = dict(os.environ, _HCONV_COMPLETE="complete_bash", COMP_WORDS="hconv convert --method doc", COMP_CWORD="3")
+    proc = subprocess.run([sys.executable, "-m", "hconv"], capture_output=True, env=env, timeout=60)
+    assert proc.returncode == 0 and proc.stdout.decode().split() == ["document", "document-principal"]
+    import typer
+
+    from hconv import cli
+
+    root = typer.main.get_command(cli.app)
+    assert {"install_completion", "show_completion"} <= {p.name for p in root.params}
+    for name, command in root.commands.items():  # type: ignore[attr-defined]
+        assert not {p.name for p in command.params} & {"install_completion", "show_completion"}, name
+        assert b"completion" not in run_hconv(name, "--help").stdout, name
 
 
 def test_one_has_no_short_method_option_beside_mass():

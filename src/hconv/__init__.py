@@ -8,6 +8,10 @@ layers: docs/architecture.md.
 
 from __future__ import annotations
 
+from hconv import _signals
+
+_signals.end_quietly_while_starting()  # first: the imports below take most of the command's start
+
 __version__ = "0.1.0"
 
 from hconv.solve.convert import Result, convert  # noqa: E402

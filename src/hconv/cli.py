@@ -20,8 +20,8 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from hconv import errors
-from hconv.errors import HconvError, UsageError
+from hconv import _signals, errors
+from hconv.errors import INTERRUPTED, HconvError, UsageError
 from hconv.kernels import allocator
 from hconv.solve import forms, options
 from hconv.solve.engines import ENGINES
@@ -35,7 +35,7 @@ if TYPE_CHECKING:
 
 
 app = typer.Typer(
-    add_completion=False,
+    add_completion=False,  # _root offers completion, for the shell named rather than one guessed
     context_settings={"help_option_names": ["-h", "--help"]},  # -h as well, as command-line tools have
     pretty_exceptions_enable=False,
     no_args_is_help=True,
@@ -51,10 +51,48 @@ def _print_version(value: bool) -> None:
         raise typer.Exit(0)
 
 
+#: The shells typer writes completion scripts for.
+SHELLS = ("bash", "zsh", "fish", "powershell", "pwsh")
+if TYPE_CHECKING:
+    Shell = str
+else:
+    Shell = Enum("Shell", {s: s for s in SHELLS}, type=str)
+
+
+def _completion(ctx: typer.Context, param: Any, value: Any) -> None:
+    """Install or print typer's completion script for the shell given. typer's own options guess
+    the shell from the parent processes, and ignore one named after them."""
+    if value is None or ctx.resilient_parsing:
+        return
+    from typer import completion
+
+    completion.completion_init()
+    run = completion.install_callback if param.name == "install_completion" else completion.show_callback
+    run(ctx, param, str(value.value))
+
+
 @app.callback()
 def _root(
     version: bool = typer.Option(
         False, "--version", is_eager=True, callback=_print_version, help="print hconv's version and exit"
+    ),
+    install_completion: Shell | None = typer.Option(
+        None,
+        "--install-completion",
+        metavar="SHELL",
+        is_eager=True,
+        expose_value=False,
+        callback=_completion,
+        help="install tab completion for SHELL (bash, zsh, fish, powershell or pwsh) in the shells started after",
+    ),
+    show_completion: Shell | None = typer.Option(
+        None,
+        "--show-completion",
+        metavar="SHELL",
+        is_eager=True,
+        expose_value=False,
+        callback=_completion,
+        help="print the completion script for SHELL, to install it by hand",
     ),
 ) -> None:
     """Angular momentum H (kg·m²/s) to angular velocity ω (rad/s), with the residual against I⁻¹H for every row."""
@@ -93,7 +131,12 @@ else:
 #: Job field (or Conventions field) -> (type, typer option). Commands take theirs through
 #: :func:`job_options`, which builds the Job in one place.
 JOB_OPTIONS = {
-    "method": (MethodName, typer.Option("exact", "--method", help="see `hconv methods`")),
+    # The long choice lists get a metavar and are listed in the help text, where they wrap between
+    # names; as the metavar they were split mid-name at 80 columns.
+    "method": (
+        MethodName,
+        typer.Option("exact", "--method", metavar="METHOD", help=f"{', '.join(METHODS)} (see hconv methods)"),
+    ),
     "precision": (int, typer.Option(64, "--precision", help="64 or 32: the dtype the method computes in")),
     "frame": (
         Frame,
@@ -157,6 +200,7 @@ JOB_OPTIONS = {
         typer.Option(
             "auto",
             "--engine",
+            metavar="ENGINE",
             help="auto (for files: numpy; see hconv engines), numpy, numba (pip install 'hconv\\[fast]') or python",
         ),
     ),
@@ -239,12 +283,13 @@ def friendly(fn: Callable) -> Callable:
     @functools.wraps(fn)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
+            _signals.hand_over(_sigterm)  # from here an interrupt is caught below, and cleans up
             with errors.command_line():
                 return fn(*args, **kwargs)
         except HconvError as exc:
             _fail(str(exc), exc.exit_code)
         except KeyboardInterrupt:
-            _fail("interrupted; no output was written", 130)
+            _fail(INTERRUPTED, 130)
         except BrokenPipeError:  # the reader stopped early (`| head`): its choice, not a failure
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
             raise typer.Exit(0) from None
@@ -345,7 +390,8 @@ def one(
         if key not in ONE_UNIT_SETS:
             raise UsageError(f"--unit {key}={value}: hconv one takes a unit per set: {', '.join(ONE_UNIT_SETS)}")
     for name in list(sets):
-        sets[name] = np.asarray(sets[name], dtype=np.float64)[:, None] * job.set_factor(name)
+        with np.errstate(over="ignore"):  # an overflow is the status invalid_input, not a warning
+            sets[name] = np.asarray(sets[name], dtype=np.float64)[:, None] * job.set_factor(name)
     need = job.needs()
     missing = [k for k in need if k not in sets]
     if missing:
@@ -355,6 +401,10 @@ def one(
     w = [float(x) * scale for x in res.w[0]]
     residual = float(res.residual[0]) if res.residual is not None else float("nan")
     cond, state = float(res.cond[0]), str(res.status[0])
+    if state == "invalid_input":  # the status says that, not which value: say it beside, on stderr
+        causes = bodies.invalid_inputs(sets, form.name, job.method, job.precision, job.conventions)
+        given = {"H": H, "I": I, "r": r, "q": q, "v": v, "m": None if mass is None else f"{mass:g}"}
+        print(_invalid_hint(causes, given, job.precision), file=sys.stderr)
     axis = (
         None
         if res.null_axis is None or not np.isfinite(res.null_axis[0]).all()
@@ -382,7 +432,32 @@ def one(
     if res.null_dim is not None and res.null_dim[0]:
         print(f"dropped  = {int(res.null_dim[0])} axis" + (f" {axis}" if axis else "es"))
     if unit_out == methods.M2_S:
-        print(f"note: {unit_out} is not a unit of angular velocity; see 'The seed's three questions' in the README")
+        print(f"note: {unit_out} is not a unit of angular velocity;")
+        print("      see 'The seed's three questions' in the README")
+
+
+#: What is wrong and what to give instead, per cause that hconv.solve.bodies.invalid_inputs names.
+INVALID_HINTS = {
+    "not_finite": "is not finite (NaN or infinity); give finite numbers",
+    "zero_quaternion": "is not a rotation (zero norm); give a unit quaternion w,x,y,z",
+    "mass_not_positive": "is not positive, but a body with inertia needs m > 0 (a massless link has I = 0)",
+    "mass_negative": "is a negative mass; give m >= 0",
+    "beyond_float32": "is beyond float32's range (3.4e+38) for --precision 32; use --precision 64",
+}
+
+
+def _invalid_hint(causes: list[tuple[str, str]], given: dict[str, str | None], precision: int) -> str:
+    """One line for stderr: the first value that makes ``hconv one``'s input invalid, and the fix."""
+    if not causes:
+        return (
+            f"hconv: every value is finite, but one overflows float{precision} on the way to ω "
+            "(the rotation by q or the change of point, --about); give smaller values"
+        )
+    name, problem = causes[0]
+    text = given[name] or ""
+    if problem == "not_finite" and all(math.isfinite(float(x)) for x in text.split(",")):
+        return f"hconv: {name} = {text} overflows float64 once converted to SI units (--unit); give smaller values"
+    return f"hconv: {name} = {text} {INVALID_HINTS[problem]}"
 
 
 @app.command("convert")
@@ -412,7 +487,7 @@ def convert_cmd(
         job=job, src_format=_value(from_), dst_format=_value(to), force=force, strict=strict, threads=threads
     )
     if sys.stderr.isatty() and dst != "-" and not quiet:
-        with report.ProgressBar(f"converting {src}") as bar:
+        with report.ProgressBar(f"converting {os.path.basename(src)}") as bar:  # the path crowded out the bar
             tally = pipeline.convert_file(src, dst, progress=bar, **kwargs)
     else:
         tally = pipeline.convert_file(src, dst, **kwargs)
@@ -601,15 +676,34 @@ def engines_cmd(
     numba_state = "not installed: " + engines.NUMBA_FIX
     if installed:
         numba_state = "installed, compiled" if ready else "installed, not compiled: run hconv engines --compile"
-    print("numpy   every method and option; always there (the reference)")
-    print("numba   exact and refined on tensors, in float64, on every core")
-    print(f"        {numba_state}")
-    print("python  the numba engine's code, interpreted: one body at a time")
-    print(f"auto    python for one body; numba for {engines.AUTO_MIN_ROWS:,}+ rows once compiled, or")
-    print(f"        after {engines.START_COST} s of numpy time; else numpy. Files: numpy")
+    auto = (
+        f"python for one body; numba for {engines.AUTO_MIN_ROWS:,}+ rows once compiled, or after "
+        f"{engines.START_COST}\xa0s of numpy time; else numpy. Files: numpy"
+    )
     forced = os.environ.get("HCONV_ENGINE")
-    if forced:
-        print(f"        HCONV_ENGINE={forced}: every auto is {forced}")
+    _listing(
+        [
+            ("numpy", "every method and option; always there (the reference)"),
+            ("numba", "exact and refined on tensors, in float64, on every core", numba_state),
+            ("python", "the numba engine's code, interpreted: one body at a time"),
+            ("auto", auto, *([f"HCONV_ENGINE={forced}: every auto is {forced}"] if forced else [])),
+        ]
+    )
+
+
+def _listing(entries: list[tuple[str, ...]]) -> None:
+    """Print ``(name, paragraph, ...)`` entries as a name column beside paragraphs wrapped at
+    spaces to 80 columns, or to a narrower terminal, so that no line is cut or runs over. A
+    no-break space keeps a number with its unit."""
+    import shutil
+    import textwrap
+
+    width = min(80, shutil.get_terminal_size().columns) if sys.stdout.isatty() else 80
+    for name, *paragraphs in entries:
+        for k, text in enumerate(paragraphs):
+            first = f"{name:<8}" if k == 0 else " " * 8
+            lines = textwrap.fill(text, width, initial_indent=first, subsequent_indent=" " * 8, break_on_hyphens=False)
+            print(lines.replace("\xa0", " "))
 
 
 @app.command("methods")
@@ -682,10 +776,23 @@ def _sigterm(signum: int, frame: object) -> None:  # let the atomic writer clean
 
 
 def main() -> None:
-    signal.signal(signal.SIGTERM, _sigterm)
-    allocator.tune()
     try:
-        rv = app(standalone_mode=False)
+        _main()
+    except KeyboardInterrupt:  # after the command, before the exit
+        print(f"hconv: error: {INTERRUPTED}", file=sys.stderr)
+        sys.exit(130)
+
+
+def _main() -> None:
+    if not _signals.starting():  # in the hconv command SIGTERM ends it until friendly hands it over
+        signal.signal(signal.SIGTERM, _sigterm)
+    allocator.tune()
+    if os.environ.get("_HCONV_COMPLETE"):  # the shell asks for completions (hconv --install-completion)
+        from typer import completion
+
+        completion.completion_init()
+    try:
+        rv = app(prog_name="hconv", standalone_mode=False)
     except Exception as exc:  # click's usage errors: one line, like every other hconv error
         if not (hasattr(exc, "format_message") and hasattr(exc, "exit_code")):
             raise

@@ -48,6 +48,10 @@ def entry(name: str, key: str, value: str) -> str:
     return f"{name}={{{key!r}: {value!r}}}"
 
 
+#: What an interrupted run says after ``hconv: error:``, wherever the interrupt lands.
+INTERRUPTED = "interrupted; no output was written"
+
+
 class HconvError(Exception):
     """Base class; ``exit_code`` is what the CLI exits with."""
 

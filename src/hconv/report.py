@@ -1,15 +1,26 @@
 """What the CLI shows people: the run summary, the progress bar and the methods table (rich).
 
 rich is imported here only, so that ``hconv one`` does not pay for it.
+
+Every table goes through :func:`show`. On a terminal it fits the width without cutting a name or
+a number: prose wraps at spaces, and a table too wide for that is split into several that repeat
+its key columns, or, when even that does not fit, printed as a list. Anywhere else (a pipe, a
+file) it is tab-separated text with a header line, and every line that is not a table row starts
+with ``#``, so that ``cut``, ``awk -F'\t'`` and ``column -t -s$'\t'`` read it.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
+from rich.cells import cell_len
 from rich.console import Console
+from rich.padding import Padding
 from rich.table import Table
+from rich.text import Text
 
 from hconv.solve.methods import METHODS
 
@@ -22,22 +33,170 @@ if TYPE_CHECKING:
     from hconv.tools.stability import Point, Sweep
 
 
+@dataclass(frozen=True)
+class Col:
+    """A table column: its header, whether it holds numbers (set right), and whether its cells
+    are prose that may wrap at spaces. Names and numbers never wrap: they show whole or the table
+    takes another layout."""
+
+    header: str
+    right: bool = False
+    prose: bool = False
+
+
+Cell = str | Text
+
+
+def _text(cell: Cell) -> str:
+    return cell.plain if isinstance(cell, Text) else cell
+
+
+def _one_line(text: str) -> str:
+    return " ".join(text.split())  # a tab or newline inside a cell would shift the columns after it
+
+
+def _line(console: Console, text: str) -> None:
+    console.file.write(text + "\n")  # as it is: rich would expand the tabs into spaces
+
+
+def note(console: Console, text: Cell) -> None:
+    """A line that is not a table row: wrapped at spaces on a terminal, one ``#`` line elsewhere."""
+    if console.is_terminal:
+        console.print(text if isinstance(text, Text) else Text(text))
+    else:
+        _line(console, "# " + _one_line(_text(text)))
+
+
+def count(console: Console, n: int) -> str:
+    """A count in a table cell: with thousands separators for people, bare for tools."""
+    return f"{n:,}" if console.is_terminal else str(n)
+
+
+def _longest_word(text: str) -> int:
+    return max((cell_len(w) for w in text.split()), default=0)
+
+
+def _longest_line(text: str) -> int:
+    return max((cell_len(ln) for ln in text.splitlines()), default=0)
+
+
+def _frame(n: int) -> int:
+    """The columns a rich table's borders and padding take beside ``n`` columns of text."""
+    return 3 * n + 1
+
+
+def _widths(cols: Sequence[Col], rows: Sequence[Sequence[Cell]]) -> tuple[list[int], list[int]]:
+    """Per column, the narrowest width that cuts nothing and the width that wraps nothing."""
+    least, most = [], []
+    for k, c in enumerate(cols):
+        cells = [_text(r[k]) for r in rows]
+        least.append(
+            max([_longest_word(c.header)] + [_longest_word(x) if c.prose else _longest_line(x) for x in cells])
+        )
+        most.append(max([_longest_line(c.header)] + [_longest_line(x) for x in cells]))
+    return least, most
+
+
+def _share(least: list[int], most: list[int], room: int) -> list[int]:
+    """Widths from ``least`` up towards ``most``, in proportion to what each column lacks, within ``room``."""
+    if sum(most) <= room:
+        return list(most)
+    spare, lack = room - sum(least), [m - n for n, m in zip(least, most)]
+    widths = [n + spare * d // sum(lack) for n, d in zip(least, lack)]
+    for k in sorted(range(len(widths)), key=lambda k: widths[k] - most[k]):
+        if sum(widths) < room and widths[k] < most[k]:
+            widths[k] += 1
+    return widths
+
+
+def show(
+    console: Console,
+    cols: Sequence[Col],
+    rows: Sequence[Sequence[Cell]],
+    *,
+    title: Cell | None = None,
+    keys: int = 1,
+    styles: Sequence[str | None] | None = None,
+    lines: bool = False,
+    split: bool = True,
+) -> None:
+    """Print a table (see the module's docstring); ``keys`` leading columns name a row. A table
+    too wide for the terminal is split into narrower ones, or with ``split=False`` (prose, which
+    reads better whole) printed as a list."""
+    if title is not None:
+        note(console, title)
+    if not console.is_terminal:
+        _line(console, "\t".join(_one_line(c.header) for c in cols))
+        for r in rows:
+            _line(console, "\t".join(_one_line(_text(x)) for x in r))
+        return
+    least, most = _widths(cols, rows)
+    fits = lambda idx: sum(least[k] for k in idx) + _frame(len(idx)) <= console.width  # noqa: E731
+    everything = list(range(len(cols)))
+    if fits(everything):
+        parts = [everything]
+    else:
+        parts, key_cols = [], list(range(keys))
+        for k in everything[keys:]:
+            if parts and fits(parts[-1] + [k]):
+                parts[-1].append(k)
+            elif split and fits(key_cols + [k]):
+                parts.append(key_cols + [k])
+            else:
+                _as_list(console, cols, rows, keys, styles)
+                return
+    for idx in parts:
+        room = console.width - _frame(len(idx))
+        widths = _share([least[k] for k in idx], [most[k] for k in idx], room)
+        t = Table(header_style="bold", show_lines=lines)
+        for k, w in zip(idx, widths):
+            t.add_column(cols[k].header, justify="right" if cols[k].right else "left", width=w)
+        for j, r in enumerate(rows):
+            t.add_row(*(r[k] for k in idx), style=styles[j] if styles else None)
+        console.print(t)
+
+
+def _as_list(
+    console: Console,
+    cols: Sequence[Col],
+    rows: Sequence[Sequence[Cell]],
+    keys: int,
+    styles: Sequence[str | None] | None,
+) -> None:
+    """A table too wide for the terminal: each row as its key, then one line per other column."""
+    labels = [_one_line(c.header) + ":" for c in cols[keys:]]
+    for j, r in enumerate(rows):
+        if j:
+            console.print()
+        head = Text(" · ".join(_text(x) for x in r[:keys]), style="bold")
+        if styles and styles[j]:
+            head.stylize(styles[j])  # type: ignore[arg-type]
+        console.print(head)
+        g = Table.grid(padding=(0, 1))
+        g.add_column(no_wrap=True)
+        g.add_column()
+        for label, x in zip(labels, r[keys:]):
+            g.add_row(label, x)
+        console.print(Padding(g, (0, 0, 0, 2)))
+
+
 def summary(tally: Tally, console: Console | None = None) -> None:
     """Print a run's summary: rows, rows per status, the worst residual and the time taken."""
     console = console or Console(stderr=True)
     rate = f"{tally.rows / tally.seconds:,.0f} rows/s" if tally.seconds > 0 and tally.rows else "-"
     engines = " + ".join(tally.engines) or "-"
-    console.print(f"[bold]hconv convert[/bold] · method {tally.method} · ω in {tally.unit} · engine {engines}")
-    t = Table(show_header=True, header_style="bold")
-    t.add_column("status")
-    t.add_column("rows", justify="right")
-    for name, n in tally.counts().items():
-        t.add_row(name, f"{n:,}", style=None if name == "ok" else "yellow")
-    t.add_row("total", f"{tally.rows:,}", style="bold")
-    console.print(t)
+    head = Text.assemble(("hconv convert", "bold"), f" · method {tally.method} · ω in {tally.unit} · engine {engines}")
+    counts = tally.counts()
+    show(
+        console,
+        (Col("status"), Col("rows", right=True)),
+        [(name, count(console, n)) for name, n in counts.items()] + [("total", count(console, tally.rows))],
+        title=head,
+        styles=[None if name == "ok" else "yellow" for name in counts] + ["bold"],
+    )
     if tally.worst_row is not None:
-        console.print(f"worst residual {tally.worst_residual:.3g} (data row {tally.worst_row}), relative to I⁻¹H")
-    console.print(f"time {tally.seconds:.3f} s ({rate})")
+        note(console, f"worst residual {tally.worst_residual:.3g} (data row {tally.worst_row}), relative to I⁻¹H")
+    note(console, f"time {tally.seconds:.3f} s ({rate})")
 
 
 class ProgressBar:
@@ -80,12 +239,12 @@ def envelope(m: Method) -> str:
 def methods_table(console: Console | None = None) -> None:
     """Print the registered methods: unit, exactness, cost and when each fails."""
     console = console or Console()
-    t = Table(show_lines=True)
-    for col in ("method", "unit", "exact", "trusted to 1e-6 up to cond", "what it computes", "cost", "fails when"):
-        t.add_column(col)
-    for m in METHODS.values():
-        t.add_row(m.name, m.unit, "yes" if m.exact else "no", envelope(m), m.summary, m.cost, m.fails)
-    console.print(t)
+    cols = [Col("method"), Col("unit"), Col("exact")]
+    cols += [Col(c, prose=True) for c in ("trusted to 1e-6 up to cond", "what it computes", "cost", "fails when")]
+    rows = [
+        (m.name, m.unit, "yes" if m.exact else "no", envelope(m), m.summary, m.cost, m.fails) for m in METHODS.values()
+    ]
+    show(console, cols, rows, lines=True, split=False)
 
 
 def stability_tables(points: list[Point], sweeps: tuple[Sweep, ...], console: Console | None = None) -> None:
@@ -101,20 +260,20 @@ def stability_tables(points: list[Point], sweeps: tuple[Sweep, ...], console: Co
             text = "0" if p.worst_error == 0 else f"{p.worst_error:.0e}"
         return text + ("*" if p is not None and p.flagged >= 0.5 else "")
 
+    cols = [Col(n, right=True) for n in names]
+    legend = "*: most rows flagged; —: no row had an answer"
     for sw in sweeps:
         for prec in (64, 32):
-            t = Table(
-                title=f"{sw.title}, float{prec}: worst relative error vs I⁻¹H (* most rows flagged)",
-                title_justify="left",
-                header_style="bold",
-            )
-            t.add_column(sw.xlabel, justify="right")
-            for n in names:
-                t.add_column(n, justify="right")
+            rows = []
             for param in sw.params:
                 got = {p.method: p for p in points if p.sweep == sw.name and p.precision == prec and p.param == param}
-                t.add_row(f"{param:g}", *(cell(got.get(n)) for n in names))
-            console.print(t)
+                rows.append([f"{param:g}", *(cell(got.get(n)) for n in names)])
+            show(
+                console,
+                [Col(sw.xlabel, right=True), *cols],
+                rows,
+                title=f"{sw.title}, float{prec}: worst relative error vs I⁻¹H ({legend})",
+            )
 
 
 def _duration(s: float) -> str:
@@ -129,88 +288,99 @@ def user_table(user: dict, console: Console) -> None:
     engines = list(
         dict.fromkeys(e for times in user.values() for v in times.values() if isinstance(v, dict) for e in v)
     )
-    t = Table(
-        title="what users call: numpy.linalg.solve time / hconv.convert time (above 1: faster)",
-        title_justify="left",
-        header_style="bold",
-    )
-    t.add_column("rows", justify="right")
-    t.add_column("I, diagnostics")
-    t.add_column("solve", justify="right")
-    for e in engines:
-        t.add_column(e, justify="right")
+    rows = []
     for n, times in user.items():
         solve = times["numpy.linalg.solve"]
         first = True
         for call, by_engine in times.items():
             if call == "numpy.linalg.solve":
                 continue
-            size = n if not n.isdigit() else f"{int(n):,}"
-            t.add_row(
-                size if first else "",
-                call,
-                _duration(solve) if first else "",
-                *(f"{solve / by_engine[e]:.2f}" if e in by_engine else "" for e in engines),
+            size = n if not n.isdigit() else count(console, int(n))
+            rows.append(
+                [
+                    size if first or not console.is_terminal else "",
+                    call,
+                    _duration(solve) if first or not console.is_terminal else "",
+                    *(f"{solve / by_engine[e]:.2f}" if e in by_engine else "" for e in engines),
+                ]
             )
             first = False
-    console.print(t)
+    cols = [Col("rows", right=True), Col("I, diagnostics"), Col("solve", right=True)]
+    show(
+        console,
+        cols + [Col(e, right=True) for e in engines],
+        rows,
+        title="what users call: numpy.linalg.solve time / hconv.convert time (above 1: faster)",
+        keys=2,
+    )
 
 
 def cold_table(cold: dict, console: Console) -> None:
     """A fresh process's first call by engine: import, first and second hconv.convert."""
     if not cold:
         return
-    t = Table(title="first call of a fresh process, 100 rows", title_justify="left", header_style="bold")
-    for col in ("engine", "import hconv", "first call", "second call"):
-        t.add_column(col, justify="right" if col != "engine" else "left")
-    for name, c in cold.items():
-        t.add_row(name, _duration(c["import_s"]), _duration(c["first_call_s"]), _duration(c["second_call_s"]))
-    console.print(t)
+    cols = [Col("engine")] + [Col(c, right=True) for c in ("import hconv", "first call", "second call")]
+    rows = [
+        (name, _duration(c["import_s"]), _duration(c["first_call_s"]), _duration(c["second_call_s"]))
+        for name, c in cold.items()
+    ]
+    show(console, cols, rows, title="first call of a fresh process, 100 rows")
+
+
+def _error_pair(median: float, worst: float) -> str:
+    """A method's median and worst error, or "flagged" where no row had an answer to score."""
+    if not (np.isfinite(median) and np.isfinite(worst)):
+        return "flagged"
+    return " / ".join("0" if x == 0 else f"{x:.0e}" for x in (median, worst))
 
 
 def bench_tables(res: BenchResult, console: Console | None = None) -> None:
     """The benchmark: a row per method and precision, then the targets as measured ratios."""
     console = console or Console()
-    console.print(f"[bold]hconv bench[/bold] · {res.rows:,} rows · {res.machine}")
+    note(console, Text.assemble(("hconv bench", "bold"), f" · {res.rows:,} rows · {res.machine}"))
     user_table(res.user, console)
     cold_table(res.cold, console)
-    console.print("[bold]kernels[/bold] (the arithmetic alone, for comparison; not what a user calls)")
     conds = list(next(iter(res.accuracy.values())))
-    t = Table(header_style="bold")
-    for col in ("method", "prec", "kernel Mrows/s", "× lapack", "convert Mrows/s"):
-        t.add_column(col, justify="right" if col != "method" else "left")
-    for c in conds:
-        t.add_column(f"error at cond {float(c):g}\nmedian / worst", justify="right")
+    cols = [Col("method"), Col("prec", right=True)]
+    cols += [Col(c, right=True) for c in ("kernel Mrows/s", "× lapack", "convert Mrows/s")]
+    cols += [Col(f"error at cond {float(c):g}\nmedian / worst", right=True) for c in conds]
     lapack = res.kernel["lapack/64"]
+    rows = []
     for key, speed in res.kernel.items():
         name, prec = key.split("/")
         errs = [res.accuracy[key][c] for c in conds]
-        t.add_row(
-            name,
-            prec,
-            f"{speed / 1e6:.2f}",
-            f"{speed / lapack:.2f}",
-            f"{res.convert[key] / 1e6:.2f}",
-            *(f"{m:.0e} / {w:.0e}" for m, w in errs),
+        rows.append(
+            [
+                name,
+                prec,
+                f"{speed / 1e6:.2f}",
+                f"{speed / lapack:.2f}",
+                f"{res.convert[key] / 1e6:.2f}",
+                *(_error_pair(m, w) for m, w in errs),
+            ]
         )
-    console.print(t)
-    g = Table(title="targets (ratios of rates measured in this run)", title_justify="left", header_style="bold")
-    for col in ("target", "measured", "required", "met"):
-        g.add_column(col, justify="left" if col == "target" else "right")
-    for name, value, required, met in res.targets:
-        g.add_row(
+    kernels = Text.assemble(("kernels", "bold"), " (the arithmetic alone, for comparison; not what a user calls)")
+    show(console, cols, rows, title=kernels, keys=2)
+    if any(x == "flagged" for r in rows for x in r):
+        note(console, "flagged: every row was flagged and has no ω, so there is no error to measure")
+    cols = [Col("target", prose=True), Col("measured", right=True), Col("required", right=True), Col("met", right=True)]
+    rows = [
+        [
             name,
             "skipped" if value is None else f"{value:.2f}",
             f"≥ {required:g}",
-            "—" if met is None else ("[green]yes[/green]" if met else "[red]no[/red]"),
-        )
-    console.print(g)
+            "—" if met is None else (Text("yes", style="green") if met else Text("no", style="red")),
+        ]
+        for name, value, required, met in res.targets
+    ]
+    show(console, cols, rows, title="targets (ratios of rates measured in this run)")
     b = res.baselines
     if "plain_script_ceiling" in b:
-        console.print(
+        note(
+            console,
             f"An hconv that computed nothing (start-up {b['hconv_startup_s']:.2f} s plus the I/O roofline "
             f"{res.rows / b['io_roofline_rows_per_s']:.2f} s) would be {b['plain_script_ceiling']:.2f}× "
-            f"faster than the plain script ({b['plain_script_s']:.2f} s)."
+            f"faster than the plain script ({b['plain_script_s']:.2f} s).",
         )
 
 
@@ -221,42 +391,40 @@ def _g(x: float) -> str:
 def diagnosis_tables(d: Diagnosis, console: Console | None = None) -> None:
     """Print ``hconv diagnose``'s ranking, what was left out, and the rows nothing explains."""
     console = console or Console()
-    console.print(
-        f"[bold]hconv diagnose[/bold] · {d.rows:,} rows · a row is explained when |ω - ω_obs| / |ω_obs| <= {d.tol:g}"
+    head = Text.assemble(
+        ("hconv diagnose", "bold"), f" · {d.rows:,} rows · a row is explained when |ω - ω_obs| / |ω_obs| <= {d.tol:g}"
     )
-    t = Table(show_header=True, header_style="bold")
-    for col, at_left in (
-        ("rank", False),
-        ("hypothesis", True),
-        ("explains", False),
-        ("median residual", False),
-        ("median angle °", False),
-        ("worst residual", False),
-    ):
-        t.add_column(col, justify="left" if at_left else "right", no_wrap=True)
+    cols = [Col("rank", right=True), Col("hypothesis")]
+    cols += [Col(c, right=True) for c in ("explains", "median residual", "median angle °", "worst residual")]
     ranking = d.ranking()
+    rows, styles = [], []
     for k, s in enumerate(ranking, 1):
         share = s.residual.share_within
-        t.add_row(
-            str(k),
-            s.hypothesis,
-            "-" if not np.isfinite(share) else f"{100 * share:.1f} %",
-            _g(s.residual.median),
-            _g(s.angle.median),
-            _g(s.residual.maximum),
-            style="bold green" if k == 1 and share > 0 else None,
+        rows.append(
+            (
+                str(k),
+                s.hypothesis,
+                "-" if not np.isfinite(share) else f"{100 * share:.1f} %",
+                _g(s.residual.median),
+                _g(s.angle.median),
+                _g(s.residual.maximum),
+            )
         )
-    console.print(t)
+        styles.append("bold green" if k == 1 and share > 0 else None)
+    show(console, cols, rows, title=head, keys=2, styles=styles)
     if ranking:
-        console.print(f"best: [bold]{ranking[0].hypothesis}[/bold]: {ranking[0].summary}")
+        note(console, Text.assemble("best: ", (ranking[0].hypothesis, "bold"), f": {ranking[0].summary}"))
     left = [s for s in d.scores if not s.applicable]
     if left:
-        console.print("not scored: " + "; ".join(f"{s.hypothesis} ({s.why_not})" for s in left))
+        note(console, "not scored: " + "; ".join(f"{s.hypothesis} ({s.why_not})" for s in left))
     if d.unexplained:
-        rows = ", ".join(f"row {r + 1} (closest: {name}, {_g(res)})" for r, name, res in d.examples)
-        console.print(f"[yellow]{d.unexplained:,} rows no hypothesis explains[/yellow]; first: {rows}")
+        rows_text = ", ".join(f"row {r + 1} (closest: {name}, {_g(res)})" for r, name, res in d.examples)
+        note(
+            console,
+            Text.assemble((f"{d.unexplained:,} rows no hypothesis explains", "yellow"), f"; first: {rows_text}"),
+        )
     elif d.rows:
-        console.print("every row is explained by at least one hypothesis")
+        note(console, "every row is explained by at least one hypothesis")
 
 
 def comparison_tables(c: Comparison, console: Console | None = None) -> None:
@@ -264,31 +432,33 @@ def comparison_tables(c: Comparison, console: Console | None = None) -> None:
     from hconv.tools.compare import OFFDIAG_BINS, R_AXIS_BINS, SHORTCUTS
 
     console = console or Console()
-    console.print(
-        f"[bold]hconv compare[/bold] · {c.rows:,} rows · difference from the exact ω, "
-        "|ω_m - ω_exact| / |ω_exact| (bare numbers for m²/s methods)"
+    head = Text.assemble(
+        ("hconv compare", "bold"),
+        f" · {c.rows:,} rows · difference from the exact ω, |ω_m - ω_exact| / |ω_exact|",
+        " (bare numbers for m²/s methods)",
     )
-    t = Table(show_header=True, header_style="bold")
     nan_col = any(s.diff.missing for s in c.scores)
-    for col in ("method", "med diff", "max diff", "max row", "med °", "max °") + (("NaN",) if nan_col else ()):
-        t.add_column(col, justify="left" if col == "method" else "right", no_wrap=True)
+    names = ("method", "med diff", "max diff", "max row", "med °", "max °") + (("NaN",) if nan_col else ())
+    cols = [Col(n, right=n != "method", prose=n == "method") for n in names]  # "(m²/s)" may go below the name
 
     def g2(x: float) -> str:  # short, so that the table fits 80 columns
         return "-" if not np.isfinite(x) else (f"{x:.3g}" if x == 0 or 0.01 <= abs(x) < 1000 else f"{x:.1e}")
 
-    for s in c.scores:
-        t.add_row(
+    rows: list[list[str]] = [
+        [
             s.method + (" (m²/s)" if s.unit != "rad/s" else ""),
             g2(s.diff.median),
             g2(s.diff.maximum),
             "-" if s.diff.max_row is None or not s.diff.maximum > 0 else str(s.diff.max_row + 1),
             g2(s.angle.median),
             g2(s.angle.maximum),
-            *((f"{s.diff.missing:,}",) if nan_col else ()),
-        )
-    console.print(t)
+            *((count(console, s.diff.missing),) if nan_col else ()),
+        ]
+        for s in c.scores
+    ]
+    show(console, cols, rows, title=head)
     if c.skipped:
-        console.print("not run: " + "; ".join(f"{m} ({why})" for m, why in c.skipped))
+        note(console, "not run: " + "; ".join(f"{m} ({why})" for m, why in c.skipped))
     shortcuts = [s for s in c.scores if s.method in SHORTCUTS]
     for title, edges, attr in (
         ("off-diagonal ratio max|Iij|/√(Iii·Ijj)", OFFDIAG_BINS, "by_offdiag"),
@@ -296,23 +466,16 @@ def comparison_tables(c: Comparison, console: Console | None = None) -> None:
     ):
         if not shortcuts or all(sum(b.rows for b in getattr(s, attr)) == 0 for s in shortcuts):
             continue
-        t = Table(title=f"median diff of the shortcuts by {title}", show_header=True, header_style="bold")
-        t.add_column("bin", justify="left")
-        t.add_column("rows", justify="right")
-        for s in shortcuts:
-            t.add_column(s.method, justify="right")
+        rows = []
         for b in range(len(edges) - 1):
             n = getattr(shortcuts[0], attr)[b].rows
             if n:
-                t.add_row(
-                    f"[{edges[b]:g}, {edges[b + 1]:g})", f"{n:,}", *(_g(getattr(s, attr)[b].median) for s in shortcuts)
-                )
-        console.print(t)
+                bounds = f"[{edges[b]:g}, {edges[b + 1]:g})"
+                rows.append([bounds, count(console, n), *(_g(getattr(s, attr)[b].median) for s in shortcuts)])
+        cols = [Col("bin"), Col("rows", right=True)] + [Col(s.method, right=True) for s in shortcuts]
+        show(console, cols, rows, title=f"median diff of the shortcuts by {title}")
     for s in shortcuts:
         if s.worst:
-            t = Table(title=f"rows where {s.method} is furthest off", show_header=True, header_style="bold")
-            for col in ("row", "diff", "offdiag", "|r| m", "r_axis"):
-                t.add_column(col, justify="right")
-            for diff, row, off, rn, ra in s.worst:
-                t.add_row(str(row + 1), _g(diff), _g(off), _g(rn), _g(ra))
-            console.print(t)
+            cols = [Col(n, right=True) for n in ("row", "diff", "offdiag", "|r| m", "r_axis")]
+            rows = [[str(row + 1), _g(diff), _g(off), _g(rn), _g(ra)] for diff, row, off, rn, ra in s.worst]
+            show(console, cols, rows, title=f"rows where {s.method} is furthest off")

@@ -28,11 +28,50 @@ from hconv.errors import UsageError
 from hconv.kernels import frames
 from hconv.kernels.inertia import Sym3
 from hconv.solve import convert as core
-from hconv.solve import forms, status, units
+from hconv.solve import forms, methods, status, units
 from hconv.solve.options import Conventions
 
 #: Rounding a vector through a rotation costs about this many cond(I)·eps in ω.
 ROTATION_K = 2.0
+
+
+def invalid_inputs(
+    sets: dict, form: str, method: str = "exact", precision: int = 64, conv: Conventions = Conventions()
+) -> list[tuple[str, str]]:
+    """Why :func:`solve` gives the first row of ``sets`` the status ``invalid_input``: a
+    ``(set, problem)`` pair per cause, in the order of ``sets``; empty when none of the given
+    values is to blame (then a value overflowed on the way, in the point shift or the rotation).
+
+    ``problem`` is ``"not_finite"`` (NaN or ±Inf in a value used), ``"zero_quaternion"``,
+    ``"mass_not_positive"`` (m <= 0 with an inertia that is not zero), ``"mass_negative"`` (m < 0
+    for ``--about pivot|free``) or ``"beyond_float32"`` (with ``precision`` 32). These are the
+    checks of :func:`_solve` and of :func:`hconv.solve.convert.convert_columns`, per set.
+    """
+    used = {"H", "I", "q"}  # q is always turned into a rotation
+    if methods.get(method).needs_r or conv.about != "same":
+        used.add("r")
+    if conv.about == "free":
+        used.add("v")
+    one = {k: np.asarray(v, dtype=np.float64)[:, 0] for k, v in sets.items()}
+    causes = []
+    for name, x in one.items():
+        if name == "m":  # an infinite mass is refused only where it moves the point (about)
+            m, moved = x[0], conv.about != "same"
+            if moved and not np.isfinite(m):
+                causes.append((name, "not_finite"))
+            elif moved and m < 0:
+                causes.append((name, "mass_negative"))
+            elif not m > 0 and forms.get(form).trace(sets["I"][:, :1])[0] != 0:
+                causes.append((name, "mass_not_positive" if np.isfinite(m) else "not_finite"))
+        elif name not in used:
+            continue
+        elif not np.isfinite(x).all():
+            causes.append((name, "not_finite"))
+        elif name == "q" and not np.any(x):
+            causes.append((name, "zero_quaternion"))
+        elif precision == 32 and name in ("H", "I", "r") and np.abs(x).max() > np.finfo(np.float32).max:
+            causes.append((name, "beyond_float32"))
+    return causes
 
 
 def _given(value: np.ndarray | None, name: str) -> np.ndarray:

@@ -1,0 +1,132 @@
+"""The README runs top to bottom: every shell, console and Python block, in order, in a fresh copy
+of the repository, as a newcomer runs it; afterwards git sees nothing new (every file the
+commands write is ignored), and every link points inside the repository."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+FENCE = re.compile(r"^```(\w*)\n(.*?)^```", re.S | re.M)
+# The set-up block's install and test run are what CI itself does with the README (.ci/run); here
+# they would reinstall into this environment and run this suite inside itself.
+SET_UP_ONLY = re.compile(r"^(python3 -m venv |\.venv/bin/pip install |\.venv/bin/python -m pytest)")
+
+
+def blocks(text: str) -> list[tuple[str, str]]:
+    """(language, body) of every fenced block, in order."""
+    return [(m.group(1), m.group(2)) for m in FENCE.finditer(text)]
+
+
+def without_set_up_only(body: str) -> str:
+    """``body`` without the install and test commands (each line split at ``&&``)."""
+    lines = []
+    for line in body.splitlines():
+        kept = [part.strip() for part in line.split("&&") if not SET_UP_ONLY.match(part.strip())]
+        if kept:
+            lines.append(" && ".join(kept))
+    return "\n".join(lines)
+
+
+def console(body: str) -> list[tuple[str, list[str]]]:
+    """(command, the lines the README shows it printing) for each ``$`` line of a console block."""
+    out: list[tuple[str, list[str]]] = []
+    for line in body.splitlines():
+        if line.startswith("$ "):
+            out.append((line[2:], []))
+        else:
+            out[-1][1].append(line)
+    return out
+
+
+@pytest.fixture(scope="module")
+def clone(tmp_path_factory) -> Path:
+    """A copy of the repository's files as they stand (committed or not) in a fresh git repository,
+    with ``.venv/bin/hconv`` and ``.venv/bin/python`` running this test's interpreter."""
+    if shutil.which("git") is None:
+        pytest.skip("needs git")
+    dst = tmp_path_factory.mktemp("readme") / "hconv"
+    listed = subprocess.run(
+        ["git", "ls-files", "-co", "--exclude-standard", "-z"], cwd=ROOT, capture_output=True, check=True
+    ).stdout.decode()
+    for name in filter(None, listed.split("\0")):
+        if (ROOT / name).is_file():
+            (dst / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(ROOT / name, dst / name)
+    git = ["git", "-c", "user.name=t", "-c", "user.email=t@t", "-c", "commit.gpgsign=false"]
+    subprocess.run([*git, "init", "-q"], cwd=dst, check=True)
+    subprocess.run([*git, "add", "-A"], cwd=dst, check=True)
+    subprocess.run([*git, "commit", "-q", "-m", "readme"], cwd=dst, check=True)
+    bin_dir = dst / ".venv" / "bin"
+    bin_dir.mkdir(parents=True)
+    for name, run in (("hconv", f'"{sys.executable}" -m hconv'), ("python", f'"{sys.executable}"')):
+        (bin_dir / name).write_text(f'#!/bin/sh\nexec {run} "$@"\n')
+        (bin_dir / name).chmod(0o755)
+    return dst
+
+
+def _run(command: str, cwd: Path) -> subprocess.CompletedProcess:
+    env = dict(os.environ, PATH=f"{cwd / '.venv' / 'bin'}{os.pathsep}{os.environ['PATH']}", PYTHONUNBUFFERED="1")
+    return subprocess.run(
+        ["bash", "-eu", "-c", command],  # no pipefail: `| head` stops its writer, as users expect
+        cwd=cwd,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        timeout=300,
+    )
+
+
+def test_readme_every_block_runs_in_order_in_a_fresh_clone(clone):
+    ran = 0
+    for lang, body in blocks(README.read_text(encoding="utf-8")):
+        if lang == "sh":
+            proc = _run(without_set_up_only(body), clone)
+            assert proc.returncode == 0, f"README block failed:\n{body}\n---\n{proc.stdout.decode()}"
+            assert "hconv: error" not in proc.stdout.decode(), f"README block failed in a pipe:\n{body}"
+            ran += 1
+        elif lang == "console":
+            for command, shown in console(body):
+                proc = _run(command, clone)
+                printed = proc.stdout.decode().rstrip("\n").splitlines()
+                assert proc.returncode == 0, f"$ {command}\n{proc.stdout.decode()}"
+                assert printed == shown, f"$ {command} prints something else than the README shows"
+                ran += 1
+        elif lang == "python":
+            proc = _run(f"python - <<'PY'\n{body}\nPY", clone)
+            assert proc.returncode == 0, f"README block failed:\n{body}\n---\n{proc.stdout.decode()}"
+            ran += 1
+    assert ran >= 12  # the README's walkthrough is here, not lost by a broken fence
+    left = subprocess.run(["git", "status", "--porcelain"], cwd=clone, capture_output=True, check=True)
+    assert left.stdout.decode() == "", "files the README's commands write are not in .gitignore"
+
+
+def test_readme_links_stay_in_the_repository():
+    text = README.read_text(encoding="utf-8")
+    assert "../" not in text
+    for target in re.findall(r"\]\(([^)#]+)[^)]*\)", text):
+        if not re.match(r"https?://", target):
+            assert (ROOT / target).exists(), f"README links to {target}, which is not in the repository"
+
+
+def test_without_set_up_only_keeps_the_example_and_drops_install_and_tests():
+    body = "python3 -m venv .venv && .venv/bin/pip install -e '.[test]' && hconv one --H 1\n.venv/bin/python -m pytest"
+    assert without_set_up_only(body) == "hconv one --H 1"
+
+
+def test_readme_one_json_keys_are_the_ones_printed(clone):
+    said = README.read_text(encoding="utf-8").split("`--json` prints", 1)[1].split("with `null`", 1)[0]
+    printed: set[str] = set()
+    for args in ("--H 1,2,3 --I 1,2,3", "--H 1,1,0 --I 0,1,1 --degenerate pinv"):
+        proc = _run(f"hconv one {args} --json", clone)
+        printed |= set(json.loads(proc.stdout))
+    assert set(re.findall(r'"(\w+)"', said)) == printed

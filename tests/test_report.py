@@ -1,0 +1,194 @@
+"""What the commands print: tables that fit a terminal without cutting a name or a number, and
+plain tab-separated text anywhere else."""
+
+from __future__ import annotations
+
+import io
+import math
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.csv as pacsv
+import pytest
+from rich.console import Console
+
+from hconv import report
+from hconv.solve.methods import METHODS
+from hconv.tables.pipeline import Tally
+from hconv.tools import bench, compare, diagnose, stability
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples" / "data"
+BOX = set("┏┓┗┛┃━┡┩╇┳┻│─└┘├┤┼┌┐")
+
+
+def terminal(width: int) -> Console:
+    return Console(file=io.StringIO(), width=width, force_terminal=True, color_system=None)
+
+
+def pipe() -> Console:
+    return Console(file=io.StringIO(), width=80, force_terminal=False)
+
+
+def shown(console: Console) -> list[str]:
+    return console.file.getvalue().splitlines()  # type: ignore[attr-defined]
+
+
+def assert_fits(lines: list[str], width: int, names) -> None:
+    text = "\n".join(lines)
+    assert max(len(ln) for ln in lines) <= width, max(lines, key=len)
+    assert "…" not in text
+    for name in names:  # whole, on one line: neither cut nor wrapped inside
+        assert any(name in ln for ln in lines), name
+
+
+def assert_plain(lines: list[str], names) -> list[list[str]]:
+    """Tab-separated tables under their header, every other line a '#' comment; the rows."""
+    assert not BOX & set("".join(lines)) and "\x1b" not in "".join(lines) and "…" not in "".join(lines)
+    rows, fields = [], None
+    for ln in lines:
+        if ln.startswith("# "):
+            fields = None
+            continue
+        cells = ln.split("\t")
+        if fields is None:
+            fields = len(cells)  # a header
+        else:
+            assert len(cells) == fields, ln
+            rows.append(cells)
+    for name in names:
+        assert any(name in cells for cells in rows), name
+    return rows
+
+
+@pytest.fixture(scope="module")
+def diagnosis(tmp_path_factory):
+    """Every hypothesis scored: the example scene with an orientation and an engine's ω."""
+    t = pacsv.read_csv(EXAMPLES / "scene.csv")
+    n = t.num_rows
+    for c, v in (("qw", 1.0), ("qx", 0.0), ("qy", 0.0), ("qz", 0.0)):
+        t = t.append_column(c, pa.array(np.full(n, v)))
+    for a in "xyz":
+        t = t.append_column(f"w{a}_obs", t.column(f"w_true_{a}"))
+    src = tmp_path_factory.mktemp("diag") / "log.csv"
+    pacsv.write_csv(t, src)
+    return diagnose.diagnose_file(str(src))
+
+
+@pytest.mark.parametrize("width", [80, 60])
+def test_methods_table_fits_terminal_with_every_name_whole(width):
+    console = terminal(width)
+    report.methods_table(console)
+    assert_fits(shown(console), width, list(METHODS) + ["numpy.linalg.solve", "LAPACK-accurate"])
+
+
+def test_methods_table_in_pipe_is_tab_separated():
+    console = pipe()
+    report.methods_table(console)
+    lines = shown(console)
+    assert lines[0].split("\t")[:3] == ["method", "unit", "exact"]
+    rows = assert_plain(lines, METHODS)
+    assert [r[0] for r in rows] == list(METHODS)
+
+
+@pytest.mark.parametrize("width", [80, 60])
+def test_diagnosis_tables_fit_terminal_with_every_hypothesis_whole(diagnosis, width):
+    assert all(s.applicable for s in diagnosis.scores)
+    console = terminal(width)
+    report.diagnosis_tables(diagnosis, console)
+    assert_fits(shown(console), width, diagnose.NAMES)
+
+
+def test_diagnosis_tables_in_pipe_is_tab_separated(diagnosis):
+    console = pipe()
+    report.diagnosis_tables(diagnosis, console)
+    rows = assert_plain(shown(console), diagnose.NAMES)
+    assert sorted(r[1] for r in rows) == sorted(diagnose.NAMES) and rows[0][:2] == ["1", "exact"]
+
+
+@pytest.mark.parametrize("width", [80, 60])
+def test_comparison_tables_fit_terminal_with_every_method_whole(width):
+    c = compare.compare_file(str(EXAMPLES / "scene.parquet"), None)
+    console = terminal(width)
+    report.comparison_tables(c, console)
+    assert_fits(shown(console), width, METHODS)
+    plain = pipe()
+    report.comparison_tables(c, plain)
+    assert_plain(shown(plain), [f"{m} (m²/s)" if METHODS[m].unit != "rad/s" else m for m in METHODS])
+
+
+@pytest.fixture(scope="module")
+def points():
+    """The sweeps whose numbers are longest: scales to 1e±200, and a moment going to zero."""
+    sweeps = tuple(s for s in stability.SWEEPS if s.name in ("scale", "zero"))
+    return sweeps, stability.run(rows=4, sweeps=sweeps)
+
+
+@pytest.mark.parametrize("width", [80, 60])
+def test_stability_tables_never_cut_a_number(points, width):
+    sweeps, pts = points
+    console = terminal(width)
+    report.stability_tables(pts, sweeps, console)
+    lines = shown(console)
+    numbers = {f"{p.worst_error:.0e}" for p in pts if math.isfinite(p.worst_error) and p.worst_error}
+    numbers |= {f"{p.param:g}" for p in pts}  # 1e-200 and 1e+200 among them
+    assert_fits(lines, width, list(METHODS) + sorted(numbers))
+    plain = pipe()
+    report.stability_tables(pts, sweeps, plain)
+    rows = assert_plain(shown(plain), [])
+    assert numbers <= {x.rstrip("*") for r in rows for x in r}
+
+
+def bench_result() -> bench.Result:
+    nan = float("nan")
+    keys = [f"{m}/{p}" for m in METHODS for p in (64, 32)]
+    acc = {k: {"10000": [1e-16, 3e-16], "1e+08": [nan, nan] if k.endswith("/32") else [0.0, 2e-16]} for k in keys}
+    return bench.Result(
+        rows=1000,
+        machine="a machine",
+        kernel={k: 1e6 for k in keys},
+        convert={k: 2e5 for k in keys},
+        accuracy=acc,
+        targets=[
+            ["exact kernel / lapack kernel", 12.5, 10, True],
+            ["plain script time / hconv convert time", 3.1, 5, False],
+        ],
+    )
+
+
+@pytest.mark.parametrize("width", [80, 60])
+def test_bench_tables_say_flagged_where_no_row_had_an_answer(width):
+    console = terminal(width)
+    report.bench_tables(bench_result(), console)
+    lines = shown(console)
+    assert_fits(lines, width, list(METHODS) + ["1e-16 / 3e-16", "0 / 2e-16", "flagged", "12.50"])
+    text = "\n".join(lines)
+    assert "nan" not in text and "flagged: every row was flagged" in text
+    plain = pipe()
+    report.bench_tables(bench_result(), plain)
+    rows = assert_plain(shown(plain), ["flagged", "document-principal"])
+    assert not any("nan" in x for r in rows for x in r)
+
+
+def test_summary_fits_terminal_and_is_plain_in_a_pipe():
+    tally = Tally("exact", "rad/s", rows=1234, worst_residual=1e-16, worst_row=7, seconds=0.5)
+    tally.per_status[:2] = [1200, 34]
+    for width in (80, 60):
+        console = terminal(width)
+        report.summary(tally, console)
+        assert_fits(shown(console), width, ["1,200", "1,234", "invalid_input"])
+    console = pipe()
+    report.summary(tally, console)
+    lines = shown(console)
+    assert lines[0].startswith("# hconv convert · method exact")
+    assert assert_plain(lines, ["ok"]) == [["ok", "1200"], ["invalid_input", "34"], ["total", "1234"]]
+
+
+def test_show_prints_a_list_when_even_one_column_beside_the_keys_is_too_wide():
+    cols = [report.Col("name"), report.Col("a"), report.Col("b", right=True)]
+    rows = [["document-principal", "x" * 50, "1e+300"]]
+    console = terminal(60)
+    report.show(console, cols, rows)
+    lines = shown(console)
+    assert_fits(lines, 60, ["document-principal", "x" * 50, "1e+300"])
+    assert lines[0].strip() == "document-principal" and not BOX & set("".join(lines))
