@@ -1,15 +1,20 @@
 """The README runs top to bottom: every shell, console and Python block, in order, in a fresh copy
-of the repository, as a newcomer runs it; afterwards git sees nothing new (every file the
-commands write is ignored), and every link points inside the repository."""
+of the repository, as a newcomer runs it; a console block prints what it shows on an 80-column
+terminal; afterwards git sees nothing new (every file the commands write is ignored), and every
+link points inside the repository."""
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
+import pty
 import re
 import shutil
+import struct
 import subprocess
 import sys
+import termios
 from pathlib import Path
 
 import pytest
@@ -86,6 +91,30 @@ def _run(command: str, cwd: Path) -> subprocess.CompletedProcess:
     )
 
 
+def _on_terminal(command: str, cwd: Path) -> tuple[int, list[str]]:
+    """Run ``command`` with stdout and stderr on an 80-column pseudo-terminal, as the README's
+    console blocks show it; returns the exit code and the lines a reader sees (no colour codes)."""
+    main, side = pty.openpty()
+    fcntl.ioctl(side, termios.TIOCSWINSZ, struct.pack("HHHH", 50, 80, 0, 0))
+    env = dict(os.environ, PATH=f"{cwd / '.venv' / 'bin'}{os.pathsep}{os.environ['PATH']}", COLUMNS="80")
+    env.pop("NO_COLOR", None)
+    proc = subprocess.Popen(["bash", "-eu", "-c", command], cwd=cwd, env=env, stdout=side, stderr=side)
+    os.close(side)
+    seen = b""
+    while True:
+        try:
+            chunk = os.read(main, 65536)
+        except OSError:  # the terminal closes when the command and its children have exited
+            break
+        if not chunk:
+            break
+        seen += chunk
+    os.close(main)
+    code = proc.wait(timeout=300)
+    text = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", seen.decode()).replace("\r", "")
+    return code, [line.rstrip() for line in text.rstrip("\n").splitlines()]
+
+
 def test_readme_every_block_runs_in_order_in_a_fresh_clone(clone):
     ran = 0
     for lang, body in blocks(README.read_text(encoding="utf-8")):
@@ -96,9 +125,8 @@ def test_readme_every_block_runs_in_order_in_a_fresh_clone(clone):
             ran += 1
         elif lang == "console":
             for command, shown in console(body):
-                proc = _run(command, clone)
-                printed = proc.stdout.decode().rstrip("\n").splitlines()
-                assert proc.returncode == 0, f"$ {command}\n{proc.stdout.decode()}"
+                code, printed = _on_terminal(command, clone)
+                assert code == 0, f"$ {command}\n" + "\n".join(printed)
                 assert printed == shown, f"$ {command} prints something else than the README shows"
                 ran += 1
         elif lang == "python":
