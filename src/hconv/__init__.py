@@ -8,9 +8,9 @@ layers: docs/architecture.md.
 
 from __future__ import annotations
 
-from hconv import _signals
+from hconv import interrupts
 
-_signals.end_quietly_while_starting()  # first: the imports below take most of the command's start
+interrupts.end_quietly_while_starting()  # first: the imports below take most of the command's start
 
 __version__ = "0.1.0"
 

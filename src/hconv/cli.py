@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from hconv import _signals, errors
+from hconv import errors, interrupts
 from hconv.errors import INTERRUPTED, HconvError, UsageError
 from hconv.kernels import allocator
 from hconv.solve import forms, options
@@ -283,7 +283,7 @@ def friendly(fn: Callable) -> Callable:
     @functools.wraps(fn)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
-            _signals.hand_over(_sigterm)  # from here an interrupt is caught below, and cleans up
+            interrupts.hand_over(_sigterm)  # from here an interrupt is caught below, and cleans up
             with errors.command_line():
                 return fn(*args, **kwargs)
         except HconvError as exc:
@@ -784,7 +784,7 @@ def main() -> None:
 
 
 def _main() -> None:
-    if not _signals.starting():  # in the hconv command SIGTERM ends it until friendly hands it over
+    if not interrupts.starting():  # in the hconv command SIGTERM ends it until friendly hands it over
         signal.signal(signal.SIGTERM, _sigterm)
     allocator.tune()
     if os.environ.get("_HCONV_COMPLETE"):  # the shell asks for completions (hconv --install-completion)
