@@ -22,6 +22,7 @@ import tempfile
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import BinaryIO
 
 import pyarrow as pa
 import pyarrow.csv as pacsv
@@ -92,12 +93,9 @@ def open_input(path: str, fmt: str, job: Job) -> Input:
                 "input is '-' but stdin is a terminal; pipe a file in, "
                 "e.g. `cat in.csv | hconv convert - out.csv --from csv`"
             )
-        # closed by the with below; removed by the closer, even when reading fails
-        spool = tempfile.NamedTemporaryFile(prefix="hconv-stdin-", delete=False)  # noqa: SIM115
-        closers.append(lambda: os.unlink(spool.name))
-        with spool:
-            shutil.copyfileobj(sys.stdin.buffer, spool, 1 << 20)
-        path = spool.name
+        spool = _spool(sys.stdin.buffer, name)
+        closers.append(lambda: os.unlink(spool))
+        path = spool
     try:
         inp = _open_csv(path, name, job) if fmt == "csv" else _open_parquet(path, name, job)
     except BaseException:
@@ -106,6 +104,36 @@ def open_input(path: str, fmt: str, job: Job) -> Input:
         raise
     inp._closers[:0] = closers
     return inp
+
+
+def _spool(stream: BinaryIO, name: str) -> str:
+    """Copy ``stream`` into a temporary file and return its path; the caller removes it.
+
+    Reading stdin can take as long as whatever feeds it, so this is where Ctrl-C and SIGTERM
+    (raised as KeyboardInterrupt) usually land: any way out but success removes the file.
+    """
+    fd, spool = tempfile.mkstemp(prefix="hconv-stdin-")
+    try:
+        try:
+            with os.fdopen(fd, "wb") as f:
+                while chunk := _read_chunk(stream, name):
+                    f.write(chunk)
+        except OSError as exc:  # reading fails as InputError, so this is the temporary directory
+            raise OutputError(
+                f"{name}: could not be copied to a temporary file in {os.path.dirname(spool)!r} "
+                f"({exc.strerror or exc}); set TMPDIR to a directory with room, or give a file instead of '-'"
+            ) from None
+    except BaseException:
+        os.unlink(spool)
+        raise
+    return spool
+
+
+def _read_chunk(stream: BinaryIO, name: str) -> bytes:
+    try:
+        return stream.read(1 << 20)
+    except OSError as exc:
+        raise InputError(f"{name}: cannot read it ({exc.strerror or exc})") from None
 
 
 def _oserror(name: str, exc: OSError) -> InputError:
