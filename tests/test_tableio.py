@@ -102,3 +102,82 @@ def test_spool_read_error_or_full_temporary_directory_is_one_line_and_no_spool(t
     with pytest.raises(OutputError, match="No space left on device.*set TMPDIR to a directory with room"):
         tableio._spool(_FailingStream(b"Hx,Hy,Hz,I\n1,2,3,4\n"), "stdin")
     assert list(tmp_path.iterdir()) == []
+
+
+def _scene_parquet(path: Path, copies: int) -> None:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    scene = pq.read_table(ROOT / "examples" / "data" / "scene.parquet")
+    pq.write_table(pa.concat_tables([scene] * copies), path)
+
+
+@pytest.mark.parametrize("left", ["output", "stdin", "stdout"])
+def test_output_removes_the_temporary_file_of_a_killed_run_and_says_so(left, tmp_path):
+    """`kill -9` leaves a temporary file behind: beside OUT while converting, or stdin's or
+    stdout's spool in the temporary directory. The next run that writes there removes it."""
+    spools = tmp_path / "tmp"
+    spools.mkdir()
+    out = tmp_path / "out.parquet"
+    if left == "output":  # a conversion slow enough to be caught at work: the interpreted engine
+        _scene_parquet(tmp_path / "big.parquet", 500)
+        args = ["convert", str(tmp_path / "big.parquet"), str(out), "--engine", "python", "--threads", "1"]
+        proc = _hconv(*args, tmpdir=spools)
+        where = tmp_path
+    elif left == "stdin":  # still reading a pipe that stays open
+        proc = _hconv("convert", "-", str(out), "--from", "csv", tmpdir=spools, stdin=subprocess.PIPE)
+        proc.stdin.write(SCENE_CSV.read_bytes())  # type: ignore[union-attr]
+        proc.stdin.flush()  # type: ignore[union-attr]
+        where = spools
+    else:  # done, and writing to a stdout that nobody reads
+        proc = _hconv("convert", str(SCENE_CSV), "-", "--to", "csv", tmpdir=spools)
+        where = spools
+    temporaries = lambda: [p for p in where.iterdir() if p.name.endswith(".hconv-tmp")]  # noqa: E731
+    _wait_for(temporaries, "temporary file", proc)
+    time.sleep(0.3)
+    proc.kill()
+    proc.wait(timeout=60)  # reaped: a zombie still holds its pid
+    for f in (proc.stdin, proc.stdout, proc.stderr):
+        if f:
+            f.close()
+    (stale,) = temporaries()
+    assert f".{proc.pid}-" in stale.name or f"-{proc.pid}-" in stale.name
+
+    again = subprocess.run(
+        [sys.executable, "-m", "hconv", "convert", "-", str(out), "--from", "csv", "-q"],
+        input=SCENE_CSV.read_bytes(),
+        capture_output=True,
+        env=dict(os.environ, TMPDIR=str(spools)),
+        timeout=120,
+    )
+    err = again.stderr.decode()
+    assert again.returncode == 0, err
+    assert err == f"hconv: removed stale temporary file {stale} left by a run that was killed (pid {proc.pid})\n"
+    assert not stale.exists() and out.exists()
+    assert [p.name for p in tmp_path.iterdir() if p.name.endswith(".hconv-tmp")] == []
+    assert list(spools.iterdir()) == []
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="start times come from Linux's /proc")
+def test_remove_stale_temporaries_leaves_live_and_unknown_makers_alone(tmp_path, capsys):
+    from hconv.tables import tableio
+
+    pid, start, tag = tableio._maker().split("-")
+    other_tag = f"{(int(tag, 16) + 1) % (1 << 32):08x}"
+    names = {
+        f".out.parquet.{pid}-{start}-{tag}-abcd1234.hconv-tmp": "live",  # this process: running
+        f"hconv-stdout-{pid}-{start}-{tag}-abcd1234.hconv-tmp": "live",
+        f".out.csv.{pid}-{int(start) + 1}-{tag}-abcd1234.hconv-tmp": "stale",  # its pid, another start: reused
+        f".out.csv.1-1-{other_tag}-abcd1234.hconv-tmp": "other host",  # pid 1 there means nothing here
+        ".out.csv.abcd1234.hconv-tmp": "old name",  # an earlier hconv's: no maker to check
+        "notes.txt": "not hconv's",
+    }
+    for name in names:
+        (tmp_path / name).write_text("x")
+    removed = tableio.remove_stale_temporaries(str(tmp_path))
+    stale = [n for n, why in names.items() if why == "stale"]
+    assert removed == [str(tmp_path / n) for n in stale]
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(n for n in names if n not in stale)
+    assert capsys.readouterr().err == (
+        f"hconv: removed stale temporary file {tmp_path / stale[0]} left by a run that was killed (pid {pid})\n"
+    )

@@ -3,7 +3,9 @@
 Reading never holds more than a batch in memory (stdin is first spooled to a temporary file,
 since Parquet needs to seek). Writing goes to a temporary file next to the output and is renamed
 into place only when the whole run succeeded, so a failed or interrupted run leaves no partial
-output. With "-" as output the finished file is then copied to stdout.
+output. With "-" as output the finished file is then copied to stdout. A run killed outright
+leaves its temporary file, but the name says which process made it, and the next run that writes
+into that directory removes it once that process has ended (:func:`remove_stale_temporaries`).
 
 In CSV, the extra columns are read as text so that they come out exactly as they went in, and
 ω's unit goes into a column ``w_unit``; in Parquet it is the ``unit`` metadata of wx, wy, wz.
@@ -17,8 +19,10 @@ import itertools
 import os
 import re
 import shutil
+import socket
 import sys
 import tempfile
+import zlib
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -106,13 +110,101 @@ def open_input(path: str, fmt: str, job: Job) -> Input:
     return inp
 
 
+#: Every temporary file hconv makes ends so; its name also carries the process that made it.
+TEMP_SUFFIX = ".hconv-tmp"
+# .OUT.<token>-XXXXXXXX.hconv-tmp beside the output; hconv-stdin-/hconv-stdout-<token>-XXXXXXXX.hconv-tmp
+# in the temporary directory. <token> is pid-start-tag (_maker).
+_TEMP_NAME = re.compile(r"^(?:\..+\.|hconv-std(?:in|out)-)(\d+)-(\d+)-([0-9a-f]{8})-[a-z0-9_]+\.hconv-tmp$")
+
+
+def _proc_start(pid: int) -> int | None:
+    """When process ``pid`` started, in clock ticks since boot (Linux's /proc), or None."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            stat = f.read()
+        return int(stat[stat.rindex(b")") + 2 :].split()[19])  # field 22; the name before ')' may hold spaces
+    except (OSError, ValueError, IndexError):
+        return None
+
+
+def _machine_tag() -> str:
+    """This host and pid namespace, in 8 hex digits: a pid names a process only within both, so a
+    file made on another machine sharing the directory, or in another container, is never judged."""
+    try:
+        namespace = os.readlink("/proc/self/ns/pid")
+    except OSError:
+        namespace = ""
+    return f"{zlib.crc32((socket.gethostname() + '/' + namespace).encode()):08x}"
+
+
+def _maker() -> str:
+    """``pid-start-tag`` for this process's temporary files. The start time tells this process
+    from a later one that reuses its pid; it is 0 where there is no /proc, and then only the
+    pid is checked."""
+    pid = os.getpid()
+    return f"{pid}-{_proc_start(pid) or 0}-{_machine_tag()}"
+
+
+def _maker_gone(pid: int, start: int, tag: str) -> bool:
+    """Whether the process that made a temporary file has surely ended; False when unsure."""
+    if tag != _machine_tag():
+        return False
+    now = _proc_start(pid)
+    if now is not None:
+        return start != 0 and now != start  # another process holds the pid now
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except (OSError, OverflowError):  # PermissionError: it runs, as another user
+        return False
+    return False  # it runs, but /proc hides it (mounted with hidepid)
+
+
+def remove_stale_temporaries(directory: str) -> list[str]:
+    """Remove the temporary files in ``directory`` that hconv runs killed before they could clean
+    up (SIGKILL, the OOM killer, a power cut), saying so on stderr; returns their paths.
+
+    Those of any output, not only the one being written: a killed run's file is litter whichever
+    output it was for, and no later run may ever write that output again. A file whose maker
+    still runs, or may run (another host, no way to tell), is left alone.
+    """
+    removed: list[str] = []
+    try:
+        entries = [e for e in os.scandir(directory) if e.name.endswith(TEMP_SUFFIX)]
+    except OSError:
+        return removed  # making the new temporary file will say what is wrong with the directory
+    for entry in entries:
+        m = _TEMP_NAME.match(entry.name)
+        if not m or not _maker_gone(int(m.group(1)), int(m.group(2)), m.group(3)):
+            continue
+        path = str(Path(directory) / entry.name)
+        try:
+            if not entry.is_file(follow_symlinks=False):
+                continue
+            os.unlink(entry.path)
+        except OSError:
+            continue  # another run removed it first, or it is not ours to remove
+        pid = m.group(1)
+        print(f"hconv: removed stale temporary file {path} left by a run that was killed (pid {pid})", file=sys.stderr)
+        removed.append(path)
+    return removed
+
+
+def _mkstemp(prefix: str, directory: str | None = None) -> tuple[int, str]:
+    """A new temporary file named for this process, after removing those killed runs left."""
+    directory = directory or tempfile.gettempdir()
+    remove_stale_temporaries(directory)
+    return tempfile.mkstemp(prefix=f"{prefix}{_maker()}-", suffix=TEMP_SUFFIX, dir=directory)
+
+
 def _spool(stream: BinaryIO, name: str) -> str:
     """Copy ``stream`` into a temporary file and return its path; the caller removes it.
 
     Reading stdin can take as long as whatever feeds it, so this is where Ctrl-C and SIGTERM
     (raised as KeyboardInterrupt) usually land: any way out but success removes the file.
     """
-    fd, spool = tempfile.mkstemp(prefix="hconv-stdin-")
+    fd, spool = _mkstemp("hconv-stdin-")
     try:
         try:
             with os.fdopen(fd, "wb") as f:
@@ -373,11 +465,13 @@ class Output:
 
     def __enter__(self) -> Output:
         if self.path == "-":
-            fd, self._tmp = tempfile.mkstemp(prefix="hconv-stdout-")
+            fd, self._tmp = _mkstemp("hconv-stdout-")
         else:
             target = Path(self.path)
+            # cut a long name so that the pid and the rest still fit in the 255 bytes a name may have
+            name = os.fsdecode(os.fsencode(target.name)[:160])
             try:
-                fd, self._tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".hconv-tmp", dir=target.parent)
+                fd, self._tmp = _mkstemp(f".{name}.", str(target.parent))
             except OSError as exc:
                 raise OutputError(
                     f"{self.path}: cannot write in {str(target.parent)!r} ({exc.strerror}); check its permissions"
