@@ -200,10 +200,11 @@ def convert_file(
     t0 = time.perf_counter()
     with open_input(src, fin, job) as inp, out, BackgroundWriter(out) as writer:
 
-        def one(batch: pa.RecordBatch) -> tuple[pa.Table, str]:
-            return convert_batch(pa.Table.from_batches([batch]), job, inp.plan, inp.name)
+        def one(numbered: tuple[int, pa.RecordBatch]) -> tuple[pa.Table, str]:
+            first, batch = numbered
+            return convert_batch(pa.Table.from_batches([batch]), job, inp.plan, inp.name, first)
 
-        for table, engine in ordered_map(one, inp.batches, threads):
+        for table, engine in ordered_map(one, _numbered(inp.batches), threads):
             if strict:
                 _check_strict(table, tally.rows, inp.name)
             writer.write(table)
@@ -214,6 +215,14 @@ def convert_file(
             writer.write(convert_batch(inp.schema.empty_table(), job, inp.plan, inp.name)[0])
     tally.seconds = time.perf_counter() - t0
     return tally
+
+
+def _numbered(batches: Iterable[pa.RecordBatch]) -> Iterator[tuple[int, pa.RecordBatch]]:
+    """Each batch with the index of its first row in the file, counted on the reading thread."""
+    first = 0
+    for batch in batches:
+        yield first, batch
+        first += batch.num_rows
 
 
 STRICT_ROWS_NAMED = 5
