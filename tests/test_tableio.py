@@ -3,6 +3,7 @@ temporary) and what it says about an input it cannot read."""
 
 from __future__ import annotations
 
+import io
 import os
 import signal
 import subprocess
@@ -11,7 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
-from helpers import terminal_signals
+from helpers import run_hconv, run_inprocess, terminal_signals
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE_CSV = ROOT / "examples" / "data" / "scene.csv"
@@ -181,3 +182,224 @@ def test_remove_stale_temporaries_leaves_live_and_unknown_makers_alone(tmp_path,
     assert capsys.readouterr().err == (
         f"hconv: removed stale temporary file {tmp_path / stale[0]} left by a run that was killed (pid {pid})\n"
     )
+
+
+def _as(kind: str, text: bytes) -> bytes:
+    """``text`` as the files people hand hconv by mistake."""
+    import bz2
+    import gzip
+    import lzma
+    import zipfile
+
+    if kind in ("zip", "xlsx"):
+        buf = io.BytesIO()
+        with zipfile.ZipFile(buf, "w") as z:
+            if kind == "xlsx":
+                z.writestr("[Content_Types].xml", "<Types/>")
+            z.writestr("in.csv", text)
+        return buf.getvalue()
+    packers = {"gzip": gzip.compress, "bzip2": bz2.compress, "xz": lzma.compress}
+    if kind in packers:
+        return packers[kind](text)
+    if kind == "zstd":  # the standard library has no zstd: its frame magic, then the bytes
+        return b"\x28\xb5\x2f\xfd" + text
+    if kind == "xls":
+        return b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1" + b"\x00" * 504
+    return text.decode().encode(kind)  # an encoding
+
+
+KINDS = ("gzip", "bzip2", "xz", "zstd", "zip", "xlsx", "xls", "utf-16", "utf-16-le", "utf-16-be", "utf-32")
+SAVE_AS = "open it in the spreadsheet and save the sheet as 'CSV UTF-8 (comma delimited)'"
+
+
+@pytest.mark.parametrize(
+    "kind, message",
+    [
+        (
+            "gzip",
+            "is gzip-compressed; hconv reads uncompressed CSV, so decompress it first: gzip -dc in.csv > in-plain.csv",
+        ),
+        (
+            "bzip2",
+            "is bzip2-compressed; hconv reads uncompressed CSV, so decompress it first: "
+            "bzip2 -dc in.csv > in-plain.csv",
+        ),
+        ("xz", "is xz-compressed; hconv reads uncompressed CSV, so decompress it first: xz -dc in.csv > in-plain.csv"),
+        (
+            "zstd",
+            "is zstd-compressed; hconv reads uncompressed CSV, so decompress it first: zstd -dc in.csv > in-plain.csv",
+        ),
+        (
+            "zip",
+            "is a zip archive; hconv reads uncompressed CSV, so decompress it first: unzip -p in.csv > in-plain.csv",
+        ),
+        ("xlsx", f"is an Excel workbook (.xlsx), not CSV; {SAVE_AS}"),
+        ("xls", f"is an Excel 97-2003 workbook (.xls), not CSV; {SAVE_AS}"),
+        (
+            "utf-16",
+            "is UTF-16 text; hconv reads UTF-8, so convert it first: iconv -f UTF-16 -t UTF-8 in.csv > in-utf8.csv",
+        ),
+        (
+            "utf-16-le",
+            "is UTF-16LE text; hconv reads UTF-8, so convert it first: iconv -f UTF-16LE -t UTF-8 in.csv > in-utf8.csv",
+        ),
+        (
+            "utf-16-be",
+            "is UTF-16BE text; hconv reads UTF-8, so convert it first: iconv -f UTF-16BE -t UTF-8 in.csv > in-utf8.csv",
+        ),
+        (
+            "utf-32",
+            "is UTF-32 text; hconv reads UTF-8, so convert it first: iconv -f UTF-32 -t UTF-8 in.csv > in-utf8.csv",
+        ),
+    ],
+    ids=KINDS,
+)
+def test_open_input_csv_compressed_or_utf16_says_what_it_is_and_how_to_convert(
+    kind, message, tmp_path, capsys, monkeypatch
+):
+    """Before, every one of these was 'in.csv: is not a text file, so not CSV', with no fix."""
+    monkeypatch.chdir(tmp_path)
+    Path("in.csv").write_bytes(_as(kind, SCENE_CSV.read_bytes()))
+    code, _, err = run_inprocess("convert", "in.csv", "out.csv", capsys=capsys)
+    assert (code, err) == (3, f"hconv: error: in.csv: {message}\n")
+    assert sorted(os.listdir()) == ["in.csv"]
+
+
+def test_open_input_compressed_stdin_says_to_decompress_in_the_pipe(tmp_path):
+    got = run_hconv(
+        "convert", "-", str(tmp_path / "out.csv"), "--from", "csv", input=_as("gzip", SCENE_CSV.read_bytes())
+    )
+    assert got.returncode == 3
+    assert got.stderr.decode() == (
+        "hconv: error: stdin: is gzip-compressed; hconv reads uncompressed CSV, "
+        "so decompress it in the pipe, before hconv: ... | gzip -dc | hconv ...\n"
+    )
+
+
+def test_open_input_parquet_compressed_or_csv_says_what_it_is(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    Path("in.parquet").write_bytes(_as("gzip", (ROOT / "examples" / "data" / "scene.parquet").read_bytes()))
+    code, _, err = run_inprocess("convert", "in.parquet", "out.parquet", capsys=capsys)
+    assert (code, err) == (
+        3,
+        "hconv: error: in.parquet: is gzip-compressed; hconv reads uncompressed Parquet, "
+        "so decompress it first: gzip -dc in.parquet > in-plain.parquet\n",
+    )
+    Path("in.parquet").write_bytes(SCENE_CSV.read_bytes())
+    code, _, err = run_inprocess("convert", "in.parquet", "out.parquet", capsys=capsys)
+    assert (
+        code == 3
+        and "not a readable Parquet file" in err
+        and "(it looks like CSV text: name it .csv or pass --from csv)" in err
+    )
+
+
+@pytest.mark.parametrize(
+    "args, code, message",
+    [
+        (
+            ["in.csv.gz", "out.csv"],
+            3,
+            "in.csv.gz: is gzip-compressed; hconv reads uncompressed files, so decompress it first: "
+            "gzip -dc in.csv.gz > in.csv",
+        ),
+        (
+            ["in.csv", "out.csv.gz"],
+            4,
+            "out.csv.gz: hconv writes uncompressed files; write out.csv and compress it afterwards: gzip out.csv",
+        ),
+        (
+            ["in.csv", "out.parquet.zip"],
+            4,
+            "out.parquet.zip: hconv writes uncompressed files; write out.parquet and compress it afterwards: "
+            "zip out.parquet.zip out.parquet",
+        ),
+    ],
+)
+def test_format_of_compressed_name_says_how_to_compress_or_decompress(
+    args, code, message, tmp_path, capsys, monkeypatch
+):
+    """Before: 'cannot tell the format of 'in.csv.gz' from its extension', a usage error."""
+    monkeypatch.chdir(tmp_path)
+    Path("in.csv").write_bytes(SCENE_CSV.read_bytes())
+    Path("in.csv.gz").write_bytes(_as("gzip", SCENE_CSV.read_bytes()))
+    got, _, err = run_inprocess("convert", *args, capsys=capsys)
+    assert (got, err) == (code, f"hconv: error: {message}\n")
+
+
+README_POINTER = "(see 'Whole files with hconv convert' in the README)"
+
+
+@pytest.mark.parametrize(
+    "given, message",
+    [
+        (
+            "data",
+            f"data: is a directory, and hconv converts one file per run; give one of the 2 CSV or Parquet files in "
+            f"it, such as data/part-0.parquet, or convert each in a loop {README_POINTER}",
+        ),
+        (
+            "empty.parquet",
+            "empty.parquet: is a directory, and hconv converts one file per run; give a CSV or Parquet file "
+            + README_POINTER,
+        ),
+        ("scene.cvs", "scene.cvs: does not exist (did you mean scene.csv?); check the path"),
+        ("nothing", "nothing: does not exist; check the path"),
+        ("nowhere/in.csv", "nowhere/in.csv: does not exist, nor does the directory 'nowhere'; check the path"),
+        ("link.csv", "link.csv: is a link to 'gone.csv', which does not exist; check the link"),
+    ],
+)
+def test_open_input_directory_or_missing_path_says_so(given, message, tmp_path, capsys, monkeypatch):
+    """Before: 'cannot tell the format' (exit 2) for a directory or a missing path without an
+    extension, and 'is a directory, not a CSV file' with no way on."""
+    monkeypatch.chdir(tmp_path)
+    Path("data").mkdir()
+    Path("data/part-0.parquet").write_bytes(b"")
+    Path("data/part-1.parquet").write_bytes(b"")
+    Path("empty.parquet").mkdir()
+    Path("scene.csv").write_bytes(SCENE_CSV.read_bytes())
+    os.symlink("gone.csv", "link.csv")
+    code, _, err = run_inprocess("convert", given, "out.csv", capsys=capsys)
+    assert (code, err) == (3, f"hconv: error: {message}\n")
+
+
+def test_open_input_unreadable_file_is_one_line(tmp_path, capsys, monkeypatch):
+    import builtins
+
+    src = tmp_path / "in.csv"
+    src.write_bytes(SCENE_CSV.read_bytes())
+    real = builtins.open
+
+    def refuse(file, *a, **k):  # root reads any file: refuse as the OS refuses anyone else
+        if str(file) == str(src):
+            raise PermissionError(13, "Permission denied", str(file))
+        return real(file, *a, **k)
+
+    monkeypatch.setattr(builtins, "open", refuse)
+    code, _, err = run_inprocess("convert", str(src), str(tmp_path / "out.csv"), capsys=capsys)
+    assert (code, err) == (
+        3,
+        f"hconv: error: {src}: cannot read it (Permission denied); check the path and its permissions\n",
+    )
+
+
+def test_open_input_named_pipe_is_read_like_stdin(tmp_path):
+    """`hconv convert <(gzip -dc in.csv.gz) out.csv --from csv`: a pipe cannot seek, so it is
+    spooled as stdin is (before: 'cannot read it (lseek failed)', or a wait for a second writer)."""
+    import threading
+
+    spools = tmp_path / "tmp"
+    spools.mkdir()
+    fifo = tmp_path / "in.fifo"
+    os.mkfifo(fifo)
+    # a daemon: if hconv never opens the pipe, the writer waits in open() and must not keep pytest
+    threading.Thread(target=lambda: fifo.write_bytes(SCENE_CSV.read_bytes()), daemon=True).start()
+    got = subprocess.run(
+        [sys.executable, "-m", "hconv", "convert", str(fifo), str(tmp_path / "out.csv"), "--from", "csv", "-q"],
+        capture_output=True,
+        env=dict(os.environ, TMPDIR=str(spools)),
+        timeout=60,
+    )
+    assert (got.returncode, got.stderr) == (0, b"")
+    assert (tmp_path / "out.csv").read_text().count("\n") == SCENE_CSV.read_text().count("\n")
+    assert list(spools.iterdir()) == []  # the spool is gone

@@ -14,12 +14,15 @@ In CSV, the extra columns are read as text so that they come out exactly as they
 from __future__ import annotations
 
 import csv
+import difflib
 import io
 import itertools
 import os
 import re
+import shlex
 import shutil
 import socket
+import stat
 import sys
 import tempfile
 import zlib
@@ -44,7 +47,8 @@ UNIT_COLUMN = layout.UNIT_COLUMN
 
 
 def format_of(path: str, given: str | None, flag: str) -> str:
-    """``given`` if set, else the format named by ``path``'s extension; UsageError otherwise."""
+    """``given`` if set, else the format named by ``path``'s extension; UsageError otherwise.
+    ``flag`` is ``--from`` for an input, ``--to`` for an output."""
     if given:
         if given not in FORMATS:
             raise UsageError(f"{flag} must be {' or '.join(FORMATS)}, got {given!r}")
@@ -54,11 +58,149 @@ def format_of(path: str, given: str | None, flag: str) -> str:
     suffix = Path(path).suffix.lower()
     fmt = next((f for f, exts in EXTENSIONS.items() if suffix in exts), None)
     if fmt is None:
+        if flag == "--from":
+            _input_kind(path)  # a path that is missing or a directory: say so, not that its name has no format
+        _refuse_compressed_name(path, suffix, flag)
         raise UsageError(
             f"cannot tell the format of {path!r} from its extension; "
             f"name it .csv or .parquet, or pass {flag} csv|parquet"
         )
     return fmt
+
+
+#: Compressions people often hand hconv: name, leading bytes, file suffixes, the command that
+#: writes the plain bytes to stdout, and the one that compresses a file ({plain}, {packed}).
+_COMPRESSIONS = (
+    ("gzip", b"\x1f\x8b", (".gz", ".gzip"), "gzip -dc", "gzip {plain}"),
+    ("bzip2", b"BZh", (".bz2",), "bzip2 -dc", "bzip2 {plain}"),
+    ("xz", b"\xfd7zXZ\x00", (".xz",), "xz -dc", "xz {plain}"),
+    ("zstd", b"\x28\xb5\x2f\xfd", (".zst", ".zstd"), "zstd -dc", "zstd {plain}"),
+    ("zip", b"PK\x03\x04", (".zip",), "unzip -p", "zip {packed} {plain}"),
+)
+_OLE2 = b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1"  # Excel 97-2003 (.xls)
+_SAVE_AS_CSV = "open it in the spreadsheet and save the sheet as 'CSV UTF-8 (comma delimited)'"
+
+
+def _refuse_compressed_name(path: str, suffix: str, flag: str) -> None:
+    """``in.csv.gz`` and ``out.csv.gz``: hconv reads and writes plain files only (the message for
+    reading names the command that decompresses it)."""
+    packed = next((c for c in _COMPRESSIONS if suffix in c[2]), None)
+    plain = path[: -len(suffix)] if suffix else path
+    if packed is None or not any(Path(plain).suffix.lower() in exts for exts in EXTENSIONS.values()):
+        return
+    what, _, _, unpack, pack = packed
+    if flag == "--from":
+        raise InputError(
+            f"{path}: is {_packed(what)}; hconv reads uncompressed files, so decompress it first: "
+            f"{unpack} {shlex.quote(path)} > {shlex.quote(plain)}"
+        )
+    raise OutputError(
+        f"{path}: hconv writes uncompressed files; write {plain} and compress it afterwards: "
+        + pack.format(plain=shlex.quote(plain), packed=shlex.quote(path))
+    )
+
+
+def _packed(what: str) -> str:
+    return "a zip archive" if what == "zip" else f"{what}-compressed"
+
+
+def _what_it_is(head: bytes, path: str, name: str, fmt: str) -> str | None:
+    """What a file that is not plain ``fmt`` is instead, from its first bytes, and how to make it
+    readable: a compressed file, a spreadsheet or UTF-16 text. None if it is none of these."""
+    piped = path != name  # stdin, or a pipe given by name: the fix goes into the pipe
+    kind = "CSV" if fmt == "csv" else "Parquet"
+
+    def fix(command: str, suffixes: tuple, tag: str) -> str:
+        if piped:
+            return f"in the pipe, before hconv: ... | {command} | hconv ..."
+        base, ext = os.path.splitext(name)
+        plain = base if ext.lower() in suffixes else f"{base}{tag}{ext}"
+        return f"first: {command} {shlex.quote(name)} > {shlex.quote(plain)}"
+
+    for what, magic, suffixes, unpack, _ in _COMPRESSIONS:
+        if not head.startswith(magic):
+            continue
+        if what == "bzip2" and not (head[3:4].isdigit() and head[4:10] in (b"1AY&SY", b"\x17rE8P\x90")):
+            continue  # a text file may start with 'BZh'; a bzip2 stream goes on with its block magic
+        if what == "zip" and (b"[Content_Types].xml" in head or b"xl/" in head):
+            return f"is an Excel workbook (.xlsx), not {kind}; {_SAVE_AS_CSV}"
+        if what == "zip" and b"opendocument.spreadsheet" in head[:128]:
+            return f"is an OpenDocument spreadsheet (.ods), not {kind}; {_SAVE_AS_CSV}"
+        return (
+            f"is {_packed(what)}; hconv reads uncompressed {kind}, so decompress it {fix(unpack, suffixes, '-plain')}"
+        )
+    if head.startswith(_OLE2):
+        return f"is an Excel 97-2003 workbook (.xls), not {kind}; {_SAVE_AS_CSV}"
+    if fmt != "csv":
+        return None
+    encoding = None
+    if head.startswith((b"\xff\xfe\x00\x00", b"\x00\x00\xfe\xff")):
+        encoding = "UTF-32"
+    elif head.startswith((b"\xff\xfe", b"\xfe\xff")):
+        encoding = "UTF-16"
+    elif len(head) >= 4:  # UTF-16 without a byte-order mark: in ASCII text every other byte is NUL
+        even, odd = head[0::2], head[1::2]
+        if odd.count(0) >= 0.9 * len(odd) and even.count(0) <= 0.1 * len(even):
+            encoding = "UTF-16LE"
+        elif even.count(0) >= 0.9 * len(even) and odd.count(0) <= 0.1 * len(odd):
+            encoding = "UTF-16BE"
+    if encoding:
+        return (
+            f"is {encoding} text; hconv reads UTF-8, so convert it {fix(f'iconv -f {encoding} -t UTF-8', (), '-utf8')}"
+        )
+    return None
+
+
+def _input_kind(path: str) -> str:
+    """``file``, or ``pipe`` for a FIFO or a character device (``<(zcat in.csv.gz)``, /dev/stdin),
+    which cannot seek and is spooled like stdin; InputError for a path that cannot be an input."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        raise InputError(_missing(path)) from None
+    except OSError as exc:
+        raise _oserror(path, exc) from None
+    if stat.S_ISDIR(mode):
+        raise InputError(_directory(path))
+    if stat.S_ISFIFO(mode) or stat.S_ISCHR(mode):
+        return "pipe"
+    if not stat.S_ISREG(mode):
+        raise InputError(f"{path}: is not a file (a socket?); give a CSV or Parquet file")
+    return "file"
+
+
+def _missing(path: str) -> str:
+    if os.path.islink(path):
+        return f"{path}: is a link to {os.readlink(path)!r}, which does not exist; check the link"
+    parent = os.path.dirname(path)
+    if parent and not os.path.isdir(parent):
+        return f"{path}: does not exist, nor does the directory {parent!r}; check the path"
+    try:
+        names = os.listdir(parent or ".")
+    except OSError:
+        names = []
+    near = difflib.get_close_matches(os.path.basename(path), names, n=1, cutoff=0.8)
+    guess = f" (did you mean {os.path.join(parent, near[0])}?)" if near else ""
+    return f"{path}: does not exist{guess}; check the path"
+
+
+def _directory(path: str) -> str:
+    """A directory given as the input, perhaps a partitioned dataset: hconv converts one file."""
+    known = {e for exts in EXTENSIONS.values() for e in exts}
+    try:
+        files = sorted(e.name for e in os.scandir(path) if e.is_file() and Path(e.name).suffix.lower() in known)
+    except OSError:
+        files = []
+    head = f"{path}: is a directory, and hconv converts one file per run"
+    readme = "see 'Whole files with hconv convert' in the README"
+    if not files:
+        return f"{head}; give a CSV or Parquet file ({readme})"
+    if len(files) == 1:
+        return f"{head}; give the file in it, {os.path.join(path, files[0])} ({readme})"
+    return (
+        f"{head}; give one of the {len(files)} CSV or Parquet files in it, such as "
+        f"{os.path.join(path, files[0])}, or convert each in a loop ({readme})"
+    )
 
 
 @dataclass
@@ -87,7 +229,7 @@ class Input:
 
 def open_input(path: str, fmt: str, job: Job) -> Input:
     """Open ``path`` ("-" for stdin) as ``fmt``, planned for ``job`` (:func:`hconv.tables.layout.plan`);
-    InputError with a fix if it can't be."""
+    InputError with a fix if it can't be. Stdin, or a pipe given by name, is spooled first."""
     closers = []
     name = path
     if path == "-":
@@ -98,6 +240,17 @@ def open_input(path: str, fmt: str, job: Job) -> Input:
                 "e.g. `cat in.csv | hconv convert - out.csv --from csv`"
             )
         spool = _spool(sys.stdin.buffer, name)
+        closers.append(lambda: os.unlink(spool))
+        path = spool
+    elif _input_kind(path) == "pipe":
+        try:
+            stream = open(path, "rb")  # noqa: SIM115 - closed by the with below, once spooled
+        except OSError as exc:
+            raise _oserror(name, exc) from None
+        with stream:
+            if stream.isatty():
+                raise UsageError(f"input {name} is a terminal; give a file, or pipe one in")
+            spool = _spool(stream, name)
         closers.append(lambda: os.unlink(spool))
         path = spool
     try:
@@ -245,6 +398,9 @@ def _sniff_csv(path: str, name: str) -> None:
         raise _oserror(name, exc) from None
     if not head:
         return  # the empty file has its own message
+    what = _what_it_is(head, path, name, "csv")
+    if what:
+        raise InputError(f"{name}: {what}")
     if b"\x00" in head or head.startswith(b"\x89PNG") or head.startswith(b"PAR1"):
         raise InputError(
             f"{name}: is not a text file, so not CSV"
@@ -394,9 +550,26 @@ def _csv_value_error(path: str, name: str, names: list, ropts: pacsv.ReadOptions
     )
 
 
+def _not_parquet(path: str, name: str, exc: Exception) -> InputError:
+    """Why a file pyarrow cannot open as Parquet is not Parquet, when its first bytes tell."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(1 << 12)
+    except OSError:
+        head = b""
+    what = _what_it_is(head, path, name, "parquet")
+    if what:
+        return InputError(f"{name}: {what}")
+    first = head.split(b"\n", 1)[0]
+    looks_csv = b"," in first and b"\x00" not in head and not head.startswith(b"PAR1")
+    hint = " (it looks like CSV text: name it .csv or pass --from csv)" if looks_csv else ""
+    return InputError(
+        f"{name}: not a readable Parquet file ({_first_line(exc)}){hint}; "
+        "check that it is Parquet and was completely written"
+    )
+
+
 def _open_parquet(path: str, name: str, job: Job) -> Input:
-    if os.path.isdir(path):
-        raise InputError(f"{name}: is a directory, not a Parquet file")
     try:
         if os.path.getsize(path) == 0:
             raise InputError(f"{name}: the file is empty (0 bytes); it is not a Parquet file")
@@ -404,16 +577,10 @@ def _open_parquet(path: str, name: str, job: Job) -> Input:
         # grow with the writer's row-group size (docs/measurements.md).
         pf = pq.ParquetFile(path, pre_buffer=False, buffer_size=1 << 20)
     except pa.ArrowException as exc:
-        raise InputError(
-            f"{name}: not a readable Parquet file ({_first_line(exc)}); "
-            "check that it is Parquet and was completely written"
-        ) from None
+        raise _not_parquet(path, name, exc) from None
     except OSError as exc:
         if exc.errno is None and os.path.isfile(path):  # pyarrow's own errors about the bytes
-            raise InputError(
-                f"{name}: not a readable Parquet file ({_first_line(exc)}); "
-                "check that it is Parquet and was completely written"
-            ) from None
+            raise _not_parquet(path, name, exc) from None
         raise _oserror(name, exc) from None
     schema = pf.schema_arrow
     plan = layout.plan(schema, job, name)
