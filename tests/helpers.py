@@ -4,6 +4,7 @@ apart from hconv's own code, table shorthands, and the real CLI."""
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 
@@ -117,6 +118,14 @@ def run_hconv(*args: str, input: bytes | None = None, cwd=None) -> subprocess.Co
     return subprocess.run(
         [sys.executable, "-m", "hconv", *args], input=input, capture_output=True, cwd=cwd, env=env, timeout=120
     )
+
+
+def terminal_signals() -> None:
+    """``preexec_fn`` for a child that must see Ctrl-C as from a terminal: SIGINT and SIGQUIT at
+    their defaults. A child inherits an ignored signal, and a test process may have both ignored
+    (a C system() call running in another thread), so the child would never see the SIGINT."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGQUIT, signal.SIG_DFL)
 
 
 def run_inprocess(*args: str, capsys) -> tuple[int, str, str]:

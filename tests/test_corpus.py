@@ -47,7 +47,7 @@ ERRORS = {  # file: (exit code, words the one-line message must hold)
     "corrupt_footer.parquet": (3, "not a readable Parquet file"),
     "csv_named_parquet.parquet": (3, "not a readable Parquet file"),
     "list_wrong_length.parquet": (3, "'I' holds 4 values per row"),
-    "list_ragged.parquet": (3, "'H' holds 2 values in one row but 3 in others"),
+    "list_ragged.parquet": (3, "'H' holds 2 values in row 2, but H needs 3 (Hx, Hy, Hz)"),
     "struct_column.parquet": (3, "column 'H' has type struct"),
     "list_of_lists.parquet": (3, "must be a list of numbers"),
     "string_column.parquet": (3, "column 'Hx' has type string"),

@@ -135,7 +135,7 @@ def test_plan_list_column_of_wrong_length_is_named():
     with pytest.raises(InputError, match="'I' holds 4 values"):
         hconv.convert_table(t)
     t = pa.table({"H": pa.array([[1.0, 2.0, 3.0], [1.0, 2.0]]), "I": pa.array([[1.0, 2.0, 3.0]] * 2)})
-    with pytest.raises(InputError, match="'H' holds 2 values in one row but 3"):
+    with pytest.raises(InputError, match="'H' holds 2 values in row 2, but H needs 3"):
         hconv.convert_table(t)
 
 

@@ -4,6 +4,7 @@ length one batch fixes for the whole file."""
 from __future__ import annotations
 
 import dataclasses
+import re
 
 import numpy as np
 import pyarrow as pa
@@ -58,13 +59,63 @@ def _two_row_groups(path, second_H):
 def test_parquet_list_length_is_fixed_by_the_first_batch(tmp_path, monkeypatch):
     monkeypatch.setattr("hconv.tables.tableio.PARQUET_BATCH_ROWS", 5)  # one batch per row group
     _two_row_groups(tmp_path / "bad.parquet", [1.0, 2.0])
-    with pytest.raises(InputError, match="list column 'H' holds 2 values in one row but 3 in others"):
+    with pytest.raises(InputError, match=r"list column 'H' holds 2 values in row 6, but H needs 3 \(Hx, Hy, Hz\)"):
         pipeline.convert_file(str(tmp_path / "bad.parquet"), str(tmp_path / "out.parquet"), threads=2)
     assert not (tmp_path / "out.parquet").exists()
     _two_row_groups(tmp_path / "good.parquet", [0.0, 1.0, 0.0])
     pipeline.convert_file(str(tmp_path / "good.parquet"), str(tmp_path / "out.parquet"), threads=2)
     w = np.column_stack([pq.read_table(tmp_path / "out.parquet").column(c).to_numpy() for c in ("wx", "wy", "wz")])
     np.testing.assert_array_equal(w, [[1.0, 1.0, 1.0]] * 5 + [[0.0, 0.5, 0.0]] * 5)
+
+
+SIZES = "3 (principal), 6 (Ixx,Iyy,Izz,Ixy,Ixz,Iyz) or 9 (row-major)"
+
+
+@pytest.mark.parametrize(
+    "H_rows, I_rows, message",
+    [
+        # one row: there are no "others"; H needs 3 by its definition
+        ([[1.0, 2.0]], [[2.0, 2.0, 2.0]], "'H' holds 2 values in row 1, but H needs 3 (Hx, Hy, Hz)"),
+        ([[1.0, 2.0, 3.0, 4.0]] * 3, [[2.0, 2.0, 2.0]] * 3, "'H' holds 4 values in row 1, but H needs 3"),
+        ([[]], [[2.0, 2.0, 2.0]], "'H' holds an empty list in row 1, but H needs 3"),
+        ([[1.0, 2.0, 3.0]] * 2 + [[1.0, 2.0]], [[2.0, 2.0, 2.0]] * 3, "'H' holds 2 values in row 3, but H needs 3"),
+        # I's size is what the rows hold, so a disagreement names both rows
+        (
+            [[1.0, 2.0, 3.0]] * 2,
+            [[1.0, 2.0, 3.0, 4.0], [1.0, 2.0, 3.0, 0.0, 0.0, 0.0]],
+            "'I' holds 6 values in row 2, but 4 in row 1",
+        ),
+        ([[1.0, 2.0, 3.0]] * 3, [None, [2.0, 2.0, 2.0], []], "'I' holds an empty list in row 3, but 3 in row 2"),
+        ([[1.0, 2.0, 3.0]], [[]], f"'I' holds empty lists; an inertia list holds {SIZES}"),
+    ],
+)
+def test_read_list_column_of_the_wrong_length_names_the_row_and_what_is_needed(H_rows, I_rows, message):
+    t = pa.table({"H": pa.array(H_rows, pa.list_(pa.float64())), "I": pa.array(I_rows, pa.list_(pa.float64()))})
+    with pytest.raises(InputError) as err:
+        layout.plan(t.schema, Job(), "in.parquet").read(t)
+    assert str(err.value).startswith(f"in.parquet: list column {message}"), str(err.value)
+    assert "in others" not in str(err.value)
+
+
+def test_read_list_column_null_row_is_invalid_input_not_an_error():
+    import hconv
+
+    t = _list_table([[1.0, 2.0, 3.0], None], [[1.0, 2.0, 3.0]] * 2)
+    assert hconv.convert_table(t).column("status").to_pylist() == ["ok", "invalid_input"]
+
+
+def test_parquet_inertia_list_length_change_in_a_later_batch_names_its_row(tmp_path, monkeypatch):
+    monkeypatch.setattr("hconv.tables.tableio.PARQUET_BATCH_ROWS", 5)
+    writer = pq.ParquetWriter(tmp_path / "in.parquet", _list_table([[1.0, 2.0, 3.0]], [[1.0, 2.0, 3.0]]).schema)
+    writer.write_table(_list_table([[1.0, 2.0, 3.0]] * 5, [[1.0, 2.0, 3.0, 0.0, 0.0, 0.0]] * 5))
+    writer.write_table(_list_table([[1.0, 2.0, 3.0]] * 5, [[1.0, 2.0, 3.0]] * 5))
+    writer.close()
+    with pytest.raises(
+        InputError,
+        match="'I' holds 3 values in row 6, but 6 in the rows before it; every row must hold the same number, "
+        + re.escape(SIZES),
+    ):
+        pipeline.convert_file(str(tmp_path / "in.parquet"), str(tmp_path / "out.parquet"), threads=2)
 
 
 @pytest.mark.parametrize("name", ["w_unit", "wx", "status", "null_dim"])

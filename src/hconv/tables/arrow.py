@@ -102,13 +102,14 @@ def convert_table(
 
 
 def convert_batch(
-    data: pa.Table, job: Job, plan: layout.Layout | None = None, source: str = "table"
+    data: pa.Table, job: Job, plan: layout.Layout | None = None, source: str = "table", first_row: int = 0
 ) -> tuple[pa.Table, str]:
     """:func:`convert_table` on a checked Table and Job, and the engine that converted it
-    (``numpy``, ``numba`` or ``python``), which the file pipeline reports."""
+    (``numpy``, ``numba`` or ``python``), which the file pipeline reports. ``first_row``: where
+    ``data`` starts in its file, so that an error names the file's row."""
     if plan is None:
         plan = layout.plan(data.schema, job, source)
-    sets, form = plan.read(data)
+    sets, form = plan.read(data, first_row)
     res = bodies.solve(sets, form, job.method, job.precision, job.conventions, job.diagnostics, job.engine)
     w = res.w
     scale = job.omega_scale

@@ -67,28 +67,32 @@ class Layout:
         """The input columns hconv reads as numbers."""
         return tuple(c for g in self.groups.values() for c in g.columns)
 
-    def resolve(self, data: pa.Table) -> Layout:
+    def resolve(self, data: pa.Table, first_row: int = 0) -> Layout:
         """This layout with the length of every variable-length list column fixed from ``data``
-        (rows that are null say nothing), so that every later batch is held to it."""
+        (rows that are null say nothing), so that every later batch is held to it.
+        ``first_row``: where ``data`` starts in its file, to name a bad row."""
         groups = dict(self.groups)
         form = self.form
         for name, g in self.groups.items():
             if g.is_list and g.size is None and data.num_rows:
-                k = _list_size(data.column(g.columns[0]).combine_chunks(), g, self.source)
+                k = _list_size(data.column(g.columns[0]).combine_chunks(), g, self.source, first_row)
                 if k is not None:
                     groups[name] = replace(g, size=k)
                     if name == "I":
                         form = _list_form(k, g, self.source).name
         return replace(self, groups=groups, form=form)
 
-    def read(self, data: pa.Table) -> tuple[dict, str]:
+    def read(self, data: pa.Table, first_row: int = 0) -> tuple[dict, str]:
         """The sets of ``data`` as float64 arrays of shape ``(k, N)`` in SI units (NaN for nulls),
         and the inertia form's name.
 
         The inertia comes back in its form's value order (:mod:`hconv.solve.forms`); q always
-        in (w, x, y, z) order. Raises InputError for list columns of the wrong length.
+        in (w, x, y, z) order. Raises InputError for list columns of the wrong length, naming
+        the row: ``first_row`` is where ``data`` starts in its file (0 for the first row).
         """
-        layout = self.resolve(data) if any(g.is_list and g.size is None for g in self.groups.values()) else self
+        layout = (
+            self.resolve(data, first_row) if any(g.is_list and g.size is None for g in self.groups.values()) else self
+        )
         # A list column still without a length is null in every row seen: its rows are
         # invalid_input whatever the length, so read them at the set's usual length.
         form = forms.get(layout.form) if layout.form else next(f for f in forms.FORMS.values() if f.list_size)
@@ -98,7 +102,8 @@ class Layout:
             if g.is_list:
                 if g.size is None:
                     g = replace(g, size=form.list_size if g.name == "I" else len(VECTOR_SETS[g.name]))
-                a = _list_values(data.column(g.columns[0]).combine_chunks() if n else None, g, n, self.source)
+                col = data.column(g.columns[0]).combine_chunks() if n else None
+                a = _list_values(col, g, n, self.source, first_row)
             else:
                 a = np.empty((len(g.columns), n))
                 for k, c in enumerate(g.columns):
@@ -113,43 +118,58 @@ class Layout:
         return out, form.name
 
 
-def _list_size(col: pa.Array, g: Group, source: str) -> int | None:
-    """Values per row of list column ``col`` (all rows must agree; null rows are skipped), or
-    None when every row is null."""
+def _list_size(col: pa.Array, g: Group, source: str, first_row: int = 0) -> int | None:
+    """Values per row of list column ``col`` (all rows must agree with each other and with the
+    group's size, when set; null rows are skipped), or None when every row is null.
+    ``first_row``: where ``col`` starts in its file, to name a bad row."""
     if pa.types.is_fixed_size_list(col.type):
         return col.type.list_size
     lengths = pc.fill_null(pc.list_value_length(col), -1).to_numpy(zero_copy_only=False)
-    given = lengths[lengths >= 0]
+    given = np.flatnonzero(lengths >= 0)
     if not given.size:
         return None
-    k = g.size if g.size is not None else int(given[0])
-    bad = np.flatnonzero(given != k)
+    k = g.size if g.size is not None else int(lengths[given[0]])
+    bad = given[lengths[given] != k]
     if bad.size:
+        row, got = first_row + int(bad[0]) + 1, _values(int(lengths[bad[0]]))
+        column = f"{source}: list column {g.columns[0]!r}"
+        if g.name != "I":  # the set's own size, whatever the other rows hold
+            cols = VECTOR_SETS[g.name]
+            raise InputError(
+                f"{column} holds {got} in row {row}, but {g.name} needs {len(cols)} ({', '.join(cols)}); "
+                f"every row's list must hold {len(cols)} (a null list makes its row invalid_input)"
+            )
+        # The inertia's size is whatever the first row with a list holds, if it is one of the forms'.
+        where = "in the rows before it" if g.size is not None else f"in row {first_row + int(given[0]) + 1}"
         raise InputError(
-            f"{source}: list column {g.columns[0]!r} holds {given[bad[0]]} values in "
-            f"one row but {k} in others; every row must hold the same number"
+            f"{column} holds {got} in row {row}, but {k} {where}; every row must hold the same number, "
+            f"{forms.list_sizes_text()}"
         )
     return k
+
+
+def _values(k: int) -> str:
+    return "an empty list" if k == 0 else f"{k} value{'s' if k != 1 else ''}"
 
 
 def _list_form(k: int, g: Group, source: str) -> forms.Form:
     form = forms.by_list_size(k)
     if form is None:
         raise InputError(
-            f"{source}: list column {g.columns[0]!r} holds {k} values per row; "
+            f"{source}: list column {g.columns[0]!r} holds {f'{k} values per row' if k else 'empty lists'}; "
             f"an inertia list holds {forms.list_sizes_text()}"
         )
     return form
 
 
-def _list_values(col: pa.Array | None, g: Group, n: int, source: str) -> np.ndarray:
+def _list_values(col: pa.Array | None, g: Group, n: int, source: str, first_row: int = 0) -> np.ndarray:
     """The list column's values ``(k, n)``, NaN for null rows; held to the group's size (set)."""
     size = g.size
     if size is None:
         raise ValueError(f"the size of list column {g.columns[0]!r} must be set before reading it")
     if col is None:
         return np.empty((size, 0))
-    k = _list_size(col, g, source)
+    k = _list_size(col, g, source, first_row)
     if k is None:
         return np.full((size, n), np.nan)
     if k != size:

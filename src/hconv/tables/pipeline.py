@@ -236,14 +236,15 @@ def _convert(
         types = {} if first is None else csvtypes.infer(first, inp.text)
         batches = itertools.chain([first] if first is not None else [], batches)
 
-    def one(batch: pa.RecordBatch) -> tuple[pa.Table, str]:
+    def one(numbered: tuple[int, pa.RecordBatch]) -> tuple[pa.Table, str]:
+        first, batch = numbered
         table = pa.Table.from_batches([batch])
         if types:
             table = csvtypes.apply(table, types)
-        return convert_batch(table, job, inp.plan, inp.name)
+        return convert_batch(table, job, inp.plan, inp.name, first)
 
     with out, BackgroundWriter(out) as writer:
-        for table, engine in ordered_map(one, batches, threads):
+        for table, engine in ordered_map(one, _numbered(batches), threads):
             if strict:
                 _check_strict(table, tally.rows, inp.name)
             writer.write(table)
@@ -253,6 +254,14 @@ def _convert(
         if tally.rows == 0:  # a header and no rows is a valid empty table
             writer.write(convert_batch(inp.schema.empty_table(), job, inp.plan, inp.name)[0])
     return tally
+
+
+def _numbered(batches: Iterable[pa.RecordBatch]) -> Iterator[tuple[int, pa.RecordBatch]]:
+    """Each batch with the index of its first row in the file, counted on the reading thread."""
+    first = 0
+    for batch in batches:
+        yield first, batch
+        first += batch.num_rows
 
 
 STRICT_ROWS_NAMED = 5

@@ -3,7 +3,9 @@
 Reading never holds more than a batch in memory (stdin is first spooled to a temporary file,
 since Parquet needs to seek). Writing goes to a temporary file next to the output and is renamed
 into place only when the whole run succeeded, so a failed or interrupted run leaves no partial
-output. With "-" as output the finished file is then copied to stdout.
+output. With "-" as output the finished file is then copied to stdout. A run killed outright
+leaves its temporary file, but the name says which process made it, and the next run that writes
+into that directory removes it once that process has ended (:func:`remove_stale_temporaries`).
 
 From CSV, the columns hconv does not use are read as text (:attr:`Input.text`), so that CSV
 output gives them back exactly as they went in; into Parquet, the pipeline gives them types
@@ -14,16 +16,22 @@ output gives them back exactly as they went in; into Parquet, the pipeline gives
 from __future__ import annotations
 
 import csv
+import difflib
 import io
 import itertools
 import os
 import re
+import shlex
 import shutil
+import socket
+import stat
 import sys
 import tempfile
+import zlib
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import BinaryIO
 
 import pyarrow as pa
 import pyarrow.csv as pacsv
@@ -41,7 +49,8 @@ UNIT_COLUMN = layout.UNIT_COLUMN
 
 
 def format_of(path: str, given: str | None, flag: str) -> str:
-    """``given`` if set, else the format named by ``path``'s extension; UsageError otherwise."""
+    """``given`` if set, else the format named by ``path``'s extension; UsageError otherwise.
+    ``flag`` is ``--from`` for an input, ``--to`` for an output."""
     if given:
         if given not in FORMATS:
             raise UsageError(f"{flag} must be {' or '.join(FORMATS)}, got {given!r}")
@@ -51,11 +60,149 @@ def format_of(path: str, given: str | None, flag: str) -> str:
     suffix = Path(path).suffix.lower()
     fmt = next((f for f, exts in EXTENSIONS.items() if suffix in exts), None)
     if fmt is None:
+        if flag == "--from":
+            _input_kind(path)  # a path that is missing or a directory: say so, not that its name has no format
+        _refuse_compressed_name(path, suffix, flag)
         raise UsageError(
             f"cannot tell the format of {path!r} from its extension; "
             f"name it .csv or .parquet, or pass {flag} csv|parquet"
         )
     return fmt
+
+
+#: Compressions people often hand hconv: name, leading bytes, file suffixes, the command that
+#: writes the plain bytes to stdout, and the one that compresses a file ({plain}, {packed}).
+_COMPRESSIONS = (
+    ("gzip", b"\x1f\x8b", (".gz", ".gzip"), "gzip -dc", "gzip {plain}"),
+    ("bzip2", b"BZh", (".bz2",), "bzip2 -dc", "bzip2 {plain}"),
+    ("xz", b"\xfd7zXZ\x00", (".xz",), "xz -dc", "xz {plain}"),
+    ("zstd", b"\x28\xb5\x2f\xfd", (".zst", ".zstd"), "zstd -dc", "zstd {plain}"),
+    ("zip", b"PK\x03\x04", (".zip",), "unzip -p", "zip {packed} {plain}"),
+)
+_OLE2 = b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1"  # Excel 97-2003 (.xls)
+_SAVE_AS_CSV = "open it in the spreadsheet and save the sheet as 'CSV UTF-8 (comma delimited)'"
+
+
+def _refuse_compressed_name(path: str, suffix: str, flag: str) -> None:
+    """``in.csv.gz`` and ``out.csv.gz``: hconv reads and writes plain files only (the message for
+    reading names the command that decompresses it)."""
+    packed = next((c for c in _COMPRESSIONS if suffix in c[2]), None)
+    plain = path[: -len(suffix)] if suffix else path
+    if packed is None or not any(Path(plain).suffix.lower() in exts for exts in EXTENSIONS.values()):
+        return
+    what, _, _, unpack, pack = packed
+    if flag == "--from":
+        raise InputError(
+            f"{path}: is {_packed(what)}; hconv reads uncompressed files, so decompress it first: "
+            f"{unpack} {shlex.quote(path)} > {shlex.quote(plain)}"
+        )
+    raise OutputError(
+        f"{path}: hconv writes uncompressed files; write {plain} and compress it afterwards: "
+        + pack.format(plain=shlex.quote(plain), packed=shlex.quote(path))
+    )
+
+
+def _packed(what: str) -> str:
+    return "a zip archive" if what == "zip" else f"{what}-compressed"
+
+
+def _what_it_is(head: bytes, path: str, name: str, fmt: str) -> str | None:
+    """What a file that is not plain ``fmt`` is instead, from its first bytes, and how to make it
+    readable: a compressed file, a spreadsheet or UTF-16 text. None if it is none of these."""
+    piped = path != name  # stdin, or a pipe given by name: the fix goes into the pipe
+    kind = "CSV" if fmt == "csv" else "Parquet"
+
+    def fix(command: str, suffixes: tuple, tag: str) -> str:
+        if piped:
+            return f"in the pipe, before hconv: ... | {command} | hconv ..."
+        base, ext = os.path.splitext(name)
+        plain = base if ext.lower() in suffixes else f"{base}{tag}{ext}"
+        return f"first: {command} {shlex.quote(name)} > {shlex.quote(plain)}"
+
+    for what, magic, suffixes, unpack, _ in _COMPRESSIONS:
+        if not head.startswith(magic):
+            continue
+        if what == "bzip2" and not (head[3:4].isdigit() and head[4:10] in (b"1AY&SY", b"\x17rE8P\x90")):
+            continue  # a text file may start with 'BZh'; a bzip2 stream goes on with its block magic
+        if what == "zip" and (b"[Content_Types].xml" in head or b"xl/" in head):
+            return f"is an Excel workbook (.xlsx), not {kind}; {_SAVE_AS_CSV}"
+        if what == "zip" and b"opendocument.spreadsheet" in head[:128]:
+            return f"is an OpenDocument spreadsheet (.ods), not {kind}; {_SAVE_AS_CSV}"
+        return (
+            f"is {_packed(what)}; hconv reads uncompressed {kind}, so decompress it {fix(unpack, suffixes, '-plain')}"
+        )
+    if head.startswith(_OLE2):
+        return f"is an Excel 97-2003 workbook (.xls), not {kind}; {_SAVE_AS_CSV}"
+    if fmt != "csv":
+        return None
+    encoding = None
+    if head.startswith((b"\xff\xfe\x00\x00", b"\x00\x00\xfe\xff")):
+        encoding = "UTF-32"
+    elif head.startswith((b"\xff\xfe", b"\xfe\xff")):
+        encoding = "UTF-16"
+    elif len(head) >= 4:  # UTF-16 without a byte-order mark: in ASCII text every other byte is NUL
+        even, odd = head[0::2], head[1::2]
+        if odd.count(0) >= 0.9 * len(odd) and even.count(0) <= 0.1 * len(even):
+            encoding = "UTF-16LE"
+        elif even.count(0) >= 0.9 * len(even) and odd.count(0) <= 0.1 * len(odd):
+            encoding = "UTF-16BE"
+    if encoding:
+        return (
+            f"is {encoding} text; hconv reads UTF-8, so convert it {fix(f'iconv -f {encoding} -t UTF-8', (), '-utf8')}"
+        )
+    return None
+
+
+def _input_kind(path: str) -> str:
+    """``file``, or ``pipe`` for a FIFO or a character device (``<(zcat in.csv.gz)``, /dev/stdin),
+    which cannot seek and is spooled like stdin; InputError for a path that cannot be an input."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        raise InputError(_missing(path)) from None
+    except OSError as exc:
+        raise _oserror(path, exc) from None
+    if stat.S_ISDIR(mode):
+        raise InputError(_directory(path))
+    if stat.S_ISFIFO(mode) or stat.S_ISCHR(mode):
+        return "pipe"
+    if not stat.S_ISREG(mode):
+        raise InputError(f"{path}: is not a file (a socket?); give a CSV or Parquet file")
+    return "file"
+
+
+def _missing(path: str) -> str:
+    if os.path.islink(path):
+        return f"{path}: is a link to {os.readlink(path)!r}, which does not exist; check the link"
+    parent = os.path.dirname(path)
+    if parent and not os.path.isdir(parent):
+        return f"{path}: does not exist, nor does the directory {parent!r}; check the path"
+    try:
+        names = os.listdir(parent or ".")
+    except OSError:
+        names = []
+    near = difflib.get_close_matches(os.path.basename(path), names, n=1, cutoff=0.8)
+    guess = f" (did you mean {os.path.join(parent, near[0])}?)" if near else ""
+    return f"{path}: does not exist{guess}; check the path"
+
+
+def _directory(path: str) -> str:
+    """A directory given as the input, perhaps a partitioned dataset: hconv converts one file."""
+    known = {e for exts in EXTENSIONS.values() for e in exts}
+    try:
+        files = sorted(e.name for e in os.scandir(path) if e.is_file() and Path(e.name).suffix.lower() in known)
+    except OSError:
+        files = []
+    head = f"{path}: is a directory, and hconv converts one file per run"
+    readme = "see 'Whole files with hconv convert' in the README"
+    if not files:
+        return f"{head}; give a CSV or Parquet file ({readme})"
+    if len(files) == 1:
+        return f"{head}; give the file in it, {os.path.join(path, files[0])} ({readme})"
+    return (
+        f"{head}; give one of the {len(files)} CSV or Parquet files in it, such as "
+        f"{os.path.join(path, files[0])}, or convert each in a loop ({readme})"
+    )
 
 
 @dataclass
@@ -87,7 +234,7 @@ class Input:
 
 def open_input(path: str, fmt: str, job: Job) -> Input:
     """Open ``path`` ("-" for stdin) as ``fmt``, planned for ``job`` (:func:`hconv.tables.layout.plan`);
-    InputError with a fix if it can't be."""
+    InputError with a fix if it can't be. Stdin, or a pipe given by name, is spooled first."""
     closers = []
     name = path
     if path == "-":
@@ -97,12 +244,20 @@ def open_input(path: str, fmt: str, job: Job) -> Input:
                 "input is '-' but stdin is a terminal; pipe a file in, "
                 "e.g. `cat in.csv | hconv convert - out.csv --from csv`"
             )
-        # closed by the with below; removed by the closer, even when reading fails
-        spool = tempfile.NamedTemporaryFile(prefix="hconv-stdin-", delete=False)  # noqa: SIM115
-        closers.append(lambda: os.unlink(spool.name))
-        with spool:
-            shutil.copyfileobj(sys.stdin.buffer, spool, 1 << 20)
-        path = spool.name
+        spool = _spool(sys.stdin.buffer, name)
+        closers.append(lambda: os.unlink(spool))
+        path = spool
+    elif _input_kind(path) == "pipe":
+        try:
+            stream = open(path, "rb")  # noqa: SIM115 - closed by the with below, once spooled
+        except OSError as exc:
+            raise _oserror(name, exc) from None
+        with stream:
+            if stream.isatty():
+                raise UsageError(f"input {name} is a terminal; give a file, or pipe one in")
+            spool = _spool(stream, name)
+        closers.append(lambda: os.unlink(spool))
+        path = spool
     try:
         inp = _open_csv(path, name, job) if fmt == "csv" else _open_parquet(path, name, job)
     except BaseException:
@@ -111,6 +266,124 @@ def open_input(path: str, fmt: str, job: Job) -> Input:
         raise
     inp._closers[:0] = closers
     return inp
+
+
+#: Every temporary file hconv makes ends so; its name also carries the process that made it.
+TEMP_SUFFIX = ".hconv-tmp"
+# .OUT.<token>-XXXXXXXX.hconv-tmp beside the output; hconv-stdin-/hconv-stdout-<token>-XXXXXXXX.hconv-tmp
+# in the temporary directory. <token> is pid-start-tag (_maker).
+_TEMP_NAME = re.compile(r"^(?:\..+\.|hconv-std(?:in|out)-)(\d+)-(\d+)-([0-9a-f]{8})-[a-z0-9_]+\.hconv-tmp$")
+
+
+def _proc_start(pid: int) -> int | None:
+    """When process ``pid`` started, in clock ticks since boot (Linux's /proc), or None."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            stat = f.read()
+        return int(stat[stat.rindex(b")") + 2 :].split()[19])  # field 22; the name before ')' may hold spaces
+    except (OSError, ValueError, IndexError):
+        return None
+
+
+def _machine_tag() -> str:
+    """This host and pid namespace, in 8 hex digits: a pid names a process only within both, so a
+    file made on another machine sharing the directory, or in another container, is never judged."""
+    try:
+        namespace = os.readlink("/proc/self/ns/pid")
+    except OSError:
+        namespace = ""
+    return f"{zlib.crc32((socket.gethostname() + '/' + namespace).encode()):08x}"
+
+
+def _maker() -> str:
+    """``pid-start-tag`` for this process's temporary files. The start time tells this process
+    from a later one that reuses its pid; it is 0 where there is no /proc, and then only the
+    pid is checked."""
+    pid = os.getpid()
+    return f"{pid}-{_proc_start(pid) or 0}-{_machine_tag()}"
+
+
+def _maker_gone(pid: int, start: int, tag: str) -> bool:
+    """Whether the process that made a temporary file has surely ended; False when unsure."""
+    if tag != _machine_tag():
+        return False
+    now = _proc_start(pid)
+    if now is not None:
+        return start != 0 and now != start  # another process holds the pid now
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except (OSError, OverflowError):  # PermissionError: it runs, as another user
+        return False
+    return False  # it runs, but /proc hides it (mounted with hidepid)
+
+
+def remove_stale_temporaries(directory: str) -> list[str]:
+    """Remove the temporary files in ``directory`` that hconv runs killed before they could clean
+    up (SIGKILL, the OOM killer, a power cut), saying so on stderr; returns their paths.
+
+    Those of any output, not only the one being written: a killed run's file is litter whichever
+    output it was for, and no later run may ever write that output again. A file whose maker
+    still runs, or may run (another host, no way to tell), is left alone.
+    """
+    removed: list[str] = []
+    try:
+        entries = [e for e in os.scandir(directory) if e.name.endswith(TEMP_SUFFIX)]
+    except OSError:
+        return removed  # making the new temporary file will say what is wrong with the directory
+    for entry in entries:
+        m = _TEMP_NAME.match(entry.name)
+        if not m or not _maker_gone(int(m.group(1)), int(m.group(2)), m.group(3)):
+            continue
+        path = str(Path(directory) / entry.name)
+        try:
+            if not entry.is_file(follow_symlinks=False):
+                continue
+            os.unlink(entry.path)
+        except OSError:
+            continue  # another run removed it first, or it is not ours to remove
+        pid = m.group(1)
+        print(f"hconv: removed stale temporary file {path} left by a run that was killed (pid {pid})", file=sys.stderr)
+        removed.append(path)
+    return removed
+
+
+def _mkstemp(prefix: str, directory: str | None = None) -> tuple[int, str]:
+    """A new temporary file named for this process, after removing those killed runs left."""
+    directory = directory or tempfile.gettempdir()
+    remove_stale_temporaries(directory)
+    return tempfile.mkstemp(prefix=f"{prefix}{_maker()}-", suffix=TEMP_SUFFIX, dir=directory)
+
+
+def _spool(stream: BinaryIO, name: str) -> str:
+    """Copy ``stream`` into a temporary file and return its path; the caller removes it.
+
+    Reading stdin can take as long as whatever feeds it, so this is where Ctrl-C and SIGTERM
+    (raised as KeyboardInterrupt) usually land: any way out but success removes the file.
+    """
+    fd, spool = _mkstemp("hconv-stdin-")
+    try:
+        try:
+            with os.fdopen(fd, "wb") as f:
+                while chunk := _read_chunk(stream, name):
+                    f.write(chunk)
+        except OSError as exc:  # reading fails as InputError, so this is the temporary directory
+            raise OutputError(
+                f"{name}: could not be copied to a temporary file in {os.path.dirname(spool)!r} "
+                f"({exc.strerror or exc}); set TMPDIR to a directory with room, or give a file instead of '-'"
+            ) from None
+    except BaseException:
+        os.unlink(spool)
+        raise
+    return spool
+
+
+def _read_chunk(stream: BinaryIO, name: str) -> bytes:
+    try:
+        return stream.read(1 << 20)
+    except OSError as exc:
+        raise InputError(f"{name}: cannot read it ({exc.strerror or exc})") from None
 
 
 def _oserror(name: str, exc: OSError) -> InputError:
@@ -130,6 +403,9 @@ def _sniff_csv(path: str, name: str) -> None:
         raise _oserror(name, exc) from None
     if not head:
         return  # the empty file has its own message
+    what = _what_it_is(head, path, name, "csv")
+    if what:
+        raise InputError(f"{name}: {what}")
     if b"\x00" in head or head.startswith(b"\x89PNG") or head.startswith(b"PAR1"):
         raise InputError(
             f"{name}: is not a text file, so not CSV"
@@ -300,9 +576,26 @@ def _csv_value_error(path: str, name: str, names: list, ropts: pacsv.ReadOptions
     )
 
 
+def _not_parquet(path: str, name: str, exc: Exception) -> InputError:
+    """Why a file pyarrow cannot open as Parquet is not Parquet, when its first bytes tell."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(1 << 12)
+    except OSError:
+        head = b""
+    what = _what_it_is(head, path, name, "parquet")
+    if what:
+        return InputError(f"{name}: {what}")
+    first = head.split(b"\n", 1)[0]
+    looks_csv = b"," in first and b"\x00" not in head and not head.startswith(b"PAR1")
+    hint = " (it looks like CSV text: name it .csv or pass --from csv)" if looks_csv else ""
+    return InputError(
+        f"{name}: not a readable Parquet file ({_first_line(exc)}){hint}; "
+        "check that it is Parquet and was completely written"
+    )
+
+
 def _open_parquet(path: str, name: str, job: Job) -> Input:
-    if os.path.isdir(path):
-        raise InputError(f"{name}: is a directory, not a Parquet file")
     try:
         if os.path.getsize(path) == 0:
             raise InputError(f"{name}: the file is empty (0 bytes); it is not a Parquet file")
@@ -310,16 +603,10 @@ def _open_parquet(path: str, name: str, job: Job) -> Input:
         # grow with the writer's row-group size (docs/measurements.md).
         pf = pq.ParquetFile(path, pre_buffer=False, buffer_size=1 << 20)
     except pa.ArrowException as exc:
-        raise InputError(
-            f"{name}: not a readable Parquet file ({_first_line(exc)}); "
-            "check that it is Parquet and was completely written"
-        ) from None
+        raise _not_parquet(path, name, exc) from None
     except OSError as exc:
         if exc.errno is None and os.path.isfile(path):  # pyarrow's own errors about the bytes
-            raise InputError(
-                f"{name}: not a readable Parquet file ({_first_line(exc)}); "
-                "check that it is Parquet and was completely written"
-            ) from None
+            raise _not_parquet(path, name, exc) from None
         raise _oserror(name, exc) from None
     schema = pf.schema_arrow
     plan = layout.plan(schema, job, name)
@@ -371,11 +658,13 @@ class Output:
 
     def __enter__(self) -> Output:
         if self.path == "-":
-            fd, self._tmp = tempfile.mkstemp(prefix="hconv-stdout-")
+            fd, self._tmp = _mkstemp("hconv-stdout-")
         else:
             target = Path(self.path)
+            # cut a long name so that the pid and the rest still fit in the 255 bytes a name may have
+            name = os.fsdecode(os.fsencode(target.name)[:160])
             try:
-                fd, self._tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".hconv-tmp", dir=target.parent)
+                fd, self._tmp = _mkstemp(f".{name}.", str(target.parent))
             except OSError as exc:
                 raise OutputError(
                     f"{self.path}: cannot write in {str(target.parent)!r} ({exc.strerror}); check its permissions"

@@ -151,9 +151,11 @@ def compare_file(
             stack.enter_context(out)
             writer = stack.enter_context(BackgroundWriter(out))
         comp = None
+        first = 0
         for batch in inp.batches:
             table = pa.Table.from_batches([batch])
-            sets, form = inp.plan.read(table)
+            sets, form = inp.plan.read(table, first)
+            first += batch.num_rows
             if comp is None:
                 comp = Comparer(set(sets), job.conventions)
             cols = comp.add(sets, form)

@@ -249,8 +249,10 @@ def diagnose_file(
     with open_input(src, fin, job) as inp:
         plan = inp.plan
         d = None
+        first = 0
         for batch in inp.batches:
-            sets, form = plan.read(pa.Table.from_batches([batch]))
+            sets, form = plan.read(pa.Table.from_batches([batch]), first)
+            first += batch.num_rows
             if d is None:
                 d = Diagnoser(set(sets), tol)
             d.add(sets, form)

@@ -1,0 +1,405 @@
+"""Tables in and out: the temporary files hconv makes (stdin's spool, the output's atomic
+temporary) and what it says about an input it cannot read."""
+
+from __future__ import annotations
+
+import io
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from helpers import run_hconv, run_inprocess, terminal_signals
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENE_CSV = ROOT / "examples" / "data" / "scene.csv"
+
+
+def _hconv(*args: str, tmpdir: Path, **kw) -> subprocess.Popen:
+    """The real command, with its own temporary directory so that what it leaves there is seen."""
+    env = dict(os.environ, TMPDIR=str(tmpdir), COLUMNS="200")
+    return subprocess.Popen(
+        [sys.executable, "-m", "hconv", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        env=env,
+        preexec_fn=terminal_signals,
+        **kw,
+    )
+
+
+def _wait_for(found, what: str, proc: subprocess.Popen, seconds: float = 60) -> None:
+    deadline = time.time() + seconds
+    while time.time() < deadline and not found():
+        assert proc.poll() is None, f"hconv ended before {what}: {proc.stderr.read().decode() if proc.stderr else ''}"
+        time.sleep(0.02)
+    assert found(), f"no {what} after {seconds} s"
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_open_input_interrupted_while_spooling_stdin_leaves_no_spool(sig, tmp_path):
+    """`(cat scene.csv; sleep 5) | hconv convert - out.csv --from csv`, then Ctrl-C or SIGTERM:
+    the spool of stdin is removed, as after a finished run."""
+    spools = tmp_path / "tmp"
+    spools.mkdir()
+    out = tmp_path / "out.csv"
+    proc = _hconv("convert", "-", str(out), "--from", "csv", "-q", tmpdir=spools, stdin=subprocess.PIPE)
+    assert proc.stdin is not None and proc.stderr is not None
+    proc.stdin.write(SCENE_CSV.read_bytes())
+    proc.stdin.flush()  # and the pipe stays open: hconv is still reading it
+    _wait_for(lambda: any(spools.iterdir()), "spool of stdin", proc)
+    time.sleep(0.2)
+    proc.send_signal(sig)
+    code = proc.wait(timeout=60)
+    err = proc.stderr.read().decode()
+    proc.stdin.close()
+    assert code == 130, err
+    assert err.startswith("hconv: error: interrupted") and len(err.strip().splitlines()) == 1, err
+    assert list(spools.iterdir()) == [] and not out.exists()
+
+
+class _FailingStream:
+    def __init__(self, data: bytes = b"", error: OSError | None = None):
+        self.data, self.error = data, error
+
+    def read(self, n: int) -> bytes:
+        if self.error:
+            raise self.error
+        chunk, self.data = self.data[:n], self.data[n:]
+        return chunk
+
+
+def test_spool_read_error_or_full_temporary_directory_is_one_line_and_no_spool(tmp_path, monkeypatch):
+    import errno
+    import tempfile
+
+    from hconv.errors import InputError, OutputError
+    from hconv.tables import tableio
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    with pytest.raises(InputError, match=r"^stdin: cannot read it \(Input/output error\)$"):
+        tableio._spool(_FailingStream(error=OSError(errno.EIO, "Input/output error")), "stdin")
+    assert list(tmp_path.iterdir()) == []
+
+    real = os.fdopen
+
+    class Full:
+        def __init__(self, f):
+            self.f = f
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.f.close()
+
+        def write(self, chunk):
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(os, "fdopen", lambda fd, mode: Full(real(fd, mode)))
+    with pytest.raises(OutputError, match="No space left on device.*set TMPDIR to a directory with room"):
+        tableio._spool(_FailingStream(b"Hx,Hy,Hz,I\n1,2,3,4\n"), "stdin")
+    assert list(tmp_path.iterdir()) == []
+
+
+def _scene_parquet(path: Path, copies: int) -> None:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    scene = pq.read_table(ROOT / "examples" / "data" / "scene.parquet")
+    pq.write_table(pa.concat_tables([scene] * copies), path)
+
+
+@pytest.mark.parametrize("left", ["output", "stdin", "stdout"])
+def test_output_removes_the_temporary_file_of_a_killed_run_and_says_so(left, tmp_path):
+    """`kill -9` leaves a temporary file behind: beside OUT while converting, or stdin's or
+    stdout's spool in the temporary directory. The next run that writes there removes it."""
+    spools = tmp_path / "tmp"
+    spools.mkdir()
+    out = tmp_path / "out.parquet"
+    if left == "output":  # a conversion slow enough to be caught at work: the interpreted engine
+        _scene_parquet(tmp_path / "big.parquet", 500)
+        args = ["convert", str(tmp_path / "big.parquet"), str(out), "--engine", "python", "--threads", "1"]
+        proc = _hconv(*args, tmpdir=spools)
+        where = tmp_path
+    elif left == "stdin":  # still reading a pipe that stays open
+        proc = _hconv("convert", "-", str(out), "--from", "csv", tmpdir=spools, stdin=subprocess.PIPE)
+        proc.stdin.write(SCENE_CSV.read_bytes())  # type: ignore[union-attr]
+        proc.stdin.flush()  # type: ignore[union-attr]
+        where = spools
+    else:  # done, and writing to a stdout that nobody reads
+        proc = _hconv("convert", str(SCENE_CSV), "-", "--to", "csv", tmpdir=spools)
+        where = spools
+    temporaries = lambda: [p for p in where.iterdir() if p.name.endswith(".hconv-tmp")]  # noqa: E731
+    _wait_for(temporaries, "temporary file", proc)
+    time.sleep(0.3)
+    proc.kill()
+    proc.wait(timeout=60)  # reaped: a zombie still holds its pid
+    for f in (proc.stdin, proc.stdout, proc.stderr):
+        if f:
+            f.close()
+    (stale,) = temporaries()
+    assert f".{proc.pid}-" in stale.name or f"-{proc.pid}-" in stale.name
+
+    again = subprocess.run(
+        [sys.executable, "-m", "hconv", "convert", "-", str(out), "--from", "csv", "-q"],
+        input=SCENE_CSV.read_bytes(),
+        capture_output=True,
+        env=dict(os.environ, TMPDIR=str(spools)),
+        timeout=120,
+    )
+    err = again.stderr.decode()
+    assert again.returncode == 0, err
+    assert err == f"hconv: removed stale temporary file {stale} left by a run that was killed (pid {proc.pid})\n"
+    assert not stale.exists() and out.exists()
+    assert [p.name for p in tmp_path.iterdir() if p.name.endswith(".hconv-tmp")] == []
+    assert list(spools.iterdir()) == []
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="start times come from Linux's /proc")
+def test_remove_stale_temporaries_leaves_live_and_unknown_makers_alone(tmp_path, capsys):
+    from hconv.tables import tableio
+
+    pid, start, tag = tableio._maker().split("-")
+    other_tag = f"{(int(tag, 16) + 1) % (1 << 32):08x}"
+    names = {
+        f".out.parquet.{pid}-{start}-{tag}-abcd1234.hconv-tmp": "live",  # this process: running
+        f"hconv-stdout-{pid}-{start}-{tag}-abcd1234.hconv-tmp": "live",
+        f".out.csv.{pid}-{int(start) + 1}-{tag}-abcd1234.hconv-tmp": "stale",  # its pid, another start: reused
+        f".out.csv.1-1-{other_tag}-abcd1234.hconv-tmp": "other host",  # pid 1 there means nothing here
+        ".out.csv.abcd1234.hconv-tmp": "old name",  # an earlier hconv's: no maker to check
+        "notes.txt": "not hconv's",
+    }
+    for name in names:
+        (tmp_path / name).write_text("x")
+    removed = tableio.remove_stale_temporaries(str(tmp_path))
+    stale = [n for n, why in names.items() if why == "stale"]
+    assert removed == [str(tmp_path / n) for n in stale]
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(n for n in names if n not in stale)
+    assert capsys.readouterr().err == (
+        f"hconv: removed stale temporary file {tmp_path / stale[0]} left by a run that was killed (pid {pid})\n"
+    )
+
+
+def _as(kind: str, text: bytes) -> bytes:
+    """``text`` as the files people hand hconv by mistake."""
+    import bz2
+    import gzip
+    import lzma
+    import zipfile
+
+    if kind in ("zip", "xlsx"):
+        buf = io.BytesIO()
+        with zipfile.ZipFile(buf, "w") as z:
+            if kind == "xlsx":
+                z.writestr("[Content_Types].xml", "<Types/>")
+            z.writestr("in.csv", text)
+        return buf.getvalue()
+    packers = {"gzip": gzip.compress, "bzip2": bz2.compress, "xz": lzma.compress}
+    if kind in packers:
+        return packers[kind](text)
+    if kind == "zstd":  # the standard library has no zstd: its frame magic, then the bytes
+        return b"\x28\xb5\x2f\xfd" + text
+    if kind == "xls":
+        return b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1" + b"\x00" * 504
+    return text.decode().encode(kind)  # an encoding
+
+
+KINDS = ("gzip", "bzip2", "xz", "zstd", "zip", "xlsx", "xls", "utf-16", "utf-16-le", "utf-16-be", "utf-32")
+SAVE_AS = "open it in the spreadsheet and save the sheet as 'CSV UTF-8 (comma delimited)'"
+
+
+@pytest.mark.parametrize(
+    "kind, message",
+    [
+        (
+            "gzip",
+            "is gzip-compressed; hconv reads uncompressed CSV, so decompress it first: gzip -dc in.csv > in-plain.csv",
+        ),
+        (
+            "bzip2",
+            "is bzip2-compressed; hconv reads uncompressed CSV, so decompress it first: "
+            "bzip2 -dc in.csv > in-plain.csv",
+        ),
+        ("xz", "is xz-compressed; hconv reads uncompressed CSV, so decompress it first: xz -dc in.csv > in-plain.csv"),
+        (
+            "zstd",
+            "is zstd-compressed; hconv reads uncompressed CSV, so decompress it first: zstd -dc in.csv > in-plain.csv",
+        ),
+        (
+            "zip",
+            "is a zip archive; hconv reads uncompressed CSV, so decompress it first: unzip -p in.csv > in-plain.csv",
+        ),
+        ("xlsx", f"is an Excel workbook (.xlsx), not CSV; {SAVE_AS}"),
+        ("xls", f"is an Excel 97-2003 workbook (.xls), not CSV; {SAVE_AS}"),
+        (
+            "utf-16",
+            "is UTF-16 text; hconv reads UTF-8, so convert it first: iconv -f UTF-16 -t UTF-8 in.csv > in-utf8.csv",
+        ),
+        (
+            "utf-16-le",
+            "is UTF-16LE text; hconv reads UTF-8, so convert it first: iconv -f UTF-16LE -t UTF-8 in.csv > in-utf8.csv",
+        ),
+        (
+            "utf-16-be",
+            "is UTF-16BE text; hconv reads UTF-8, so convert it first: iconv -f UTF-16BE -t UTF-8 in.csv > in-utf8.csv",
+        ),
+        (
+            "utf-32",
+            "is UTF-32 text; hconv reads UTF-8, so convert it first: iconv -f UTF-32 -t UTF-8 in.csv > in-utf8.csv",
+        ),
+    ],
+    ids=KINDS,
+)
+def test_open_input_csv_compressed_or_utf16_says_what_it_is_and_how_to_convert(
+    kind, message, tmp_path, capsys, monkeypatch
+):
+    """Before, every one of these was 'in.csv: is not a text file, so not CSV', with no fix."""
+    monkeypatch.chdir(tmp_path)
+    Path("in.csv").write_bytes(_as(kind, SCENE_CSV.read_bytes()))
+    code, _, err = run_inprocess("convert", "in.csv", "out.csv", capsys=capsys)
+    assert (code, err) == (3, f"hconv: error: in.csv: {message}\n")
+    assert sorted(os.listdir()) == ["in.csv"]
+
+
+def test_open_input_compressed_stdin_says_to_decompress_in_the_pipe(tmp_path):
+    got = run_hconv(
+        "convert", "-", str(tmp_path / "out.csv"), "--from", "csv", input=_as("gzip", SCENE_CSV.read_bytes())
+    )
+    assert got.returncode == 3
+    assert got.stderr.decode() == (
+        "hconv: error: stdin: is gzip-compressed; hconv reads uncompressed CSV, "
+        "so decompress it in the pipe, before hconv: ... | gzip -dc | hconv ...\n"
+    )
+
+
+def test_open_input_parquet_compressed_or_csv_says_what_it_is(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    Path("in.parquet").write_bytes(_as("gzip", (ROOT / "examples" / "data" / "scene.parquet").read_bytes()))
+    code, _, err = run_inprocess("convert", "in.parquet", "out.parquet", capsys=capsys)
+    assert (code, err) == (
+        3,
+        "hconv: error: in.parquet: is gzip-compressed; hconv reads uncompressed Parquet, "
+        "so decompress it first: gzip -dc in.parquet > in-plain.parquet\n",
+    )
+    Path("in.parquet").write_bytes(SCENE_CSV.read_bytes())
+    code, _, err = run_inprocess("convert", "in.parquet", "out.parquet", capsys=capsys)
+    assert (
+        code == 3
+        and "not a readable Parquet file" in err
+        and "(it looks like CSV text: name it .csv or pass --from csv)" in err
+    )
+
+
+@pytest.mark.parametrize(
+    "args, code, message",
+    [
+        (
+            ["in.csv.gz", "out.csv"],
+            3,
+            "in.csv.gz: is gzip-compressed; hconv reads uncompressed files, so decompress it first: "
+            "gzip -dc in.csv.gz > in.csv",
+        ),
+        (
+            ["in.csv", "out.csv.gz"],
+            4,
+            "out.csv.gz: hconv writes uncompressed files; write out.csv and compress it afterwards: gzip out.csv",
+        ),
+        (
+            ["in.csv", "out.parquet.zip"],
+            4,
+            "out.parquet.zip: hconv writes uncompressed files; write out.parquet and compress it afterwards: "
+            "zip out.parquet.zip out.parquet",
+        ),
+    ],
+)
+def test_format_of_compressed_name_says_how_to_compress_or_decompress(
+    args, code, message, tmp_path, capsys, monkeypatch
+):
+    """Before: 'cannot tell the format of 'in.csv.gz' from its extension', a usage error."""
+    monkeypatch.chdir(tmp_path)
+    Path("in.csv").write_bytes(SCENE_CSV.read_bytes())
+    Path("in.csv.gz").write_bytes(_as("gzip", SCENE_CSV.read_bytes()))
+    got, _, err = run_inprocess("convert", *args, capsys=capsys)
+    assert (got, err) == (code, f"hconv: error: {message}\n")
+
+
+README_POINTER = "(see 'Whole files with hconv convert' in the README)"
+
+
+@pytest.mark.parametrize(
+    "given, message",
+    [
+        (
+            "data",
+            f"data: is a directory, and hconv converts one file per run; give one of the 2 CSV or Parquet files in "
+            f"it, such as data/part-0.parquet, or convert each in a loop {README_POINTER}",
+        ),
+        (
+            "empty.parquet",
+            "empty.parquet: is a directory, and hconv converts one file per run; give a CSV or Parquet file "
+            + README_POINTER,
+        ),
+        ("scene.cvs", "scene.cvs: does not exist (did you mean scene.csv?); check the path"),
+        ("nothing", "nothing: does not exist; check the path"),
+        ("nowhere/in.csv", "nowhere/in.csv: does not exist, nor does the directory 'nowhere'; check the path"),
+        ("link.csv", "link.csv: is a link to 'gone.csv', which does not exist; check the link"),
+    ],
+)
+def test_open_input_directory_or_missing_path_says_so(given, message, tmp_path, capsys, monkeypatch):
+    """Before: 'cannot tell the format' (exit 2) for a directory or a missing path without an
+    extension, and 'is a directory, not a CSV file' with no way on."""
+    monkeypatch.chdir(tmp_path)
+    Path("data").mkdir()
+    Path("data/part-0.parquet").write_bytes(b"")
+    Path("data/part-1.parquet").write_bytes(b"")
+    Path("empty.parquet").mkdir()
+    Path("scene.csv").write_bytes(SCENE_CSV.read_bytes())
+    os.symlink("gone.csv", "link.csv")
+    code, _, err = run_inprocess("convert", given, "out.csv", capsys=capsys)
+    assert (code, err) == (3, f"hconv: error: {message}\n")
+
+
+def test_open_input_unreadable_file_is_one_line(tmp_path, capsys, monkeypatch):
+    import builtins
+
+    src = tmp_path / "in.csv"
+    src.write_bytes(SCENE_CSV.read_bytes())
+    real = builtins.open
+
+    def refuse(file, *a, **k):  # root reads any file: refuse as the OS refuses anyone else
+        if str(file) == str(src):
+            raise PermissionError(13, "Permission denied", str(file))
+        return real(file, *a, **k)
+
+    monkeypatch.setattr(builtins, "open", refuse)
+    code, _, err = run_inprocess("convert", str(src), str(tmp_path / "out.csv"), capsys=capsys)
+    assert (code, err) == (
+        3,
+        f"hconv: error: {src}: cannot read it (Permission denied); check the path and its permissions\n",
+    )
+
+
+def test_open_input_named_pipe_is_read_like_stdin(tmp_path):
+    """`hconv convert <(gzip -dc in.csv.gz) out.csv --from csv`: a pipe cannot seek, so it is
+    spooled as stdin is (before: 'cannot read it (lseek failed)', or a wait for a second writer)."""
+    import threading
+
+    spools = tmp_path / "tmp"
+    spools.mkdir()
+    fifo = tmp_path / "in.fifo"
+    os.mkfifo(fifo)
+    # a daemon: if hconv never opens the pipe, the writer waits in open() and must not keep pytest
+    threading.Thread(target=lambda: fifo.write_bytes(SCENE_CSV.read_bytes()), daemon=True).start()
+    got = subprocess.run(
+        [sys.executable, "-m", "hconv", "convert", str(fifo), str(tmp_path / "out.csv"), "--from", "csv", "-q"],
+        capture_output=True,
+        env=dict(os.environ, TMPDIR=str(spools)),
+        timeout=60,
+    )
+    assert (got.returncode, got.stderr) == (0, b"")
+    assert (tmp_path / "out.csv").read_text().count("\n") == SCENE_CSV.read_text().count("\n")
+    assert list(spools.iterdir()) == []  # the spool is gone
