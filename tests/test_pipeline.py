@@ -80,7 +80,7 @@ def test_convert_file_same_output_for_any_threads(tmp_path):
 def test_convert_file_threads_below_one_is_usage_error(tmp_path):
     from hconv.errors import UsageError
 
-    with pytest.raises(UsageError, match="--threads must be 1 or more"):
+    with pytest.raises(UsageError, match="^threads must be 1 or more"):
         pipeline.convert_file("in.parquet", str(tmp_path / "out.parquet"), threads=0)
 
 
@@ -248,3 +248,13 @@ def test_convert_file_parquet_in_keeps_its_types(tmp_path):
     assert out.select(["id", "label", "n"]).equals(t.select(["id", "label", "n"]))  # strings stay strings
     back = list(csv.reader(io.StringIO((tmp_path / "out.csv").read_text())))
     assert {(r[back[0].index("label")], r[back[0].index("n")]) for r in back[1:]} == {("007", "1")}
+
+
+def test_convert_file_errors_name_python_keywords_not_flags(tmp_path):
+    from hconv.errors import OutputError, UsageError
+
+    with pytest.raises(UsageError, match=r"pass src_format='csv' or src_format='parquet'$"):
+        pipeline.convert_file("-", str(tmp_path / "out.parquet"))
+    (tmp_path / "out.parquet").write_bytes(b"")
+    with pytest.raises(OutputError, match=r"already exists; pass force=True to overwrite it$"):
+        pipeline.convert_file(str(ROOT / "examples" / "data" / "scene.parquet"), str(tmp_path / "out.parquet"))

@@ -33,10 +33,11 @@ def command_line() -> Iterator[None]:
 
 def option(name: str, value: object = _UNSET) -> str:
     """Option ``name`` (its Python keyword), with ``value`` if given, as the reader spells it:
-    ``--omega-unit deg/s`` on the command line, ``omega_unit='deg/s'`` in Python."""
+    ``--omega-unit deg/s`` on the command line, ``omega_unit='deg/s'`` in Python; a switch given
+    True is the flag alone (``--force``, ``force=True``)."""
     if _reader == "cli":
         flag = FLAGS.get(name, "--" + name.replace("_", "-"))
-        return flag if value is _UNSET else f"{flag} {value}"
+        return flag if value is _UNSET or value is True else f"{flag} {value}"
     return name if value is _UNSET else f"{name}={value!r}"
 
 

@@ -22,7 +22,7 @@ from typing import TypeVar
 import numpy as np
 import pyarrow as pa
 
-from hconv.errors import StrictError, UsageError
+from hconv.errors import StrictError, UsageError, option
 from hconv.solve import engines, methods, status
 from hconv.tables import csvtypes, tableio
 from hconv.tables.arrow import convert_batch
@@ -190,13 +190,13 @@ def convert_file(
     Raises :class:`hconv.errors.HconvError` subclasses with one-line messages.
     """
     if threads is not None and threads < 1:
-        raise UsageError(f"--threads must be 1 or more, got {threads}")
+        raise UsageError(f"{option('threads')} must be 1 or more, got {threads}")
     threads = threads or default_threads()
     job = job or Job(method, precision, diagnostics)
     if engines.for_files(job.engine) != job.engine:
         job = dataclasses.replace(job, engine=engines.for_files(job.engine))
-    fin = format_of(src, src_format, "--from")
-    fout = format_of(dst, dst_format, "--to")
+    fin = format_of(src, src_format, "src_format")
+    fout = format_of(dst, dst_format, "dst_format")
     out = Output(dst, fout, force=force, input_path=src)  # refuses early, before reading
     t0 = time.perf_counter()
     with open_input(src, fin, job) as inp:
@@ -276,6 +276,6 @@ def _check_strict(table: pa.Table, first_row: int, source: str) -> None:
         )
         more = f" and {bad.size - STRICT_ROWS_NAMED} more in this batch" if bad.size > STRICT_ROWS_NAMED else ""
         raise StrictError(
-            f"{source}: --strict, and {named}{more} are not ok; nothing was written "
-            "(drop --strict to keep every row with its status)"
+            f"{source}: {option('strict', True)}, and {named}{more} are not ok; nothing was written "
+            f"(drop {option('strict', True)} to keep every row with its status)"
         )

@@ -37,7 +37,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
-from hconv.errors import InputError, OutputError, UsageError
+from hconv.errors import InputError, OutputError, UsageError, option
 from hconv.solve import forms
 from hconv.tables import layout, sets
 from hconv.tables.formats import EXTENSIONS, FORMATS
@@ -50,22 +50,24 @@ UNIT_COLUMN = layout.UNIT_COLUMN
 
 def format_of(path: str, given: str | None, flag: str) -> str:
     """``given`` if set, else the format named by ``path``'s extension; UsageError otherwise.
-    ``flag`` is ``--from`` for an input, ``--to`` for an output."""
+    ``flag`` is ``src_format`` (``--from``) for an input, ``dst_format`` (``--to``) for an output."""
     if given:
         if given not in FORMATS:
-            raise UsageError(f"{flag} must be {' or '.join(FORMATS)}, got {given!r}")
+            raise UsageError(f"{option(flag)} must be {' or '.join(FORMATS)}, got {given!r}")
         return given
     if path == "-":
-        raise UsageError(f"'-' has no extension to tell the format; pass {flag} csv or {flag} parquet")
+        raise UsageError(
+            f"'-' has no extension to tell the format; pass {option(flag, 'csv')} or {option(flag, 'parquet')}"
+        )
     suffix = Path(path).suffix.lower()
     fmt = next((f for f, exts in EXTENSIONS.items() if suffix in exts), None)
     if fmt is None:
-        if flag == "--from":
+        if flag == "src_format":
             _input_kind(path)  # a path that is missing or a directory: say so, not that its name has no format
         _refuse_compressed_name(path, suffix, flag)
         raise UsageError(
             f"cannot tell the format of {path!r} from its extension; "
-            f"name it .csv or .parquet, or pass {flag} csv|parquet"
+            f"name it .csv or .parquet, or pass {option(flag, 'csv')} or {option(flag, 'parquet')}"
         )
     return fmt
 
@@ -91,7 +93,7 @@ def _refuse_compressed_name(path: str, suffix: str, flag: str) -> None:
     if packed is None or not any(Path(plain).suffix.lower() in exts for exts in EXTENSIONS.values()):
         return
     what, _, _, unpack, pack = packed
-    if flag == "--from":
+    if flag == "src_format":
         raise InputError(
             f"{path}: is {_packed(what)}; hconv reads uncompressed files, so decompress it first: "
             f"{unpack} {shlex.quote(path)} > {shlex.quote(plain)}"
@@ -407,10 +409,8 @@ def _sniff_csv(path: str, name: str) -> None:
     if what:
         raise InputError(f"{name}: {what}")
     if b"\x00" in head or head.startswith(b"\x89PNG") or head.startswith(b"PAR1"):
-        raise InputError(
-            f"{name}: is not a text file, so not CSV"
-            + (" (it looks like Parquet: name it .parquet or pass --from parquet)" if head.startswith(b"PAR1") else "")
-        )
+        parquet = f" (it looks like Parquet: name it .parquet or pass {option('src_format', 'parquet')})"
+        raise InputError(f"{name}: is not a text file, so not CSV" + (parquet if head.startswith(b"PAR1") else ""))
     head = head[3:] if head.startswith(b"\xef\xbb\xbf") else head
     cut = head.rfind(b"\n") + 1 if len(head) == 1 << 16 else len(head)
     try:
@@ -588,7 +588,7 @@ def _not_parquet(path: str, name: str, exc: Exception) -> InputError:
         return InputError(f"{name}: {what}")
     first = head.split(b"\n", 1)[0]
     looks_csv = b"," in first and b"\x00" not in head and not head.startswith(b"PAR1")
-    hint = " (it looks like CSV text: name it .csv or pass --from csv)" if looks_csv else ""
+    hint = f" (it looks like CSV text: name it .csv or pass {option('src_format', 'csv')})" if looks_csv else ""
     return InputError(
         f"{name}: not a readable Parquet file ({_first_line(exc)}){hint}; "
         "check that it is Parquet and was completely written"
@@ -654,7 +654,7 @@ class Output:
         if input_path not in (None, "-") and target.exists() and os.path.samefile(input_path, target):
             raise OutputError(f"{path}: is the input file; write the output to another path")
         if target.exists() and not force:
-            raise OutputError(f"{path}: already exists; pass --force to overwrite it")
+            raise OutputError(f"{path}: already exists; pass {option('force', True)} to overwrite it")
 
     def __enter__(self) -> Output:
         if self.path == "-":

@@ -143,8 +143,8 @@ def compare_file(
     from hconv.tables.tableio import Output, format_of, open_input
 
     job = job or Job()
-    fin = format_of(src, src_format, "--from")
-    out = Output(dst, format_of(dst, dst_format, "--to"), force=force, input_path=src) if dst else None
+    fin = format_of(src, src_format, "src_format")
+    out = Output(dst, format_of(dst, dst_format, "dst_format"), force=force, input_path=src) if dst else None
     with open_input(src, fin, job) as inp, contextlib.ExitStack() as stack:
         writer = None
         if out is not None:

@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from hconv.errors import UsageError
+from hconv.errors import UsageError, option
 from hconv.kernels.metrics import angle_deg, relative_error
 from hconv.solve import bodies, forms
 from hconv.solve.options import Conventions
@@ -242,10 +242,10 @@ def diagnose_file(
     from hconv.tables.tableio import format_of, open_input
 
     if not tol > 0:
-        raise UsageError(f"--tol must be positive, got {tol}")
+        raise UsageError(f"{option('tol')} must be positive, got {tol}")
     job = dataclasses.replace(job or Job(), observed=True)
     job = dataclasses.replace(job, conventions=dataclasses.replace(job.conventions, about="same"))
-    fin = format_of(src, src_format, "--from")
+    fin = format_of(src, src_format, "src_format")
     with open_input(src, fin, job) as inp:
         plan = inp.plan
         d = None

@@ -7,7 +7,7 @@ import time
 
 import pyarrow as pa
 
-from hconv.errors import UsageError
+from hconv.errors import UsageError, option
 from hconv.tables.pipeline import BackgroundWriter
 from hconv.tables.tableio import Output, format_of
 from hconv.tools.scene import check_scene, iter_scene, make_scene
@@ -26,9 +26,9 @@ def generate_file(
     """Write a synthetic scene of ``rows`` bodies (see :mod:`hconv.tools.scene`) to ``dst``, atomically,
     chunk by chunk; returns the seconds taken."""
     if rows < 0:
-        raise UsageError(f"--rows must be 0 or more, got {rows}")
+        raise UsageError(f"{option('rows')} must be 0 or more, got {rows}")
     check_scene(scene, cond_max)
-    fout = format_of(dst, dst_format, "--to")
+    fout = format_of(dst, dst_format, "dst_format")
     t0 = time.perf_counter()
     with Output(dst, fout, force=force) as out, BackgroundWriter(out) as writer:
         for cols in iter_scene(rows, seed=seed, scene=scene, cond_max=cond_max):

@@ -157,7 +157,7 @@ def write_bodies(
     from hconv.tables.tableio import Output, format_of
 
     table = model.table(form)
-    with Output(dst, format_of(dst, dst_format, "--to"), force=force, input_path=model.path) as out:
+    with Output(dst, format_of(dst, dst_format, "dst_format"), force=force, input_path=model.path) as out:
         out.write(table)
 
 

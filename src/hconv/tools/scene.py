@@ -18,7 +18,7 @@ from collections.abc import Iterator
 import numpy as np
 from numpy.typing import ArrayLike
 
-from hconv.errors import UsageError
+from hconv.errors import UsageError, option
 from hconv.kernels.frames import quaternion_matrix
 
 KINDS = ("box", "cylinder", "rod", "sphere", "ellipsoid")
@@ -94,7 +94,7 @@ def check_scene(scene: str, cond_max: float) -> None:
     if scene not in SCENES:
         raise UsageError(f"unknown scene {scene!r}; choose one of: {', '.join(SCENES)}")
     if not cond_max >= 1:
-        raise UsageError(f"--cond-max must be at least 1, got {cond_max}")
+        raise UsageError(f"{option('cond_max')} must be at least 1, got {cond_max}")
 
 
 def make_scene(
