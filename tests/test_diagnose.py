@@ -457,6 +457,9 @@ def test_diagnose_scene_options_from_the_command_line(rng, tmp_path):
     assert got[0]["share_explained"] == 1.0
     proc = run_hconv("diagnose", str(tmp_path / "obs.parquet"), "--frame", "body")
     assert proc.returncode == 0 and b"# best: exact" in proc.stdout
-    assert b"transposed-rotation (H and \xcf\x89 are declared in the body frame, so q turns nothing)" in proc.stdout
+    assert (
+        b"transposed-rotation, quat-xyzw (H and \xcf\x89 are declared in the body frame, so q turns nothing)"
+        in proc.stdout
+    )
     proc = run_hconv("diagnose", str(tmp_path / "obs.parquet"), "--about", "free")
     assert proc.returncode == 0, proc.stderr.decode()

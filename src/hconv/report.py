@@ -426,9 +426,12 @@ def diagnosis_tables(d: Diagnosis, console: Console | None = None) -> None:
         if len(g) > 1:
             rank = next(r for r, s, _ in ranks if s is g[0])
             note(console, f"tied at rank {rank}, explaining the same rows: {', '.join(s.hypothesis for s in g)}")
-    left = [s for s in d.scores if not s.applicable]
+    left: dict[str, list[str]] = {}  # reason -> hypotheses, so that a reason shows once
+    for s in d.scores:
+        if not s.applicable:
+            left.setdefault(s.why_not, []).append(s.hypothesis)
     if left:
-        note(console, "not scored: " + "; ".join(f"{s.hypothesis} ({s.why_not})" for s in left))
+        note(console, "not scored: " + "; ".join(f"{', '.join(names)} ({why})" for why, names in left.items()))
     if d.unexplained:
         rows_text = ", ".join(f"row {r + 1} (closest: {name}, {_g(res)})" for r, name, res in d.examples)
         note(
