@@ -463,3 +463,11 @@ def test_diagnose_scene_options_from_the_command_line(rng, tmp_path):
     )
     proc = run_hconv("diagnose", str(tmp_path / "obs.parquet"), "--about", "free")
     assert proc.returncode == 0, proc.stderr.decode()
+
+
+def test_diagnose_of_no_rows_calls_nothing_best(tmp_path):
+    (tmp_path / "empty.csv").write_text("Hx,Hy,Hz,I,wx_obs,wy_obs,wz_obs\n")
+    proc = run_hconv("diagnose", str(tmp_path / "empty.csv"))
+    assert proc.returncode == 0, proc.stderr.decode()
+    assert b"# hconv diagnose \xc2\xb7 0 rows" in proc.stdout
+    assert b"best" not in proc.stdout and b"closest" not in proc.stdout

@@ -413,6 +413,7 @@ def diagnosis_tables(d: Diagnosis, console: Console | None = None) -> None:
         styles.append("bold green" if rank == 1 and share > 0 else None)
     show(console, cols, rows, title=head, keys=2, styles=styles)
     groups = d.groups()
+    groups = groups if d.rows else []  # no row: nothing is best or closest
     if groups and len(groups[0]) == 1:
         best = groups[0][0]
         label = "best: " if best.residual.within else "closest, though it explains no row: "
