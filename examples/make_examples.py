@@ -17,6 +17,7 @@ import pyarrow.parquet as pq
 
 OUT = Path(__file__).resolve().parent / "data"
 RNG = np.random.default_rng(2026_11_22)
+SIX = ("Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz")
 
 
 def quaternions(n):
@@ -34,6 +35,39 @@ def quaternions(n):
         1,
     )
     return q, R
+
+
+def rotation(q):
+    """The rotation matrices (body → world) of unit quaternions (w, x, y, z), ``(n, 3, 3)``."""
+    w, x, y, z = q.T
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        1,
+    )
+
+
+def tumbling(I_B, q, w_B, dt, steps):
+    """A free body with no torque, from orientation q and body-frame ω, after ``steps`` RK4 steps
+    of Euler's equations I·dω/dt = -ω × I·ω and dq/dt = ½ q ⊗ (0, ω)."""
+
+    def rate(q, w):
+        dw = np.linalg.solve(I_B, -np.cross(w, I_B @ w))
+        dq = 0.5 * np.concatenate([[-q[1:] @ w], q[0] * w + np.cross(q[1:], w)])
+        return dq, dw
+
+    for _ in range(steps):
+        k1 = rate(q, w_B)
+        k2 = rate(q + dt / 2 * k1[0], w_B + dt / 2 * k1[1])
+        k3 = rate(q + dt / 2 * k2[0], w_B + dt / 2 * k2[1])
+        k4 = rate(q + dt * k3[0], w_B + dt * k3[1])
+        q = q + dt / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
+        w_B = w_B + dt / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
+        q /= np.linalg.norm(q)
+    return q, w_B
 
 
 def box(m, a, b, c):
@@ -144,6 +178,35 @@ def main():
             }
         ),
         OUT / "rods.parquet",
+    )
+
+    # A tumbling free body logged as MuJoCo gives it: q = qpos[3:7], the six numbers of its
+    # fullinertia (MuJoCo's order is hconv's), H = subtree_angmom (about the centre of mass, in
+    # the world frame) and ω = qvel[3:6], which MuJoCo keeps in the body frame, logged as world.
+    # `hconv diagnose` should say omega-body-frame; w_true_* is ω in the world frame.
+    I_B = np.array([[0.30, 0.03, -0.02], [0.03, 0.22, 0.05], [-0.02, 0.05, 0.12]])
+    q, w_B = RNG.normal(size=4), RNG.normal(size=3) * 3
+    q /= np.linalg.norm(q)
+    t, qs, ws = np.arange(8) * 0.25, [], []
+    for _ in t:
+        qs.append(q)
+        ws.append(w_B)
+        q, w_B = tumbling(I_B, q, w_B, 0.0025, 100)
+    q, w_B = np.array(qs), np.array(ws)
+    R = rotation(q)
+    w_W = np.einsum("nij,nj->ni", R, w_B)
+    H = np.einsum("nij,jk,nk->ni", R, I_B, w_B)
+    six = {c: np.full(len(t), I_B[i, j]) for c, (i, j) in zip(SIX, ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)))}
+    write_csv(
+        "free-body-log.csv",
+        {
+            "t": t,
+            **{f"q{c}": q[:, k] for k, c in enumerate("wxyz")},
+            **six,
+            **{f"H{c}": H[:, k] for k, c in enumerate("xyz")},
+            **{f"w{c}_obs": w_B[:, k] for k, c in enumerate("xyz")},
+            **{f"w_true_{c}": w_W[:, k] for k, c in enumerate("xyz")},
+        },
     )
 
 

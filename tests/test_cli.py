@@ -503,6 +503,7 @@ def test_methods_table_renders():
 NARROW = [
     (["methods"], (80, 60)),
     (["diagnose", str(EXAMPLES / "engine-log.csv")], (80, 60)),
+    (["diagnose", str(EXAMPLES / "free-body-log.csv")], (80, 60)),
     (["compare", str(EXAMPLES / "scene.parquet")], (80, 60)),
     (["stability", "--no-chart", "--rows", "4"], (80,)),
     (["engines"], (80, 60)),

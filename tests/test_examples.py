@@ -70,6 +70,20 @@ def test_readme_engine_log_diagnosis(tmp_path):
     assert json.loads(proc.stdout)[0]["hypothesis"] == "transposed-rotation"
 
 
+def test_readme_free_body_log_diagnosis(tmp_path):
+    """The MuJoCo-style log: body-frame ω logged as world, and the fix the diagnosis points to."""
+    proc = run_hconv("diagnose", str(DATA / "free-body-log.csv"), "--json")
+    assert proc.returncode == 0, proc.stderr.decode()
+    top = json.loads(proc.stdout)[0]
+    assert top["hypothesis"] == "omega-body-frame" and top["share_explained"] == 1.0 and top["tied_with"] == []
+    proc = run_hconv("diagnose", str(DATA / "free-body-log.csv"), "--omega-frame", "body", "--json")
+    assert json.loads(proc.stdout)[0]["hypothesis"] == "exact"
+    proc = run_hconv("convert", str(DATA / "free-body-log.csv"), str(tmp_path / "out.csv"))
+    assert proc.returncode == 0, proc.stderr.decode()
+    t = pacsv.read_csv(tmp_path / "out.csv")
+    assert rel_err(omega(t), omega(t, ("w_true_x", "w_true_y", "w_true_z"))).max() < 1e-13
+
+
 @pytest.mark.parametrize(
     "args, want",
     [

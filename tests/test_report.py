@@ -68,6 +68,8 @@ def diagnosis(tmp_path_factory):
     n = t.num_rows
     for c, v in (("qw", 1.0), ("qx", 0.0), ("qy", 0.0), ("qz", 0.0)):
         t = t.append_column(c, pa.array(np.full(n, v)))
+    for c, v in zip(("vx", "vy", "vz"), np.random.default_rng(0).normal(size=(3, n))):
+        t = t.append_column(c, pa.array(v))  # for orbital-momentum
     for a in "xyz":
         t = t.append_column(f"w{a}_obs", t.column(f"w_true_{a}"))
     src = tmp_path_factory.mktemp("diag") / "log.csv"

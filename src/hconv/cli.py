@@ -497,7 +497,12 @@ def convert_cmd(
 
 @app.command("diagnose")
 @friendly
-@job_options(*COLUMNS, observed=True)
+@job_options(
+    *SCENE,
+    *COLUMNS,
+    observed=True,
+    help={"omega_frame": "the frame of wx_obs, wy_obs, wz_obs; default: the frame of H (another needs q)"},
+)
 def diagnose_cmd(
     src: str = typer.Argument(..., metavar="IN", help="input .csv or .parquet with H, I and wx_obs, wy_obs, wz_obs"),
     tol: float = typer.Option(1e-3, "--tol", help="a row is explained when |ω - ω_obs| / |ω_obs| <= this"),
@@ -505,7 +510,9 @@ def diagnose_cmd(
     as_json: bool = typer.Option(False, "--json", help="print the ranking as JSON, best first"),
     job: Job = JOB,  # the run options go here (job_options)
 ) -> None:
-    """Find which convention explains the ω your engine produced (columns wx_obs, wy_obs, wz_obs)."""
+    """Find which convention explains the ω your engine produced (columns wx_obs, wy_obs, wz_obs).
+
+    The scene options say what you believe the file holds; every hypothesis is one mistake away."""
     from hconv.tools import diagnose
 
     d = diagnose.diagnose_file(src, src_format=_value(from_), tol=tol, job=job)
@@ -516,11 +523,13 @@ def diagnose_cmd(
                 [
                     {
                         "hypothesis": s.hypothesis,
+                        "rank": rank,
+                        "tied_with": tied,
                         "median_residual": clean(s.residual.median),
                         "share_explained": clean(s.residual.share_within),
                         "median_angle_deg": clean(s.angle.median),
                     }
-                    for s in d.ranking()
+                    for rank, s, tied in d.ranks()
                 ],
                 indent=1,
             )

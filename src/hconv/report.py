@@ -396,13 +396,13 @@ def diagnosis_tables(d: Diagnosis, console: Console | None = None) -> None:
     )
     cols = [Col("rank", right=True), Col("hypothesis")]
     cols += [Col(c, right=True) for c in ("explains", "median residual", "median angle °", "worst residual")]
-    ranking = d.ranking()
+    ranks = d.ranks()
     rows, styles = [], []
-    for k, s in enumerate(ranking, 1):
+    for rank, s, _ in ranks:
         share = s.residual.share_within
         rows.append(
             (
-                str(k),
+                str(rank),
                 s.hypothesis,
                 "-" if not np.isfinite(share) else f"{100 * share:.1f} %",
                 _g(s.residual.median),
@@ -410,13 +410,29 @@ def diagnosis_tables(d: Diagnosis, console: Console | None = None) -> None:
                 _g(s.residual.maximum),
             )
         )
-        styles.append("bold green" if k == 1 and share > 0 else None)
+        styles.append("bold green" if rank == 1 and share > 0 else None)
     show(console, cols, rows, title=head, keys=2, styles=styles)
-    if ranking:
-        note(console, Text.assemble("best: ", (ranking[0].hypothesis, "bold"), f": {ranking[0].summary}"))
-    left = [s for s in d.scores if not s.applicable]
+    groups = d.groups()
+    groups = groups if d.rows else []  # no row: nothing is best or closest
+    if groups and len(groups[0]) == 1:
+        best = groups[0][0]
+        label = "best: " if best.residual.within else "closest, though it explains no row: "
+        note(console, Text.assemble(label, (best.hypothesis, "bold"), f": {best.summary}"))
+    elif groups:  # the data cannot tell these apart: name them all, none above the others
+        names = ", ".join(s.hypothesis for s in groups[0])
+        note(console, f"tied for best, explaining the same rows with the same ω (within {d.tol:g}): {names}")
+        for s in groups[0]:
+            note(console, Text.assemble("  ", (s.hypothesis, "bold"), f": {s.summary}"))
+    for g in groups[1:]:
+        if len(g) > 1:
+            rank = next(r for r, s, _ in ranks if s is g[0])
+            note(console, f"tied at rank {rank}, explaining the same rows: {', '.join(s.hypothesis for s in g)}")
+    left: dict[str, list[str]] = {}  # reason -> hypotheses, so that a reason shows once
+    for s in d.scores:
+        if not s.applicable:
+            left.setdefault(s.why_not, []).append(s.hypothesis)
     if left:
-        note(console, "not scored: " + "; ".join(f"{s.hypothesis} ({s.why_not})" for s in left))
+        note(console, "not scored: " + "; ".join(f"{', '.join(names)} ({why})" for why, names in left.items()))
     if d.unexplained:
         rows_text = ", ".join(f"row {r + 1} (closest: {name}, {_g(res)})" for r, name, res in d.examples)
         note(

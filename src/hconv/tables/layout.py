@@ -238,8 +238,10 @@ def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
 
     groups = {}
     need = job.needs()
+    # diagnose reads v wherever it is present: its orbital-momentum hypothesis uses it
+    optional = OPTIONAL_SETS + (("v",) if job.observed else ())
     for name in VECTOR_SETS:
-        if name in OPTIONAL_SETS or name == "H" or name in need:
+        if name in optional or name == "H" or name in need:
             why = "H is required" if name == "H" else need.get(name)
             g = _vector_group(name, schema, has, src, source, why, taken)
             if g is not None:

@@ -32,7 +32,8 @@ VECTOR_SETS = {
 }
 #: The unit quantity (a key of hconv.solve.units.SI) of each set.
 QUANTITY = {"H": "H", "I": "I", "q": "q", "r": "r", "m": "m", "v": "v", "w_obs": "w"}
-#: Sets read whenever present (they change the answer or its status); v and w_obs only when needed.
+#: Sets read whenever present (they change the answer or its status); v and w_obs only when needed
+#: (and v whenever present for hconv diagnose, whose orbital-momentum hypothesis uses it).
 OPTIONAL_SETS = ("q", "r", "m")
 
 
