@@ -4,10 +4,11 @@
 component-major ``(k, N)`` arrays) and the :class:`Conventions` of the scene. It
 
 1. negates the products of inertia if they were given as positive integrals (``products``);
-2. re-expresses H (and r, v) in the body frame when an orientation q is given and H is in the
+2. re-expresses H (and r) in the body frame when an orientation q is given and H is in the
    world frame (``frame``); with q, the tensor is in the body frame (see :mod:`hconv.tables.layout`);
 3. moves the reference point (``about``): ``pivot`` shifts I from the centre of mass to the pivot;
-   ``free`` takes the centre of mass's orbital momentum out of H (see :mod:`hconv.kernels.frames`);
+   ``free`` takes the centre of mass's orbital momentum out of H, in the frame H was given in,
+   before any rotation (see :mod:`hconv.kernels.frames`);
 4. solves with :func:`hconv.solve.convert.convert` on the cheapest form the inertia allows: a scalar or
    principal moments go straight to the division ``H_i / I_i``; a tensor is built only for a
    pivot shift, and otherwise the six or nine numbers go to the chosen method;
@@ -93,22 +94,25 @@ def _solve(
         R_WB, bad_q = frames.quaternion_matrix(q)
         bad |= bad_q
     rotate_in = R_WB is not None and conv.frame == "world"
-    if R_WB is not None and rotate_in:  # with q, the tensor is in the body frame: bring H (and r, v) there
-        H_P_B = frames.to_body(R_WB, H_P_F)
+    H_F = H_P_F  # the momentum that is solved, still in F
+    if conv.about == "free":
+        # H is about an origin P: take out the orbital term in F, before any rotation, so that the
+        # bound is about the numbers as given, and the rotation only turns H_C (ROTATION_K).
+        H_F, _ = frames.momentum_about_com(H_P_F, _given(m, "m"), _given(r_F, "r"), _given(v_F, "v"))
+    if R_WB is not None and rotate_in:  # with q, the tensor is in the body frame: bring H (and r) there
+        H_B = frames.to_body(R_WB, H_F)
         r_B = None if r_F is None else frames.to_body(R_WB, r_F)
-        v_B = None if v_F is None else frames.to_body(R_WB, v_F)
     else:
-        H_P_B, r_B, v_B = H_P_F, r_F, v_F
+        H_B, r_B = H_F, r_F
     # the tensor and momentum that are solved: about one point, in one frame
-    solved_form, I_solved, H_solved = form, I_given, H_P_B
+    solved_form, I_solved, H_solved = form, I_given, H_B
+    extra_k = ROTATION_K if rotate_in else 0.0
     if conv.about != "same":
         m_C, r_CP = _given(m, "m"), _given(r_B, "r")
         bad |= ~(np.isfinite(m_C) & (m_C >= 0))
         if conv.about == "pivot":  # I is about C, H about the pivot P: shift I to P
             name, I_solved = _pivot_shift(form, I_given, m_C, r_CP)
             solved_form = forms.get(name)
-        else:  # H is about an origin P: take out the orbital term, leaving H about C
-            H_solved = frames.momentum_about_com(H_P_B, m_C, r_CP, _given(v_B, "v"))
     if m is not None:
         # A mass that is not positive, with an inertia that is not zero, is not a body (a zero
         # mass with a zero inertia is a massless link, which has no ω to give and goes singular).
@@ -126,7 +130,7 @@ def _solve(
         diagnostics=diagnostics,
         degenerate=conv.degenerate,
         degenerate_rtol=conv.degenerate_rtol,
-        extra_k=ROTATION_K if rotate_in else 0.0,
+        extra_k=extra_k,
         engine=engine,
     )
     w_B, axis_B, code = res.w, res.null_axis, res.status_code
