@@ -17,6 +17,14 @@ component-major ``(k, N)`` arrays) and the :class:`Conventions` of the scene. It
 
 The residual is measured in the frame and about the point where the tensor is solved, so it does
 not include the (few-ulp) rounding of the rotations.
+
+A free body's H_C = H_P − r × (m·v) can cancel most of H_P's digits, and what H_P's rounding to
+float64 lost, no arithmetic on H_P recovers. The kernel bounds it, ε_C = ‖δH_C‖ / ‖H_C‖
+(:func:`hconv.kernels.frames.momentum_about_com`), and ω = I⁻¹·H_C can then be off by
+cond(I)·ε_C, on top of the solve's own K·cond(I)·eps. Where the two together could exceed
+:data:`hconv.solve.status.ILL_CONDITIONED_TOL` (1e-6) the row is ``cancellation``, and its
+``residual`` is the one measured against the float64 H_C plus cond(I)·ε_C: a measurement cannot
+see a loss that happened before the numbers reached hconv, so the residual carries its bound.
 """
 
 from __future__ import annotations
@@ -94,11 +102,11 @@ def _solve(
         R_WB, bad_q = frames.quaternion_matrix(q)
         bad |= bad_q
     rotate_in = R_WB is not None and conv.frame == "world"
-    H_F = H_P_F  # the momentum that is solved, still in F
+    H_F, eps_C = H_P_F, None  # the momentum that is solved, still in F; ε_C for a free body
     if conv.about == "free":
         # H is about an origin P: take out the orbital term in F, before any rotation, so that the
         # bound is about the numbers as given, and the rotation only turns H_C (ROTATION_K).
-        H_F, _ = frames.momentum_about_com(H_P_F, _given(m, "m"), _given(r_F, "r"), _given(v_F, "v"))
+        H_F, eps_C = frames.momentum_about_com(H_P_F, _given(m, "m"), _given(r_F, "r"), _given(v_F, "v"))
     if R_WB is not None and rotate_in:  # with q, the tensor is in the body frame: bring H (and r) there
         H_B = frames.to_body(R_WB, H_F)
         r_B = None if r_F is None else frames.to_body(R_WB, r_F)
@@ -133,6 +141,8 @@ def _solve(
         extra_k=extra_k,
         engine=engine,
     )
+    if eps_C is not None:
+        res = _cancellation(res, eps_C, core.error_k(method, precision, solved_form.diagonal, extra_k), precision)
     w_B, axis_B, code = res.w, res.null_axis, res.status_code
     w_out, axis_out = w_B, axis_B
     if R_WB is not None and conv.w_frame == "world":
@@ -144,3 +154,17 @@ def _solve(
         slip = units.implausible(form.trace(I_given), m, both_sides=conv.about != "same")
         code = status.merge(code, slip, "unit_suspect")
     return dataclasses.replace(res, w=w_out, null_axis=axis_out, status_code=code)
+
+
+def _cancellation(res: core.Result, eps_C: np.ndarray, k: float, precision: int) -> core.Result:
+    """A free body's result with the point change's bound carried in (the module docstring):
+    ``cancellation`` where cond(I)·(ε_C + K·eps) could exceed ILL_CONDITIONED_TOL, and
+    cond(I)·ε_C added to the residual. ``eps_C`` ``(N,)``; ``k``: the solve's own K."""
+    with np.errstate(invalid="ignore"):
+        point = np.where(eps_C == 0, 0.0, res.cond * eps_C)  # 0 also where cond is inf or NaN
+        eps = float(np.finfo(np.float64 if precision == 64 else np.float32).eps)
+        solve = res.cond * (k * eps)
+        lost = point + solve > status.ILL_CONDITIONED_TOL
+    code = status.merge(res.status_code, lost, "cancellation")
+    residual = None if res.residual is None else res.residual + point
+    return dataclasses.replace(res, status_code=code, residual=residual)
