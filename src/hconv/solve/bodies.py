@@ -16,7 +16,8 @@ component-major ``(k, N)`` arrays) and the :class:`Conventions` of the scene. It
 6. with a mass column, flags rows whose inertia no solid of that mass could have (``unit_suspect``).
 
 The residual is measured in the frame and about the point where the tensor is solved, so it does
-not include the (few-ulp) rounding of the rotations.
+not include the (few-ulp) rounding of the rotations and of the pivot shift; ``ill_conditioned``
+allows for them (:data:`ROTATION_K`, :data:`PIVOT_K`).
 
 A free body's H_C = H_P − r × (m·v) can cancel most of H_P's digits, and what H_P's rounding to
 float64 lost, no arithmetic on H_P recovers. The kernel bounds it, ε_C = ‖δH_C‖ / ‖H_C‖
@@ -42,6 +43,9 @@ from hconv.solve.options import Conventions
 
 #: Rounding a vector through a rotation costs about this many cond(I)·eps in ω.
 ROTATION_K = 2.0
+#: The parallel-axis shift, with I_C, m and r rounded to float64, costs about this many cond(I_P)·eps
+#: in ω: about twice the worst measured against 50-digit states (docs/measurements.md).
+PIVOT_K = 2.0
 
 
 def _given(value: np.ndarray | None, name: str) -> np.ndarray:
@@ -121,6 +125,7 @@ def _solve(
         if conv.about == "pivot":  # I is about C, H about the pivot P: shift I to P
             name, I_solved = _pivot_shift(form, I_given, m_C, r_CP)
             solved_form = forms.get(name)
+            extra_k += PIVOT_K
     if m is not None:
         # A mass that is not positive, with an inertia that is not zero, is not a body (a zero
         # mass with a zero inertia is a massless link, which has no ω to give and goes singular).
