@@ -21,8 +21,11 @@ known to within
     δ_i = eps·(½·|H_P,i| + 3/2·(|r_j|·m·|v_k| + |r_k|·m·|v_j|) + ½·|H_C,i|)
 
 (H_P's rounding; r's, m's and v's, u each in every product; the final rounding of H_C), to
-first order in eps, and the function returns ‖δ‖₂. Through ω = I⁻¹·H_C that is a relative error
-of at most cond(I)·‖δ‖/‖H_C‖ in ω, which :mod:`hconv.solve.bodies` flags (``cancellation``).
+first order in eps, and the function returns ‖δ‖₂ / ‖H_C‖₂. Through ω = I⁻¹·H_C that is a
+relative error of at most cond(I)·‖δ‖/‖H_C‖ in ω, which :mod:`hconv.solve.bodies` flags
+(``cancellation``). It holds while the products stay out of the subnormal range (below 1e-290,
+the error terms round); beyond 1e300 the splits overflow, the plain subtraction is kept and its
+own three roundings per product count (3 instead of 3/2).
 The parallel-axis shift adds no cancellation: I_C and m·(|r|²E − r·rᵀ) are both positive
 semi-definite, so its rounding is a few eps of ‖I_P‖ (bodies' ``PIVOT_K``).
 
