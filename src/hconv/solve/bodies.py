@@ -4,10 +4,11 @@
 component-major ``(k, N)`` arrays) and the :class:`Conventions` of the scene. It
 
 1. negates the products of inertia if they were given as positive integrals (``products``);
-2. re-expresses H (and r, v) in the body frame when an orientation q is given and H is in the
+2. re-expresses H (and r) in the body frame when an orientation q is given and H is in the
    world frame (``frame``); with q, the tensor is in the body frame (see :mod:`hconv.tables.layout`);
 3. moves the reference point (``about``): ``pivot`` shifts I from the centre of mass to the pivot;
-   ``free`` takes the centre of mass's orbital momentum out of H (see :mod:`hconv.kernels.frames`);
+   ``free`` takes the centre of mass's orbital momentum out of H, in the frame H was given in,
+   before any rotation (see :mod:`hconv.kernels.frames`);
 4. solves with :func:`hconv.solve.convert.convert` on the cheapest form the inertia allows: a scalar or
    principal moments go straight to the division ``H_i / I_i``; a tensor is built only for a
    pivot shift, and otherwise the six or nine numbers go to the chosen method;
@@ -15,7 +16,16 @@ component-major ``(k, N)`` arrays) and the :class:`Conventions` of the scene. It
 6. with a mass column, flags rows whose inertia no solid of that mass could have (``unit_suspect``).
 
 The residual is measured in the frame and about the point where the tensor is solved, so it does
-not include the (few-ulp) rounding of the rotations.
+not include the (few-ulp) rounding of the rotations and of the pivot shift; ``ill_conditioned``
+allows for them (:data:`ROTATION_K`, :data:`PIVOT_K`).
+
+A free body's H_C = H_P − r × (m·v) can cancel most of H_P's digits, and what H_P's rounding to
+float64 lost, no arithmetic on H_P recovers. The kernel bounds it, ε_C = ‖δH_C‖ / ‖H_C‖
+(:func:`hconv.kernels.frames.momentum_about_com`), and ω = I⁻¹·H_C can then be off by
+cond(I)·ε_C, on top of the solve's own K·cond(I)·eps. Where the two together could exceed
+:data:`hconv.solve.status.ILL_CONDITIONED_TOL` (1e-6) the row is ``cancellation``, and its
+``residual`` is the one measured against the float64 H_C plus cond(I)·ε_C: a measurement cannot
+see a loss that happened before the numbers reached hconv, so the residual carries its bound.
 """
 
 from __future__ import annotations
@@ -33,6 +43,9 @@ from hconv.solve.options import Conventions
 
 #: Rounding a vector through a rotation costs about this many cond(I)·eps in ω.
 ROTATION_K = 2.0
+#: The parallel-axis shift, with I_C, m and r rounded to float64, costs about this many cond(I_P)·eps
+#: in ω: about twice the worst measured against 50-digit states (docs/measurements.md).
+PIVOT_K = 2.0
 
 
 def invalid_inputs(
@@ -132,22 +145,26 @@ def _solve(
         R_WB, bad_q = frames.quaternion_matrix(q)
         bad |= bad_q
     rotate_in = R_WB is not None and conv.frame == "world"
-    if R_WB is not None and rotate_in:  # with q, the tensor is in the body frame: bring H (and r, v) there
-        H_P_B = frames.to_body(R_WB, H_P_F)
+    H_F, eps_C = H_P_F, None  # the momentum that is solved, still in F; ε_C for a free body
+    if conv.about == "free":
+        # H is about an origin P: take out the orbital term in F, before any rotation, so that the
+        # bound is about the numbers as given, and the rotation only turns H_C (ROTATION_K).
+        H_F, eps_C = frames.momentum_about_com(H_P_F, _given(m, "m"), _given(r_F, "r"), _given(v_F, "v"))
+    if R_WB is not None and rotate_in:  # with q, the tensor is in the body frame: bring H (and r) there
+        H_B = frames.to_body(R_WB, H_F)
         r_B = None if r_F is None else frames.to_body(R_WB, r_F)
-        v_B = None if v_F is None else frames.to_body(R_WB, v_F)
     else:
-        H_P_B, r_B, v_B = H_P_F, r_F, v_F
+        H_B, r_B = H_F, r_F
     # the tensor and momentum that are solved: about one point, in one frame
-    solved_form, I_solved, H_solved = form, I_given, H_P_B
+    solved_form, I_solved, H_solved = form, I_given, H_B
+    extra_k = ROTATION_K if rotate_in else 0.0
     if conv.about != "same":
         m_C, r_CP = _given(m, "m"), _given(r_B, "r")
         bad |= ~(np.isfinite(m_C) & (m_C >= 0))
         if conv.about == "pivot":  # I is about C, H about the pivot P: shift I to P
             name, I_solved = _pivot_shift(form, I_given, m_C, r_CP)
             solved_form = forms.get(name)
-        else:  # H is about an origin P: take out the orbital term, leaving H about C
-            H_solved = frames.momentum_about_com(H_P_B, m_C, r_CP, _given(v_B, "v"))
+            extra_k += PIVOT_K
     if m is not None:
         # A mass that is not positive, with an inertia that is not zero, is not a body (a zero
         # mass with a zero inertia is a massless link, which has no ω to give and goes singular).
@@ -165,9 +182,11 @@ def _solve(
         diagnostics=diagnostics,
         degenerate=conv.degenerate,
         degenerate_rtol=conv.degenerate_rtol,
-        extra_k=ROTATION_K if rotate_in else 0.0,
+        extra_k=extra_k,
         engine=engine,
     )
+    if eps_C is not None:
+        res = _cancellation(res, eps_C, core.error_k(method, precision, solved_form.diagonal, extra_k), precision)
     w_B, axis_B, code = res.w, res.null_axis, res.status_code
     w_out, axis_out = w_B, axis_B
     if R_WB is not None and conv.w_frame == "world":
@@ -179,3 +198,17 @@ def _solve(
         slip = units.implausible(form.trace(I_given), m, both_sides=conv.about != "same")
         code = status.merge(code, slip, "unit_suspect")
     return dataclasses.replace(res, w=w_out, null_axis=axis_out, status_code=code)
+
+
+def _cancellation(res: core.Result, eps_C: np.ndarray, k: float, precision: int) -> core.Result:
+    """A free body's result with the point change's bound carried in (the module docstring):
+    ``cancellation`` where cond(I)·(ε_C + K·eps) could exceed ILL_CONDITIONED_TOL, and
+    cond(I)·ε_C added to the residual. ``eps_C`` ``(N,)``; ``k``: the solve's own K."""
+    with np.errstate(invalid="ignore"):
+        point = np.where(eps_C == 0, 0.0, res.cond * eps_C)  # 0 also where cond is inf or NaN
+        eps = float(np.finfo(np.float64 if precision == 64 else np.float32).eps)
+        solve = res.cond * (k * eps)
+        lost = point + solve > status.ILL_CONDITIONED_TOL
+    code = status.merge(res.status_code, lost, "cancellation")
+    residual = None if res.residual is None else res.residual + point
+    return dataclasses.replace(res, status_code=code, residual=residual)

@@ -281,6 +281,17 @@ def _python_rows(
             residual[i] = res
 
 
+def error_k(method: str, precision: int, diagonal: bool, extra_k: float = 0.0) -> float:
+    """K of the bound K·cond(I)·eps on an exact-family answer's error (``ill_conditioned``), with
+    ``extra_k`` for what the caller rounded before (0 for the other methods: no such bound).
+    The division is correctly rounded, so on diagonal tensors the method adds nothing that grows
+    with cond."""
+    m = methods.get(method)
+    if not m.exact:
+        return 0.0
+    return extra_k if diagonal else extra_k + (m.error_k or {}).get(precision, 0.0)
+
+
 def _convert_blocks(
     n: int,
     opts: _BlockOptions,
@@ -373,9 +384,8 @@ def _convert_block(
         singular |= small <= tol
     tol = np.maximum(tol, status.singular_rtol(dtype) * big)
     dropped = singular & ~invalid & ~asym if deg is not None else np.zeros(n, dtype=bool)
-    # The division is correctly rounded, so on diagonal tensors the error does not grow with cond.
-    k_extra = o.extra_k if o.diagonal else o.extra_k + (m.error_k or {}).get(8 * np.dtype(dtype).itemsize, 0.0)
-    cond_limit = status.ILL_CONDITIONED_TOL / (k_extra * float(np.finfo(dtype).eps)) if m.exact and k_extra else np.inf
+    k_extra = error_k(m.name, 8 * np.dtype(dtype).itemsize, o.diagonal, o.extra_k)
+    cond_limit = status.ILL_CONDITIONED_TOL / (k_extra * float(np.finfo(dtype).eps)) if k_extra else np.inf
     flags = {
         "invalid_input": invalid,
         "not_symmetric": asym & ~invalid,

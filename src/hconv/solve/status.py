@@ -23,6 +23,11 @@ STATUSES: tuple[str, ...] = (
     "unit_suspect",  # with a mass column: no solid of that mass has that inertia (a unit slip?)
     "ill_conditioned",  # exact family: cond(I) so large that the error could exceed ILL_CONDITIONED_TOL
     "inaccurate",  # exact family: the measured residual exceeds ILL_CONDITIONED_TOL anyway (subnormals on the way)
+    # --about free: H_P - r × m·v cancels so many digits that cond(I)·ε_C plus the solve's own
+    # K·cond(I)·eps could exceed ILL_CONDITIONED_TOL (ε_C: hconv.kernels.frames.momentum_about_com).
+    # After the codes the row engine sets (rows.py): numba's cache keys on rows.py alone, and
+    # compiled code holds those codes as constants, so they must not move.
+    "cancellation",
     "frame_ambiguous",  # document-principal on repeated principal moments
     "r_on_axis",  # document methods: r (nearly) on an axis, so a component is forced to zero
 )
@@ -32,7 +37,8 @@ SYMMETRY_RTOL = 1e-12
 #: A tensor is singular when cond(I) >= 1 / (SINGULAR_RTOL_EPS · eps) of the working precision:
 #: about 1.1e15 in float64 and 2.1e6 in float32. Beyond that no digit of I⁻¹H is reliable.
 SINGULAR_RTOL_EPS = 4.0
-#: A row is ill_conditioned when its method's error bound K·cond(I)·eps could exceed this.
+#: A row is ill_conditioned when its method's error bound K·cond(I)·eps could exceed this, and
+#: cancellation when that bound plus a free body's cond(I)·ε_C could.
 ILL_CONDITIONED_TOL = 1e-6
 #: Principal moments closer than this fraction of the largest count as repeated.
 REPEATED_RTOL = 1e-9
