@@ -403,3 +403,33 @@ def test_open_input_named_pipe_is_read_like_stdin(tmp_path):
     assert (got.returncode, got.stderr) == (0, b"")
     assert (tmp_path / "out.csv").read_text().count("\n") == SCENE_CSV.read_text().count("\n")
     assert list(spools.iterdir()) == []  # the spool is gone
+
+
+def test_output_force_refuses_a_path_that_is_not_a_regular_file(tmp_path, capsys, monkeypatch):
+    """Before: --force renamed a file over a FIFO (as root, over /dev/full), exit 0."""
+    monkeypatch.chdir(tmp_path)
+    Path("in.csv").write_bytes(SCENE_CSV.read_bytes())
+    os.mkfifo("ff.csv")
+    code, _, err = run_inprocess("convert", "in.csv", "ff.csv", "--force", capsys=capsys)
+    assert (code, err) == (
+        4,
+        "hconv: error: ff.csv: is not a regular file (a named pipe (FIFO)); hconv writes OUT by renaming a "
+        "finished file into place; give a file path, or - to write to stdout\n",
+    )
+    assert Path("ff.csv").is_fifo()
+
+
+def test_output_force_through_a_symlink_writes_its_target_and_keeps_the_link(tmp_path, capsys, monkeypatch):
+    """Before: the link itself was replaced by a file, its target left as it was."""
+    monkeypatch.chdir(tmp_path)
+    Path("in.csv").write_bytes(SCENE_CSV.read_bytes())
+    Path("real").mkdir()
+    Path("real/out.csv").write_text("old\n")
+    os.symlink("real/out.csv", "link.csv")
+    code, _, err = run_inprocess("convert", "in.csv", "link.csv", "-q", capsys=capsys)
+    assert (code, err) == (4, "hconv: error: link.csv: already exists; pass --force to overwrite it\n")
+    code, _, err = run_inprocess("convert", "in.csv", "link.csv", "--force", "-q", capsys=capsys)
+    assert (code, err) == (0, "")
+    assert os.readlink("link.csv") == "real/out.csv"
+    assert Path("real/out.csv").read_text().startswith(SCENE_CSV.read_text().split(",", 1)[0])
+    assert [p.name for p in Path("real").iterdir()] == ["out.csv"]  # the temporary went beside the target

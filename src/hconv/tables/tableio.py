@@ -644,11 +644,23 @@ class Output:
         self.path, self.fmt = path, fmt
         self._writer: _CsvWriter | _ParquetWriter | None = None
         self._tmp: str | None = None
+        self._target = path  #: where the file goes: ``path``, or the file a link at ``path`` names
         if path == "-":
             return
-        target = Path(path)
-        if target.is_dir():
+        try:
+            mode: int | None = os.stat(path).st_mode  # follows a link: what would be overwritten
+        except OSError:
+            mode = None
+        if mode is not None and stat.S_ISDIR(mode):
             raise OutputError(f"{path}: is a directory; give a file name for the output")
+        if mode is not None and not stat.S_ISREG(mode):
+            raise OutputError(
+                f"{path}: is not a regular file ({_file_kind(mode)}); hconv writes OUT by renaming a finished "
+                "file into place; give a file path, or - to write to stdout"
+            )
+        if os.path.islink(path):  # write the link's target and keep the link, as `>` would
+            self._target = os.path.realpath(path)
+        target = Path(self._target)
         if not target.parent.exists():
             raise OutputError(f"{path}: the directory {str(target.parent)!r} does not exist; create it first")
         if input_path not in (None, "-") and target.exists() and os.path.samefile(input_path, target):
@@ -660,7 +672,7 @@ class Output:
         if self.path == "-":
             fd, self._tmp = _mkstemp("hconv-stdout-")
         else:
-            target = Path(self.path)
+            target = Path(self._target)
             # cut a long name so that the pid and the rest still fit in the 255 bytes a name may have
             name = os.fsdecode(os.fsencode(target.name)[:160])
             try:
@@ -711,8 +723,21 @@ class Output:
                     devnull = os.open(os.devnull, os.O_WRONLY)
                     os.dup2(devnull, sys.stdout.fileno())
         else:
-            os.replace(self._tmp, self.path)
+            os.replace(self._tmp, self._target)
             self._tmp = None
+
+
+def _file_kind(mode: int) -> str:
+    """What a path that is not a regular file is, for a message."""
+    for test, what in (
+        (stat.S_ISFIFO, "a named pipe (FIFO)"),
+        (stat.S_ISCHR, "a character device"),
+        (stat.S_ISBLK, "a block device"),
+        (stat.S_ISSOCK, "a socket"),
+    ):
+        if test(mode):
+            return what
+    return "not a file"
 
 
 class _ParquetWriter:
