@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
-from helpers import run_hconv, run_inprocess, terminal_signals
+from helpers import run_hconv, run_inprocess, run_on_terminal, terminal_signals
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE_CSV = ROOT / "examples" / "data" / "scene.csv"
@@ -287,11 +287,7 @@ def test_open_input_parquet_compressed_or_csv_says_what_it_is(tmp_path, capsys, 
     )
     Path("in.parquet").write_bytes(SCENE_CSV.read_bytes())
     code, _, err = run_inprocess("convert", "in.parquet", "out.parquet", capsys=capsys)
-    assert (
-        code == 3
-        and "not a readable Parquet file" in err
-        and "(it looks like CSV text: name it .csv or pass --from csv)" in err
-    )
+    assert code == 3 and "not a readable Parquet file" in err and "(it looks like CSV text: rename it in.csv)" in err
 
 
 @pytest.mark.parametrize(
@@ -433,3 +429,47 @@ def test_output_force_through_a_symlink_writes_its_target_and_keeps_the_link(tmp
     assert os.readlink("link.csv") == "real/out.csv"
     assert Path("real/out.csv").read_text().startswith(SCENE_CSV.read_text().split(",", 1)[0])
     assert [p.name for p in Path("real").iterdir()] == ["out.csv"]  # the temporary went beside the target
+
+
+def test_output_parquet_to_stdout_on_a_terminal_is_refused(tmp_path):
+    """Before: `hconv convert in.csv - --to parquet` wrote binary Parquet onto the terminal."""
+    code, shown = run_on_terminal("convert", str(SCENE_CSV), "-", "--to", "parquet", "-q", cwd=tmp_path)
+    assert (code, shown) == (2, "hconv: error: Parquet is binary: redirect stdout (> out.parquet) or use --to csv\n")
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (
+            ["in.csv", "out.csv", "--to", "parquet"],
+            "out.csv: the name says CSV but --to parquet says Parquet; name it out.parquet, or drop --to",
+        ),
+        (
+            ["in.csv", "out.parquet", "--from", "parquet"],
+            "in.csv: the name says CSV but --from parquet says Parquet; name it in.parquet, or drop --from",
+        ),
+        (
+            ["generate", "g.pq", "--rows", "5", "--to", "csv"],
+            "g.pq: the name says Parquet but --to csv says CSV; name it g.csv, or drop --to",
+        ),
+    ],
+)
+def test_format_of_extension_contradicting_from_or_to_is_refused(args, message, tmp_path, capsys, monkeypatch):
+    """Before: `hconv convert in.csv out.csv --to parquet` wrote Parquet into out.csv, exit 0."""
+    monkeypatch.chdir(tmp_path)
+    Path("in.csv").write_bytes(SCENE_CSV.read_bytes())
+    command = [] if args[0] == "generate" else ["convert"]
+    code, _, err = run_inprocess(*command, *args, capsys=capsys)
+    assert (code, err) == (2, f"hconv: error: {message}\n")
+    assert not Path(args[1]).exists() or args[1] == "in.csv"
+
+
+def test_format_of_extension_contradicting_from_or_to_python_names_the_keyword(tmp_path):
+    from hconv.errors import UsageError
+    from hconv.tables.pipeline import convert_file
+
+    (tmp_path / "in.csv").write_bytes(SCENE_CSV.read_bytes())
+    with pytest.raises(
+        UsageError, match=r"the name says CSV but dst_format='parquet' says Parquet; .* or drop dst_format$"
+    ):
+        convert_file(str(tmp_path / "in.csv"), str(tmp_path / "out.csv"), dst_format="parquet")

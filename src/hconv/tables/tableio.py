@@ -54,13 +54,20 @@ def format_of(path: str, given: str | None, flag: str) -> str:
     if given:
         if given not in FORMATS:
             raise UsageError(f"{option(flag)} must be {' or '.join(FORMATS)}, got {given!r}")
+        named = _named_format(path) if path != "-" else None
+        if named not in (None, given):  # out.csv with --to parquet: one of the two is a mistake
+            base = path[: -len(Path(path).suffix)]
+            raise UsageError(
+                f"{path}: the name says {_FORMAT_NAMES[named]} but {option(flag, given)} says "
+                f"{_FORMAT_NAMES[given]}; name it {base}{EXTENSIONS[given][0]}, or drop {option(flag)}"
+            )
         return given
     if path == "-":
         raise UsageError(
             f"'-' has no extension to tell the format; pass {option(flag, 'csv')} or {option(flag, 'parquet')}"
         )
     suffix = Path(path).suffix.lower()
-    fmt = next((f for f, exts in EXTENSIONS.items() if suffix in exts), None)
+    fmt = _named_format(path)
     if fmt is None:
         if flag == "src_format":
             _input_kind(path)  # a path that is missing or a directory: say so, not that its name has no format
@@ -70,6 +77,15 @@ def format_of(path: str, given: str | None, flag: str) -> str:
             f"name it .csv or .parquet, or pass {option(flag, 'csv')} or {option(flag, 'parquet')}"
         )
     return fmt
+
+
+_FORMAT_NAMES = {"csv": "CSV", "parquet": "Parquet"}
+
+
+def _named_format(path: str) -> str | None:
+    """The format ``path``'s extension names, or None."""
+    suffix = Path(path).suffix.lower()
+    return next((f for f, exts in EXTENSIONS.items() if suffix in exts), None)
 
 
 #: Compressions people often hand hconv: name, leading bytes, file suffixes, the command that
@@ -409,7 +425,7 @@ def _sniff_csv(path: str, name: str) -> None:
     if what:
         raise InputError(f"{name}: {what}")
     if b"\x00" in head or head.startswith(b"\x89PNG") or head.startswith(b"PAR1"):
-        parquet = f" (it looks like Parquet: name it .parquet or pass {option('src_format', 'parquet')})"
+        parquet = f" (it looks like Parquet: {_rename_or_pass(name, 'parquet')})"
         raise InputError(f"{name}: is not a text file, so not CSV" + (parquet if head.startswith(b"PAR1") else ""))
     head = head[3:] if head.startswith(b"\xef\xbb\xbf") else head
     cut = head.rfind(b"\n") + 1 if len(head) == 1 << 16 else len(head)
@@ -576,6 +592,14 @@ def _csv_value_error(path: str, name: str, names: list, ropts: pacsv.ReadOptions
     )
 
 
+def _rename_or_pass(name: str, fmt: str) -> str:
+    """How to read a file whose bytes are ``fmt`` as ``fmt``: a name with another format's
+    extension must change (--from may not contradict it); one without may keep it."""
+    if _named_format(name):
+        return f"rename it {os.path.splitext(name)[0]}{EXTENSIONS[fmt][0]}"
+    return f"name it {EXTENSIONS[fmt][0]} or pass {option('src_format', fmt)}"
+
+
 def _not_parquet(path: str, name: str, exc: Exception) -> InputError:
     """Why a file pyarrow cannot open as Parquet is not Parquet, when its first bytes tell."""
     try:
@@ -588,7 +612,7 @@ def _not_parquet(path: str, name: str, exc: Exception) -> InputError:
         return InputError(f"{name}: {what}")
     first = head.split(b"\n", 1)[0]
     looks_csv = b"," in first and b"\x00" not in head and not head.startswith(b"PAR1")
-    hint = f" (it looks like CSV text: name it .csv or pass {option('src_format', 'csv')})" if looks_csv else ""
+    hint = f" (it looks like CSV text: {_rename_or_pass(name, 'csv')})" if looks_csv else ""
     return InputError(
         f"{name}: not a readable Parquet file ({_first_line(exc)}){hint}; "
         "check that it is Parquet and was completely written"
@@ -646,6 +670,10 @@ class Output:
         self._tmp: str | None = None
         self._target = path  #: where the file goes: ``path``, or the file a link at ``path`` names
         if path == "-":
+            if fmt == "parquet" and sys.stdout is not None and sys.stdout.isatty():
+                raise UsageError(
+                    f"Parquet is binary: redirect stdout (> out.parquet) or use {option('dst_format', 'csv')}"
+                )
             return
         try:
             mode: int | None = os.stat(path).st_mode  # follows a link: what would be overwritten
