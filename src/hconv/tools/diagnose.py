@@ -440,8 +440,8 @@ def diagnose_file(
 
     from hconv.tables.tableio import format_of, open_input
 
-    if not tol > 0:
-        raise UsageError(f"{option('tol')} must be positive, got {tol}")
+    if not (tol > 0 and np.isfinite(tol)):  # an infinite tol explains every row by every hypothesis
+        raise UsageError(f"{option('tol')} must be a positive finite number, got {tol}")
     job = dataclasses.replace(job or Job(), observed=True)
     fin = format_of(src, src_format, "src_format")
     with open_input(src, fin, job) as inp:

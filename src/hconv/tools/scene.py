@@ -93,8 +93,8 @@ def check_scene(scene: str, cond_max: float) -> None:
     """UsageError (a ValueError) for a scene kind or cond_max that cannot be drawn."""
     if scene not in SCENES:
         raise UsageError(f"unknown scene {scene!r}; choose one of: {', '.join(SCENES)}")
-    if not cond_max >= 1:
-        raise UsageError(f"{option('cond_max')} must be at least 1, got {cond_max}")
+    if not (cond_max >= 1 and np.isfinite(cond_max)):  # inf draws singular bodies, written as nan
+        raise UsageError(f"{option('cond_max')} must be a finite number, at least 1, got {cond_max}")
 
 
 def make_scene(
