@@ -473,3 +473,76 @@ def test_format_of_extension_contradicting_from_or_to_python_names_the_keyword(t
         UsageError, match=r"the name says CSV but dst_format='parquet' says Parquet; .* or drop dst_format$"
     ):
         convert_file(str(tmp_path / "in.csv"), str(tmp_path / "out.csv"), dst_format="parquet")
+
+
+def _scene_with(tmp_path, column) -> str:
+    import pyarrow.parquet as pq
+
+    t = pq.read_table(ROOT / "examples" / "data" / "scene.parquet")
+    pq.write_table(t.append_column("extra", column(t.num_rows)), tmp_path / "in.parquet")
+    return str(tmp_path / "in.parquet")
+
+
+def _nested(kind):
+    import pyarrow as pa
+
+    if kind == "struct":
+        return lambda n: pa.array([{"a": i} for i in range(n)])
+    return lambda n: pa.array([[("k", i)] for i in range(n)], pa.map_(pa.string(), pa.int64()))
+
+
+@pytest.mark.parametrize("kind, typename", [("struct", "struct<a: int64>"), ("map", "map<string, int64 ('extra')>")])
+def test_convert_file_parquet_to_csv_with_a_column_csv_cannot_hold_is_refused(kind, typename, tmp_path):
+    """Before: 'internal error: ArrowInvalid: Unsupported Type:struct<…>', exit 1."""
+    from hconv.errors import InputError
+    from hconv.tables.pipeline import convert_file
+
+    src = _scene_with(tmp_path, _nested(kind))
+    with pytest.raises(InputError) as err:
+        convert_file(src, str(tmp_path / "out.csv"))
+    assert str(err.value) == (
+        f"{src}: column 'extra' is {typename}, which CSV cannot hold; write Parquet instead "
+        "(OUT named .parquet), or drop the column first"
+    )
+    assert list(tmp_path.iterdir()) == [tmp_path / "in.parquet"]
+
+
+def test_convert_file_parquet_to_csv_with_binary_not_utf8_is_refused(tmp_path, capsys):
+    """Before: 'internal error: ArrowInvalid: Invalid UTF8 payload', exit 1. Binary that is text
+    (a byte array without the string annotation) is written as text."""
+    import pyarrow as pa
+
+    src = _scene_with(tmp_path, lambda n: pa.array([b"\xff"] * n))
+    code, _, err = run_inprocess("convert", src, str(tmp_path / "out.csv"), "-q", capsys=capsys)
+    assert (code, err) == (
+        3,
+        "hconv: error: column 'extra' is binary and holds bytes that are not UTF-8 text, which CSV cannot "
+        "hold; write Parquet instead (OUT named .parquet), or drop the column first\n",
+    )
+    assert not (tmp_path / "out.csv").exists()
+    src = _scene_with(tmp_path, lambda n: pa.array([b"text"] * n))
+    code, _, err = run_inprocess("convert", src, str(tmp_path / "out.csv"), "-q", capsys=capsys)
+    assert (code, err) == (0, "")
+    assert (tmp_path / "out.csv").read_text().splitlines()[1].split(",")[18] == "text"
+
+
+@pytest.mark.parametrize(
+    "column, text",
+    [
+        (lambda n: __import__("pyarrow").array(["x"] * n).dictionary_encode(), "x"),
+        (lambda n: __import__("pyarrow").array(["x"] * n, __import__("pyarrow").large_string()), "x"),
+        (
+            lambda n: __import__("pyarrow").array([0] * n, __import__("pyarrow").timestamp("s", tz="Europe/Paris")),
+            "1970-01-01 01:00:00.000+0100",
+        ),
+        (lambda n: __import__("pyarrow").array([__import__("decimal").Decimal("1.50")] * n), "1.50"),
+        (lambda n: __import__("pyarrow").nulls(n), ""),
+    ],
+    ids=["dictionary", "large_string", "timestamp_tz", "decimal", "null"],
+)
+def test_convert_file_parquet_to_csv_other_column_types_are_written_as_text(column, text, tmp_path):
+    from hconv.tables.pipeline import convert_file
+
+    convert_file(_scene_with(tmp_path, column), str(tmp_path / "out.csv"))
+    lines = (tmp_path / "out.csv").read_text().splitlines()
+    assert lines[0].split(",")[18] == "extra" and lines[1].split(",")[18] == text

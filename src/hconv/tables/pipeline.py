@@ -200,6 +200,8 @@ def convert_file(
     out = Output(dst, fout, force=force, input_path=src)  # refuses early, before reading
     t0 = time.perf_counter()
     with open_input(src, fin, job) as inp:
+        if fout == "csv":
+            tableio.check_csv_columns(inp.schema, inp.name)  # before converting anything
         # CSV's text columns get types in Parquet, the first block's (csvtypes); CSV keeps them as they were
         typed = fout != "csv" and bool(inp.text) and not job.keep_text
         run = functools.partial(_convert, job=job, strict=strict, threads=threads, progress=progress)

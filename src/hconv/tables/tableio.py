@@ -789,6 +789,31 @@ class _ParquetWriter:
         self._w.close()
 
 
+def check_csv_columns(schema: pa.Schema, name: str) -> None:
+    """InputError, before anything is converted, for a column CSV cannot hold: a struct, map or
+    union (lists are written as text, :func:`_list_as_text`)."""
+    for f in schema:
+        t = f.type.value_type if pa.types.is_dictionary(f.type) else f.type
+        if pa.types.is_struct(t) or pa.types.is_map(t) or pa.types.is_union(t):
+            raise InputError(_csv_cannot_hold(name, f))
+
+
+def _csv_cannot_hold(name: str, f: pa.Field, why: str = "") -> str:
+    return (
+        f"{name + ': ' if name else ''}column {f.name!r} is {f.type}{why}, which CSV cannot hold; "
+        "write Parquet instead (OUT named .parquet), or drop the column first"
+    )
+
+
+def _binary_as_text(col: pa.ChunkedArray, f: pa.Field) -> pa.ChunkedArray:
+    """A binary column as text, which it must be to go into CSV: InputError if it holds bytes that
+    are not UTF-8 (a Parquet byte array without the string annotation usually is text)."""
+    try:
+        return col.cast(pa.string())
+    except pa.ArrowInvalid:
+        raise InputError(_csv_cannot_hold("", f, " and holds bytes that are not UTF-8 text")) from None
+
+
 def _list_as_text(col: pa.ChunkedArray) -> pa.ChunkedArray | pa.Array:
     """A list column as text, ``[1.5, 2.0, 3.0]``, since CSV has no lists; other columns as they are."""
     t = col.type
@@ -814,7 +839,15 @@ class _CsvWriter:
         self._quoted = pacsv.WriteOptions(include_header=False)
 
     def write(self, table: pa.Table) -> None:
-        cols = [c.cast(pa.string()) if pa.types.is_dictionary(c.type) else _list_as_text(c) for c in table.columns]
+        check_csv_columns(table.schema, "")  # the callers check the input first, naming it
+        cols = [
+            c.cast(pa.string())
+            if pa.types.is_dictionary(c.type)
+            else _binary_as_text(c, f)
+            if pa.types.is_binary(f.type) or pa.types.is_large_binary(f.type) or pa.types.is_fixed_size_binary(f.type)
+            else _list_as_text(c)
+            for c, f in zip(table.columns, table.schema, strict=True)
+        ]
         names = table.schema.names
         if self._unit:
             cols.append(pa.repeat(self._unit, table.num_rows))
