@@ -70,3 +70,30 @@ def test_job_map_and_units_checked_when_made_without_the_data(kwargs, needle):
 
 def test_job_unit_for_another_column_waits_for_the_data():
     assert Job(unit_options={"Lx": "g*cm**2/s"}).unit_options == (("Lx", "g*cm**2/s"),)
+
+
+@pytest.mark.parametrize("function", ["convert_table", "convert_file", "diagnose_file", "compare_file"])
+def test_check_job_not_a_job_is_refused_naming_the_fix(function, tmp_path):
+    """Before: job='exact' gave AttributeError: 'str' object has no attribute 'engine'."""
+    import pyarrow as pa
+
+    import hconv
+    from hconv.tables.pipeline import convert_file
+    from hconv.tools.compare import compare_file
+    from hconv.tools.diagnose import diagnose_file
+
+    src = str(tmp_path / "in.csv")
+    call = {
+        "convert_table": lambda job: hconv.convert_table(pa.table({"Hx": [1.0]}), job=job),
+        "convert_file": lambda job: convert_file(src, src + ".csv", job=job),
+        "diagnose_file": lambda job: diagnose_file(src, job=job),
+        "compare_file": lambda job: compare_file(src, job=job),
+    }[function]
+    with pytest.raises(
+        UsageError, match=r"^job takes a hconv.Job, got 'exact' \(str\); for the method alone pass method='exact'$"
+    ):
+        call("exact")
+    with pytest.raises(
+        UsageError, match=r"^job takes a hconv.Job, got \{'method': 'exact'\} \(dict\); make one with hconv.Job"
+    ):
+        call({"method": "exact"})

@@ -125,3 +125,14 @@ class Job:
         if name not in given:
             return 1.0
         return units.factor(QUANTITY[name], given[name], entry("unit_options", name, given[name]))
+
+
+def check_job(job: object) -> None:
+    """UsageError unless ``job`` is a Job or None: every function that takes ``job=`` calls this
+    first, so that ``job='exact'`` is not an AttributeError deep inside."""
+    if job is None or isinstance(job, Job):
+        return
+    hint = "make one with hconv.Job(...)"
+    if isinstance(job, str) and job in methods.METHODS:
+        hint = f"for the method alone pass {option('method', job)}"
+    raise UsageError(f"job takes a hconv.Job, got {job!r} ({type(job).__name__}); {hint}")
