@@ -68,6 +68,19 @@ def test_job_map_and_units_checked_when_made_without_the_data(kwargs, needle):
         Job(**kwargs)
 
 
+def test_job_unit_given_twice_with_different_units_is_refused(tmp_path, capsys):
+    """Before: the last --unit I=... won silently, while a doubled --map was refused."""
+    from helpers import run_inprocess
+
+    with pytest.raises(UsageError, match=r"^unit_options gives I twice \(g\*cm\*\*2 and kg\*m\*\*2\); give it once$"):
+        Job(unit_options=(("I", "g*cm**2"), ("I", "kg*m**2")))
+    assert Job(unit_options=(("I", "g*cm**2"), ("I", "g*cm**2"))).set_factor("I") == pytest.approx(1e-7)
+    code, _, err = run_inprocess(
+        "convert", "in.csv", str(tmp_path / "o.csv"), "--unit", "I=g*cm**2", "--unit", "I=kg*m**2", capsys=capsys
+    )
+    assert (code, err) == (2, "hconv: error: --unit gives I twice (g*cm**2 and kg*m**2); give it once\n")
+
+
 def test_job_unit_for_another_column_waits_for_the_data():
     assert Job(unit_options={"Lx": "g*cm**2/s"}).unit_options == (("Lx", "g*cm**2/s"),)
 
