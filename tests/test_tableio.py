@@ -296,18 +296,18 @@ def test_open_input_parquet_compressed_or_csv_says_what_it_is(tmp_path, capsys, 
         (
             ["in.csv.gz", "out.csv"],
             3,
-            "in.csv.gz: is gzip-compressed; hconv reads uncompressed files, so decompress it first: "
-            "gzip -dc in.csv.gz > in.csv",
+            "in.csv.gz: is gzip-compressed; hconv reads uncompressed CSV, so decompress it first: "
+            "gzip -dc in.csv.gz > in-plain.csv",
         ),
         (
             ["in.csv", "out.csv.gz"],
             4,
-            "out.csv.gz: hconv writes uncompressed files; write out.csv and compress it afterwards: gzip out.csv",
+            "out.csv.gz: hconv writes uncompressed CSV; write out.csv and compress it afterwards: gzip out.csv",
         ),
         (
             ["in.csv", "out.parquet.zip"],
             4,
-            "out.parquet.zip: hconv writes uncompressed files; write out.parquet and compress it afterwards: "
+            "out.parquet.zip: hconv writes uncompressed Parquet; write out.parquet and compress it afterwards: "
             "zip out.parquet.zip out.parquet",
         ),
     ],
@@ -546,3 +546,24 @@ def test_convert_file_parquet_to_csv_other_column_types_are_written_as_text(colu
     convert_file(_scene_with(tmp_path, column), str(tmp_path / "out.csv"))
     lines = (tmp_path / "out.csv").read_text().splitlines()
     assert lines[0].split(",")[18] == "extra" and lines[1].split(",")[18] == text
+
+
+def test_open_input_compressed_hint_names_a_file_that_does_not_exist_with_its_extension(tmp_path, capsys, monkeypatch):
+    """Before: `gzip -dc ok.csv.gz > ok.csv` over an existing ok.csv, and `unzip -p ok.zip > ok`."""
+    monkeypatch.chdir(tmp_path)
+    Path("ok.csv").write_bytes(SCENE_CSV.read_bytes())
+    Path("ok-plain.csv").write_bytes(b"mine\n")
+    Path("ok.csv.gz").write_bytes(_as("gzip", SCENE_CSV.read_bytes()))
+    code, _, err = run_inprocess("convert", "ok.csv.gz", "out.csv", capsys=capsys)
+    assert (code, err) == (
+        3,
+        "hconv: error: ok.csv.gz: is gzip-compressed; hconv reads uncompressed CSV, so decompress it first: "
+        "gzip -dc ok.csv.gz > ok-plain-2.csv\n",
+    )
+    Path("data.zip").write_bytes(_as("zip", SCENE_CSV.read_bytes()))
+    code, _, err = run_inprocess("convert", "data.zip", "out.csv", "--from", "csv", capsys=capsys)
+    assert (code, err) == (
+        3,
+        "hconv: error: data.zip: is a zip archive; hconv reads uncompressed CSV, so decompress it first: "
+        "unzip -p data.zip > data.csv\n",
+    )

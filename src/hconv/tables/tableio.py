@@ -109,15 +109,27 @@ def _refuse_compressed_name(path: str, suffix: str, flag: str) -> None:
     if packed is None or not any(Path(plain).suffix.lower() in exts for exts in EXTENSIONS.values()):
         return
     what, _, _, unpack, pack = packed
+    kind = _FORMAT_NAMES[_named_format(plain) or "csv"]
     if flag == "src_format":
         raise InputError(
-            f"{path}: is {_packed(what)}; hconv reads uncompressed files, so decompress it first: "
-            f"{unpack} {shlex.quote(path)} > {shlex.quote(plain)}"
+            f"{path}: is {_packed(what)}; hconv reads uncompressed {kind}, so decompress it first: "
+            f"{unpack} {shlex.quote(path)} > {shlex.quote(_free_name(plain))}"
         )
     raise OutputError(
-        f"{path}: hconv writes uncompressed files; write {plain} and compress it afterwards: "
+        f"{path}: hconv writes uncompressed {kind}; write {plain} and compress it afterwards: "
         + pack.format(plain=shlex.quote(plain), packed=shlex.quote(path))
     )
+
+
+def _free_name(plain: str) -> str:
+    """``plain``, or if that exists ``<base>-plain<ext>`` (then -plain-2, …): a decompress command
+    must never overwrite a file, least of all the plain copy the user may already have."""
+    base, ext = os.path.splitext(plain)
+    name, k = plain, 1
+    while os.path.lexists(name):
+        name = f"{base}-plain{ext}" if k == 1 else f"{base}-plain-{k}{ext}"
+        k += 1
+    return name
 
 
 def _packed(what: str) -> str:
@@ -134,8 +146,11 @@ def _what_it_is(head: bytes, path: str, name: str, fmt: str) -> str | None:
         if piped:
             return f"in the pipe, before hconv: ... | {command} | hconv ..."
         base, ext = os.path.splitext(name)
-        plain = base if ext.lower() in suffixes else f"{base}{tag}{ext}"
-        return f"first: {command} {shlex.quote(name)} > {shlex.quote(plain)}"
+        if ext.lower() in suffixes:  # ok.csv.gz -> ok.csv; ok.zip -> ok.csv, not ok
+            plain = base if _named_format(base) else base + EXTENSIONS[fmt][0]
+        else:
+            plain = f"{base}{tag}{ext}"
+        return f"first: {command} {shlex.quote(name)} > {shlex.quote(_free_name(plain))}"
 
     for what, magic, suffixes, unpack, _ in _COMPRESSIONS:
         if not head.startswith(magic):
