@@ -567,3 +567,18 @@ def test_open_input_compressed_hint_names_a_file_that_does_not_exist_with_its_ex
         "hconv: error: data.zip: is a zip archive; hconv reads uncompressed CSV, so decompress it first: "
         "unzip -p data.zip > data.csv\n",
     )
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["", "o.csv"], "the input path is empty (''); give a file path, or - for stdin"),
+        (["", "o.csv", "--from", "csv"], "the input path is empty (''); give a file path, or - for stdin"),
+        ([str(SCENE_CSV), "", "--to", "csv"], "the output path is empty (''); give a file path, or - for stdout"),
+    ],
+)
+def test_format_of_empty_path_says_it_is_empty(args, message, tmp_path, capsys, monkeypatch):
+    """Before: 'hconv: error: : does not exist' (an unset shell variable as IN)."""
+    monkeypatch.chdir(tmp_path)
+    code, _, err = run_inprocess("convert", *args, capsys=capsys)
+    assert (code, err) == (2, f"hconv: error: {message}\n")

@@ -51,6 +51,9 @@ UNIT_COLUMN = layout.UNIT_COLUMN
 def format_of(path: str, given: str | None, flag: str) -> str:
     """``given`` if set, else the format named by ``path``'s extension; UsageError otherwise.
     ``flag`` is ``src_format`` (``--from``) for an input, ``dst_format`` (``--to``) for an output."""
+    if path == "":  # an unset shell variable: "hconv convert "$in" out.csv"
+        which, std = ("input", "stdin") if flag == "src_format" else ("output", "stdout")
+        raise UsageError(f"the {which} path is empty (''); give a file path, or - for {std}")
     if given:
         if given not in FORMATS:
             raise UsageError(f"{option(flag)} must be {' or '.join(FORMATS)}, got {given!r}")
