@@ -582,3 +582,31 @@ def test_format_of_empty_path_says_it_is_empty(args, message, tmp_path, capsys, 
     monkeypatch.chdir(tmp_path)
     code, _, err = run_inprocess("convert", *args, capsys=capsys)
     assert (code, err) == (2, f"hconv: error: {message}\n")
+
+
+def test_csv_writer_csv_to_csv_text_columns_come_out_byte_for_byte(tmp_path):
+    """Before: one value needing quotes made every text value of its batch quoted (1 -> "1",
+    02134 -> "02134"), though the README promises them back exactly as they went in."""
+    from hconv.tables.pipeline import convert_file
+
+    rows = ['1,02134,plain text,"a,b",,"say ""hi""",007', '2,00501,x y,z,,"line\nbreak",1e3']
+    text = "id,zip,label,note,empty,quote,code,Hx,Hy,Hz,I1,I2,I3\n" + "".join(r + ",1,2,3,1,2,4\n" for r in rows)
+    (tmp_path / "in.csv").write_text(text)
+    convert_file(str(tmp_path / "in.csv"), str(tmp_path / "out.csv"))
+    out = (tmp_path / "out.csv").read_text()
+    assert out.startswith("id,zip,label,note,empty,quote,code,Hx,")
+    body = out.split("\n", 1)[1]
+    assert body.startswith(rows[0] + ",1,2,3,1,2,4,")
+    assert "\n" + rows[1] + ",1,2,3,1,2,4," in body
+
+
+def test_csv_writer_parquet_empty_string_and_null_stay_distinct(tmp_path):
+    """Unquoted, both were an empty field; a null stays empty and the empty string is quoted."""
+    import pyarrow as pa
+
+    from hconv.tables.pipeline import convert_file
+
+    src = _scene_with(tmp_path, lambda n: pa.array((["", None, "x"] * n)[:n]))
+    convert_file(src, str(tmp_path / "out.csv"))
+    lines = (tmp_path / "out.csv").read_text().splitlines()
+    assert [line.split(",")[18] for line in lines[1:4]] == ['""', "", "x"]

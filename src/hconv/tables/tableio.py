@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import BinaryIO
 
 import pyarrow as pa
+import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
@@ -842,6 +843,36 @@ def _list_as_text(col: pa.ChunkedArray) -> pa.ChunkedArray | pa.Array:
     )
 
 
+_NEEDS_QUOTES = r'[,"\r\n]'
+
+
+def _empty_beside_null(col: pa.ChunkedArray) -> bool:
+    """A text column holding both nulls and empty strings, which unquoted CSV would merge."""
+    return (
+        (pa.types.is_string(col.type) or pa.types.is_large_string(col.type))
+        and col.null_count > 0
+        and bool(pc.any(pc.equal(col, "")).as_py())
+    )
+
+
+def _csv_rows(t: pa.Table) -> bytes:
+    """``t`` as CSV rows, each value quoted only if it must be: one holding a comma, quote or line
+    break, and, in a column that also holds nulls, the empty string (``""``; a null is empty).
+    pyarrow's own quoting (``needed``) quotes every text value, so that ``1`` became ``"1"``; the
+    values are formatted by the same cast pyarrow's writer uses, so the bytes match its unquoted
+    output otherwise."""
+    cols = []
+    for col in t.columns:
+        text = pc.cast(col, pa.string())
+        quoted = pc.binary_join_element_wise('"', pc.replace_substring(text, '"', '""'), '"', "")
+        text = pc.if_else(pc.match_substring_regex(text, _NEEDS_QUOTES), quoted, text)
+        if col.null_count:
+            text = pc.if_else(pc.equal(text, ""), '""', text)
+        cols.append(pc.fill_null(text, ""))
+    lines = pc.binary_join_element_wise(*cols, ",") if cols else pa.array([""] * t.num_rows)
+    return "".join(line + "\n" for line in lines.to_pylist()).encode()
+
+
 class _CsvWriter:
     """CSV with a minimal-quoting header, ``status`` as text and ω's unit in a ``w_unit`` column."""
 
@@ -854,7 +885,6 @@ class _CsvWriter:
         csv.writer(buf, lineterminator="\n").writerow(names)
         self._f.write(buf.getvalue().encode())
         self._plain = pacsv.WriteOptions(include_header=False, quoting_style="none")
-        self._quoted = pacsv.WriteOptions(include_header=False)
 
     def write(self, table: pa.Table) -> None:
         check_csv_columns(table.schema, "")  # the callers check the input first, naming it
@@ -871,12 +901,15 @@ class _CsvWriter:
             cols.append(pa.repeat(self._unit, table.num_rows))
             names = names + [UNIT_COLUMN]
         t = pa.Table.from_arrays(cols, names=names)
+        if any(_empty_beside_null(c) for c in t.columns):
+            self._f.write(_csv_rows(t))
+            return
         buf = pa.BufferOutputStream()
         try:
             pacsv.write_csv(t, buf, self._plain)
-        except pa.ArrowInvalid:  # a value holds a comma, quote or newline: quote this batch's strings
-            buf = pa.BufferOutputStream()
-            pacsv.write_csv(t, buf, self._quoted)
+        except pa.ArrowInvalid:  # a value holds a comma, quote or newline: quote those values only
+            self._f.write(_csv_rows(t))
+            return
         self._f.write(buf.getvalue())
 
     def close(self) -> None:
