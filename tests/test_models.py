@@ -660,7 +660,7 @@ def test_table_columns_are_hconvs_input_contract(tmp_path):
     assert t6.column_names == common + ["Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz", "inertia_status", "inertia_reason"]
     assert tp.column_names == common + ["I1", "I2", "I3", "qw", "qx", "qy", "qz", "inertia_status", "inertia_reason"]
     assert t6.schema.field("Ixx").metadata == {b"unit": b"kg*m**2"} and t6.schema.field("rx").metadata[b"unit"] == b"m"
-    with pytest.raises(UsageError, match="sym6 or principal"):
+    with pytest.raises(UsageError, match="form must be one of sym6, principal"):
         m.table("full9")
 
 
