@@ -677,3 +677,17 @@ def test_one_has_no_short_method_option_beside_mass():
     assert proc.returncode == 2 and "-m" in err and len(err.strip().splitlines()) == 1
     ok = run_hconv("one", "--H", "1,0,0", "--I", "1", "--m", "5", "--method", "refined")
     assert ok.returncode == 0 and b"status   = ok" in ok.stdout
+
+
+def test_help_usage_lines_name_arguments_plainly_and_generate_says_stdout(capsys):
+    """Before: 'Usage: hconv convert [OPTIONS] {IN} {OUT}' (typer's braces for a required
+    argument), no help for generate's --seed, and 'hconv generate: 1,000 rows to - in …'."""
+    from helpers import run_inprocess
+
+    for command, usage in [("convert", "IN OUT"), ("bodies", "MODEL [OUT]"), ("generate", "OUT")]:
+        code, out, _ = run_inprocess(command, "--help", capsys=capsys)
+        assert code == 0 and f"Usage: hconv {command} [OPTIONS] {usage}" in out, out
+    code, out, _ = run_inprocess("generate", "--help", capsys=capsys)
+    assert "the random draw; the same seed gives" in out
+    code, _, err = run_inprocess("generate", "-", "--rows", "3", "--to", "csv", capsys=capsys)
+    assert code == 0 and err.startswith("hconv generate: 3 rows to stdout in "), err

@@ -471,3 +471,12 @@ def test_diagnose_of_no_rows_calls_nothing_best(tmp_path):
     assert proc.returncode == 0, proc.stderr.decode()
     assert b"# hconv diagnose \xc2\xb7 0 rows" in proc.stdout
     assert b"best" not in proc.stdout and b"closest" not in proc.stdout
+
+
+@pytest.mark.parametrize("tol", [float("inf"), float("nan"), 0.0])
+def test_diagnose_file_tol_not_positive_and_finite_is_refused(tol, tmp_path):
+    """Before: tol=inf passed and called every hypothesis an explanation of every row."""
+    from hconv.errors import UsageError
+
+    with pytest.raises(UsageError, match=rf"^tol must be a positive finite number, got {tol}$"):
+        diagnose.diagnose_file(str(tmp_path / "obs.parquet"), tol=tol)

@@ -61,9 +61,9 @@ def test_generate_same_seed_same_rows_other_seed_other_rows(tmp_path):
 
 def test_generate_bad_arguments(tmp_path):
     proc = run_hconv("generate", str(tmp_path / "x.csv"), "--rows", "5", "--scene", "blob")
-    assert proc.returncode == 2 and "unknown scene 'blob'" in proc.stderr.decode()
+    assert proc.returncode == 2 and "--scene must be one of mix, box," in proc.stderr.decode()
     proc = run_hconv("generate", str(tmp_path / "x.csv"), "--rows", "5", "--cond-max", "0.5")
-    assert proc.returncode == 2 and "--cond-max must be at least 1" in proc.stderr.decode()
+    assert proc.returncode == 2 and "--cond-max must be a finite number, at least 1" in proc.stderr.decode()
     (tmp_path / "y.csv").write_text("keep\n")
     proc = run_hconv("generate", str(tmp_path / "y.csv"), "--rows", "5")
     assert proc.returncode == 4 and (tmp_path / "y.csv").read_text() == "keep\n"
@@ -74,3 +74,30 @@ def test_generate_to_stdout_feeds_convert(tmp_path):
     conv = run_hconv("convert", "-", "-", "--from", "csv", "--to", "csv", "-q", input=gen.stdout)
     lines = conv.stdout.decode().splitlines()
     assert len(lines) == 51 and lines[0].endswith("status,w_unit")
+
+
+@pytest.mark.parametrize("value", ["inf", "nan", "-inf"])
+def test_generate_cond_max_not_finite_is_refused(value, tmp_path):
+    """Before: --cond-max inf exited 0 writing nan and inf rows."""
+    from hconv.errors import UsageError
+    from hconv.tools.generate import generate_file
+
+    with pytest.raises(UsageError, match=rf"^cond_max must be a finite number, at least 1, got {value}$"):
+        generate_file(str(tmp_path / "x.csv"), 20, cond_max=float(value))
+    assert not (tmp_path / "x.csv").exists()
+
+
+def test_generate_unknown_scene_names_the_option(tmp_path, capsys):
+    """Before: "unknown scene 'blob'", naming neither --scene nor scene=."""
+    from helpers import run_inprocess
+
+    from hconv.errors import UsageError
+    from hconv.tools.generate import generate_file
+
+    code, _, err = run_inprocess("generate", str(tmp_path / "x.csv"), "--rows", "5", "--scene", "blob", capsys=capsys)
+    assert (code, err) == (
+        2,
+        "hconv: error: --scene must be one of mix, box, cylinder, rod, sphere, ellipsoid, got 'blob'\n",
+    )
+    with pytest.raises(UsageError, match=r"^scene must be one of mix, box, .*, got 'blob'$"):
+        generate_file(str(tmp_path / "x.csv"), 5, scene="blob")

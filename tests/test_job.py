@@ -68,5 +68,45 @@ def test_job_map_and_units_checked_when_made_without_the_data(kwargs, needle):
         Job(**kwargs)
 
 
+def test_job_unit_given_twice_with_different_units_is_refused(tmp_path, capsys):
+    """Before: the last --unit I=... won silently, while a doubled --map was refused."""
+    from helpers import run_inprocess
+
+    with pytest.raises(UsageError, match=r"^unit_options gives I twice \(g\*cm\*\*2 and kg\*m\*\*2\); give it once$"):
+        Job(unit_options=(("I", "g*cm**2"), ("I", "kg*m**2")))
+    assert Job(unit_options=(("I", "g*cm**2"), ("I", "g*cm**2"))).set_factor("I") == pytest.approx(1e-7)
+    code, _, err = run_inprocess(
+        "convert", "in.csv", str(tmp_path / "o.csv"), "--unit", "I=g*cm**2", "--unit", "I=kg*m**2", capsys=capsys
+    )
+    assert (code, err) == (2, "hconv: error: --unit gives I twice (g*cm**2 and kg*m**2); give it once\n")
+
+
 def test_job_unit_for_another_column_waits_for_the_data():
     assert Job(unit_options={"Lx": "g*cm**2/s"}).unit_options == (("Lx", "g*cm**2/s"),)
+
+
+@pytest.mark.parametrize("function", ["convert_table", "convert_file", "diagnose_file", "compare_file"])
+def test_check_job_not_a_job_is_refused_naming_the_fix(function, tmp_path):
+    """Before: job='exact' gave AttributeError: 'str' object has no attribute 'engine'."""
+    import pyarrow as pa
+
+    import hconv
+    from hconv.tables.pipeline import convert_file
+    from hconv.tools.compare import compare_file
+    from hconv.tools.diagnose import diagnose_file
+
+    src = str(tmp_path / "in.csv")
+    call = {
+        "convert_table": lambda job: hconv.convert_table(pa.table({"Hx": [1.0]}), job=job),
+        "convert_file": lambda job: convert_file(src, src + ".csv", job=job),
+        "diagnose_file": lambda job: diagnose_file(src, job=job),
+        "compare_file": lambda job: compare_file(src, job=job),
+    }[function]
+    with pytest.raises(
+        UsageError, match=r"^job takes a hconv.Job, got 'exact' \(str\); for the method alone pass method='exact'$"
+    ):
+        call("exact")
+    with pytest.raises(
+        UsageError, match=r"^job takes a hconv.Job, got \{'method': 'exact'\} \(dict\); make one with hconv.Job"
+    ):
+        call({"method": "exact"})

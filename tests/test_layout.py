@@ -155,3 +155,18 @@ def test_plan_map_clash_is_spelled_as_the_command_line_does(tmp_path):
     err = proc.stderr.decode().strip()
     assert proc.returncode == 3 and len(err.splitlines()) == 1
     assert "column 'Hx' is read as Hy: --map Hy=Hx); give Hx a column too, e.g. --map Hx=COLUMN" in err
+
+
+def test_read_integer_column_beyond_2_53_rounds_to_float64_as_csv_does(tmp_path):
+    """Before: 'internal error: ArrowInvalid: Integer value 9007199254740993 not in range'."""
+    import hconv
+
+    big = 9007199254740993  # 2^53 + 1: not a float64
+    cols = {"Hx": [big], "Hy": [0], "Hz": [0], "I1": [big], "I2": [big], "I3": [big]}
+    from_ints = hconv.convert_table(pa.table({k: pa.array(v, pa.int64()) for k, v in cols.items()}))
+    pq.write_table(pa.table({k: pa.array(v, pa.int64()) for k, v in cols.items()}), tmp_path / "in.parquet")
+    (tmp_path / "in.csv").write_text(",".join(cols) + "\n" + ",".join(str(v[0]) for v in cols.values()) + "\n")
+    pipeline.convert_file(str(tmp_path / "in.parquet"), str(tmp_path / "p.parquet"))
+    pipeline.convert_file(str(tmp_path / "in.csv"), str(tmp_path / "c.parquet"))
+    got = [pq.read_table(tmp_path / f"{n}.parquet").column("wx").to_pylist() for n in "pc"]
+    assert got[0] == got[1] == from_ints.column("wx").to_pylist() == [1.0]

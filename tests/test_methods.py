@@ -202,3 +202,41 @@ def test_convert_one_body_of_the_wrong_shape_names_its_shape():
         hconv.convert(np.ones(3), np.ones(4))
     with pytest.raises(ValueError, match=r"Expected H to have shape \(3,\) or \(N, 3\), got \(2,\)"):
         hconv.convert(np.ones(2), np.ones(3))
+
+
+@pytest.mark.parametrize(
+    "H, I, message",
+    [
+        (
+            np.ones((2, 3), dtype=complex),
+            np.ones((2, 3)),
+            r"^H must hold real numbers, got complex \(dtype complex128\); "
+            r"pass H.real if the imaginary part is meant to be zero$",
+        ),
+        (
+            np.ones((2, 3)),
+            np.array([["1", "2", "3"]] * 2),
+            r"^I must hold real numbers, got text \(dtype <U1\); "
+            r"convert it to numbers first, e.g. np.asarray\(I, dtype=float\)$",
+        ),
+        (
+            np.ones((2, 3)),
+            np.ones((2, 3), dtype=object),
+            r"^I must hold real numbers, got Python objects \(dtype object\); ",
+        ),
+    ],
+    ids=["complex", "str", "object"],
+)
+def test_convert_complex_or_text_input_is_refused_naming_the_argument(H, I, message):
+    """Before: complex H lost its imaginary part with only numpy's ComplexWarning; text was parsed."""
+    from hconv.errors import UsageError
+
+    with pytest.raises(UsageError, match=message):
+        hconv.convert(H, I)
+
+
+def test_methods_eigen_failure_text_speaks_of_error_size_not_speed():
+    """Before: 'about 5× faster than LDLᵀ's', which reads as speed; the measured worst K is 2.8
+    for eigen against 0.43 for exact's LDLᵀ (README, the envelope)."""
+    fails = hconv.METHODS["eigen"].fails
+    assert "faster" not in fails and "about 6 times LDLᵀ's at the same cond" in fails

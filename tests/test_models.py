@@ -660,7 +660,7 @@ def test_table_columns_are_hconvs_input_contract(tmp_path):
     assert t6.column_names == common + ["Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz", "inertia_status", "inertia_reason"]
     assert tp.column_names == common + ["I1", "I2", "I3", "qw", "qx", "qy", "qz", "inertia_status", "inertia_reason"]
     assert t6.schema.field("Ixx").metadata == {b"unit": b"kg*m**2"} and t6.schema.field("rx").metadata[b"unit"] == b"m"
-    with pytest.raises(UsageError, match="sym6 or principal"):
+    with pytest.raises(UsageError, match="form must be one of sym6, principal"):
         m.table("full9")
 
 
@@ -759,7 +759,7 @@ def test_cli_bodies_writes_files_atomically_and_refuses_to_overwrite(tmp_path):
     proc = run_hconv("bodies", str(EXAMPLES / "arm.urdf"), "-", "--to", "csv", "-q")
     assert proc.stdout.startswith(b"body,m,rx,ry,rz,Ixx,")
     proc = run_hconv("bodies", str(EXAMPLES / "arm.urdf"), str(tmp_path / "x.csv"), "--form", "full9")
-    assert proc.returncode == 2 and b"sym6 or principal" in proc.stderr
+    assert proc.returncode == 2 and b"--form must be one of sym6, principal, got 'full9'" in proc.stderr
     assert not (tmp_path / "x.csv").exists()
     proc = run_hconv("bodies", str(EXAMPLES / "arm.urdf"), str(EXAMPLES / "arm.urdf"), "--to", "csv", "--force")
     assert proc.returncode == 4 and b"is the input file" in proc.stderr
@@ -941,3 +941,15 @@ def test_readme_bodies_walkthrough_runs_as_written(tmp_path):
     proc = subprocess.run([sys.executable, "-c", py], cwd=tmp_path, capture_output=True, timeout=120, env=env)
     assert proc.returncode == 0, proc.stderr.decode()
     assert pq.read_table(tmp_path / "pendulum-bodies.parquet").column("body").to_pylist()[2] == "upper_link/body[1]"
+
+
+def test_table_unknown_form_names_the_option(capsys):
+    """Before: 'form must be sym6 or principal' on the command line too, not naming --form."""
+    from helpers import run_inprocess
+
+    code, _, err = run_inprocess(
+        "bodies", str(EXAMPLES / "arm.urdf"), "-", "--to", "csv", "--form", "weird", capsys=capsys
+    )
+    assert (code, err) == (2, "hconv: error: --form must be one of sym6, principal, got 'weird'\n")
+    with pytest.raises(UsageError, match=r"^form must be one of sym6, principal, got 'weird'$"):
+        models.read_model(str(EXAMPLES / "arm.urdf")).table(form="weird")

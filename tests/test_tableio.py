@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
-from helpers import run_hconv, run_inprocess, terminal_signals
+from helpers import run_hconv, run_inprocess, run_on_terminal, terminal_signals
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE_CSV = ROOT / "examples" / "data" / "scene.csv"
@@ -287,11 +287,7 @@ def test_open_input_parquet_compressed_or_csv_says_what_it_is(tmp_path, capsys, 
     )
     Path("in.parquet").write_bytes(SCENE_CSV.read_bytes())
     code, _, err = run_inprocess("convert", "in.parquet", "out.parquet", capsys=capsys)
-    assert (
-        code == 3
-        and "not a readable Parquet file" in err
-        and "(it looks like CSV text: name it .csv or pass --from csv)" in err
-    )
+    assert code == 3 and "not a readable Parquet file" in err and "(it looks like CSV text: rename it in.csv)" in err
 
 
 @pytest.mark.parametrize(
@@ -300,18 +296,18 @@ def test_open_input_parquet_compressed_or_csv_says_what_it_is(tmp_path, capsys, 
         (
             ["in.csv.gz", "out.csv"],
             3,
-            "in.csv.gz: is gzip-compressed; hconv reads uncompressed files, so decompress it first: "
-            "gzip -dc in.csv.gz > in.csv",
+            "in.csv.gz: is gzip-compressed; hconv reads uncompressed CSV, so decompress it first: "
+            "gzip -dc in.csv.gz > in-plain.csv",
         ),
         (
             ["in.csv", "out.csv.gz"],
             4,
-            "out.csv.gz: hconv writes uncompressed files; write out.csv and compress it afterwards: gzip out.csv",
+            "out.csv.gz: hconv writes uncompressed CSV; write out.csv and compress it afterwards: gzip out.csv",
         ),
         (
             ["in.csv", "out.parquet.zip"],
             4,
-            "out.parquet.zip: hconv writes uncompressed files; write out.parquet and compress it afterwards: "
+            "out.parquet.zip: hconv writes uncompressed Parquet; write out.parquet and compress it afterwards: "
             "zip out.parquet.zip out.parquet",
         ),
     ],
@@ -403,3 +399,214 @@ def test_open_input_named_pipe_is_read_like_stdin(tmp_path):
     assert (got.returncode, got.stderr) == (0, b"")
     assert (tmp_path / "out.csv").read_text().count("\n") == SCENE_CSV.read_text().count("\n")
     assert list(spools.iterdir()) == []  # the spool is gone
+
+
+def test_output_force_refuses_a_path_that_is_not_a_regular_file(tmp_path, capsys, monkeypatch):
+    """Before: --force renamed a file over a FIFO (as root, over /dev/full), exit 0."""
+    monkeypatch.chdir(tmp_path)
+    Path("in.csv").write_bytes(SCENE_CSV.read_bytes())
+    os.mkfifo("ff.csv")
+    code, _, err = run_inprocess("convert", "in.csv", "ff.csv", "--force", capsys=capsys)
+    assert (code, err) == (
+        4,
+        "hconv: error: ff.csv: is not a regular file (a named pipe (FIFO)); hconv writes OUT by renaming a "
+        "finished file into place; give a file path, or - to write to stdout\n",
+    )
+    assert Path("ff.csv").is_fifo()
+
+
+def test_output_force_through_a_symlink_writes_its_target_and_keeps_the_link(tmp_path, capsys, monkeypatch):
+    """Before: the link itself was replaced by a file, its target left as it was."""
+    monkeypatch.chdir(tmp_path)
+    Path("in.csv").write_bytes(SCENE_CSV.read_bytes())
+    Path("real").mkdir()
+    Path("real/out.csv").write_text("old\n")
+    os.symlink("real/out.csv", "link.csv")
+    code, _, err = run_inprocess("convert", "in.csv", "link.csv", "-q", capsys=capsys)
+    assert (code, err) == (4, "hconv: error: link.csv: already exists; pass --force to overwrite it\n")
+    code, _, err = run_inprocess("convert", "in.csv", "link.csv", "--force", "-q", capsys=capsys)
+    assert (code, err) == (0, "")
+    assert os.readlink("link.csv") == "real/out.csv"
+    assert Path("real/out.csv").read_text().startswith(SCENE_CSV.read_text().split(",", 1)[0])
+    assert [p.name for p in Path("real").iterdir()] == ["out.csv"]  # the temporary went beside the target
+
+
+def test_output_parquet_to_stdout_on_a_terminal_is_refused(tmp_path):
+    """Before: `hconv convert in.csv - --to parquet` wrote binary Parquet onto the terminal."""
+    code, shown = run_on_terminal("convert", str(SCENE_CSV), "-", "--to", "parquet", "-q", cwd=tmp_path)
+    assert (code, shown) == (2, "hconv: error: Parquet is binary: redirect stdout (> out.parquet) or use --to csv\n")
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (
+            ["in.csv", "out.csv", "--to", "parquet"],
+            "out.csv: the name says CSV but --to parquet says Parquet; name it out.parquet, or drop --to",
+        ),
+        (
+            ["in.csv", "out.parquet", "--from", "parquet"],
+            "in.csv: the name says CSV but --from parquet says Parquet; name it in.parquet, or drop --from",
+        ),
+        (
+            ["generate", "g.pq", "--rows", "5", "--to", "csv"],
+            "g.pq: the name says Parquet but --to csv says CSV; name it g.csv, or drop --to",
+        ),
+    ],
+)
+def test_format_of_extension_contradicting_from_or_to_is_refused(args, message, tmp_path, capsys, monkeypatch):
+    """Before: `hconv convert in.csv out.csv --to parquet` wrote Parquet into out.csv, exit 0."""
+    monkeypatch.chdir(tmp_path)
+    Path("in.csv").write_bytes(SCENE_CSV.read_bytes())
+    command = [] if args[0] == "generate" else ["convert"]
+    code, _, err = run_inprocess(*command, *args, capsys=capsys)
+    assert (code, err) == (2, f"hconv: error: {message}\n")
+    assert not Path(args[1]).exists() or args[1] == "in.csv"
+
+
+def test_format_of_extension_contradicting_from_or_to_python_names_the_keyword(tmp_path):
+    from hconv.errors import UsageError
+    from hconv.tables.pipeline import convert_file
+
+    (tmp_path / "in.csv").write_bytes(SCENE_CSV.read_bytes())
+    with pytest.raises(
+        UsageError, match=r"the name says CSV but dst_format='parquet' says Parquet; .* or drop dst_format$"
+    ):
+        convert_file(str(tmp_path / "in.csv"), str(tmp_path / "out.csv"), dst_format="parquet")
+
+
+def _scene_with(tmp_path, column) -> str:
+    import pyarrow.parquet as pq
+
+    t = pq.read_table(ROOT / "examples" / "data" / "scene.parquet")
+    pq.write_table(t.append_column("extra", column(t.num_rows)), tmp_path / "in.parquet")
+    return str(tmp_path / "in.parquet")
+
+
+def _nested(kind):
+    import pyarrow as pa
+
+    if kind == "struct":
+        return lambda n: pa.array([{"a": i} for i in range(n)])
+    return lambda n: pa.array([[("k", i)] for i in range(n)], pa.map_(pa.string(), pa.int64()))
+
+
+@pytest.mark.parametrize("kind, typename", [("struct", "struct<a: int64>"), ("map", "map<string, int64 ('extra')>")])
+def test_convert_file_parquet_to_csv_with_a_column_csv_cannot_hold_is_refused(kind, typename, tmp_path):
+    """Before: 'internal error: ArrowInvalid: Unsupported Type:struct<…>', exit 1."""
+    from hconv.errors import InputError
+    from hconv.tables.pipeline import convert_file
+
+    src = _scene_with(tmp_path, _nested(kind))
+    with pytest.raises(InputError) as err:
+        convert_file(src, str(tmp_path / "out.csv"))
+    assert str(err.value) == (
+        f"{src}: column 'extra' is {typename}, which CSV cannot hold; write Parquet instead "
+        "(OUT named .parquet), or drop the column first"
+    )
+    assert list(tmp_path.iterdir()) == [tmp_path / "in.parquet"]
+
+
+def test_convert_file_parquet_to_csv_with_binary_not_utf8_is_refused(tmp_path, capsys):
+    """Before: 'internal error: ArrowInvalid: Invalid UTF8 payload', exit 1. Binary that is text
+    (a byte array without the string annotation) is written as text."""
+    import pyarrow as pa
+
+    src = _scene_with(tmp_path, lambda n: pa.array([b"\xff"] * n))
+    code, _, err = run_inprocess("convert", src, str(tmp_path / "out.csv"), "-q", capsys=capsys)
+    assert (code, err) == (
+        3,
+        "hconv: error: column 'extra' is binary and holds bytes that are not UTF-8 text, which CSV cannot "
+        "hold; write Parquet instead (OUT named .parquet), or drop the column first\n",
+    )
+    assert not (tmp_path / "out.csv").exists()
+    src = _scene_with(tmp_path, lambda n: pa.array([b"text"] * n))
+    code, _, err = run_inprocess("convert", src, str(tmp_path / "out.csv"), "-q", capsys=capsys)
+    assert (code, err) == (0, "")
+    assert (tmp_path / "out.csv").read_text().splitlines()[1].split(",")[18] == "text"
+
+
+@pytest.mark.parametrize(
+    "column, text",
+    [
+        (lambda n: __import__("pyarrow").array(["x"] * n).dictionary_encode(), "x"),
+        (lambda n: __import__("pyarrow").array(["x"] * n, __import__("pyarrow").large_string()), "x"),
+        (
+            lambda n: __import__("pyarrow").array([0] * n, __import__("pyarrow").timestamp("s", tz="Europe/Paris")),
+            "1970-01-01 01:00:00.000+0100",
+        ),
+        (lambda n: __import__("pyarrow").array([__import__("decimal").Decimal("1.50")] * n), "1.50"),
+        (lambda n: __import__("pyarrow").nulls(n), ""),
+    ],
+    ids=["dictionary", "large_string", "timestamp_tz", "decimal", "null"],
+)
+def test_convert_file_parquet_to_csv_other_column_types_are_written_as_text(column, text, tmp_path):
+    from hconv.tables.pipeline import convert_file
+
+    convert_file(_scene_with(tmp_path, column), str(tmp_path / "out.csv"))
+    lines = (tmp_path / "out.csv").read_text().splitlines()
+    assert lines[0].split(",")[18] == "extra" and lines[1].split(",")[18] == text
+
+
+def test_open_input_compressed_hint_names_a_file_that_does_not_exist_with_its_extension(tmp_path, capsys, monkeypatch):
+    """Before: `gzip -dc ok.csv.gz > ok.csv` over an existing ok.csv, and `unzip -p ok.zip > ok`."""
+    monkeypatch.chdir(tmp_path)
+    Path("ok.csv").write_bytes(SCENE_CSV.read_bytes())
+    Path("ok-plain.csv").write_bytes(b"mine\n")
+    Path("ok.csv.gz").write_bytes(_as("gzip", SCENE_CSV.read_bytes()))
+    code, _, err = run_inprocess("convert", "ok.csv.gz", "out.csv", capsys=capsys)
+    assert (code, err) == (
+        3,
+        "hconv: error: ok.csv.gz: is gzip-compressed; hconv reads uncompressed CSV, so decompress it first: "
+        "gzip -dc ok.csv.gz > ok-plain-2.csv\n",
+    )
+    Path("data.zip").write_bytes(_as("zip", SCENE_CSV.read_bytes()))
+    code, _, err = run_inprocess("convert", "data.zip", "out.csv", "--from", "csv", capsys=capsys)
+    assert (code, err) == (
+        3,
+        "hconv: error: data.zip: is a zip archive; hconv reads uncompressed CSV, so decompress it first: "
+        "unzip -p data.zip > data.csv\n",
+    )
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["", "o.csv"], "the input path is empty (''); give a file path, or - for stdin"),
+        (["", "o.csv", "--from", "csv"], "the input path is empty (''); give a file path, or - for stdin"),
+        ([str(SCENE_CSV), "", "--to", "csv"], "the output path is empty (''); give a file path, or - for stdout"),
+    ],
+)
+def test_format_of_empty_path_says_it_is_empty(args, message, tmp_path, capsys, monkeypatch):
+    """Before: 'hconv: error: : does not exist' (an unset shell variable as IN)."""
+    monkeypatch.chdir(tmp_path)
+    code, _, err = run_inprocess("convert", *args, capsys=capsys)
+    assert (code, err) == (2, f"hconv: error: {message}\n")
+
+
+def test_csv_writer_csv_to_csv_text_columns_come_out_byte_for_byte(tmp_path):
+    """Before: one value needing quotes made every text value of its batch quoted (1 -> "1",
+    02134 -> "02134"), though the README promises them back exactly as they went in."""
+    from hconv.tables.pipeline import convert_file
+
+    rows = ['1,02134,plain text,"a,b",,"say ""hi""",007', '2,00501,x y,z,,"line\nbreak",1e3']
+    text = "id,zip,label,note,empty,quote,code,Hx,Hy,Hz,I1,I2,I3\n" + "".join(r + ",1,2,3,1,2,4\n" for r in rows)
+    (tmp_path / "in.csv").write_text(text)
+    convert_file(str(tmp_path / "in.csv"), str(tmp_path / "out.csv"))
+    out = (tmp_path / "out.csv").read_text()
+    assert out.startswith("id,zip,label,note,empty,quote,code,Hx,")
+    body = out.split("\n", 1)[1]
+    assert body.startswith(rows[0] + ",1,2,3,1,2,4,")
+    assert "\n" + rows[1] + ",1,2,3,1,2,4," in body
+
+
+def test_csv_writer_parquet_empty_string_and_null_stay_distinct(tmp_path):
+    """Unquoted, both were an empty field; a null stays empty and the empty string is quoted."""
+    import pyarrow as pa
+
+    from hconv.tables.pipeline import convert_file
+
+    src = _scene_with(tmp_path, lambda n: pa.array((["", None, "x"] * n)[:n]))
+    convert_file(src, str(tmp_path / "out.csv"))
+    lines = (tmp_path / "out.csv").read_text().splitlines()
+    assert [line.split(",")[18] for line in lines[1:4]] == ['""', "", "x"]

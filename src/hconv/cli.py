@@ -19,6 +19,7 @@ from enum import Enum
 from typing import TYPE_CHECKING, Any
 
 import typer
+from typer.core import TyperCommand
 
 from hconv import errors, interrupts
 from hconv.errors import INTERRUPTED, HconvError, UsageError
@@ -41,6 +42,14 @@ app = typer.Typer(
     no_args_is_help=True,
     help="Angular momentum H (kg·m²/s) to angular velocity ω (rad/s), with the residual against I⁻¹H for every row.",
 )
+
+
+class _PlainUsage(TyperCommand):
+    """A command whose usage line reads ``hconv convert [OPTIONS] IN OUT``: typer wraps a
+    required argument's metavar in braces (``{IN}``), which reads like a placeholder to fill."""
+
+    def collect_usage_pieces(self, ctx: Any) -> list[str]:  # typer's own (vendored) click Context
+        return [p[1:-1] if p.startswith("{") and p.endswith("}") else p for p in super().collect_usage_pieces(ctx)]
 
 
 def _print_version(value: bool) -> None:
@@ -614,7 +623,7 @@ def generate_cmd(
     cond_max: float = typer.Option(
         1e3, "--cond-max", help="cond(I) is log-uniform from 1 to this (as the body kind allows)"
     ),
-    seed: int = typer.Option(0, "--seed"),
+    seed: int = typer.Option(0, "--seed", help="the random draw; the same seed gives the same rows"),
     to: Fmt | None = typer.Option(None, "--to", help="output format; needed when OUT is -"),
     force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
 ) -> None:
@@ -625,7 +634,8 @@ def generate_cmd(
         dst, rows, scene=scene, cond_max=cond_max, seed=seed, dst_format=_value(to), force=force
     )
     rate = f", {rows / seconds:,.0f} rows/s" if seconds > 0 and rows else ""
-    print(f"hconv generate: {rows:,} rows to {dst} in {seconds:.2f} s{rate}", file=sys.stderr)
+    where = "stdout" if dst == "-" else dst
+    print(f"hconv generate: {rows:,} rows to {where} in {seconds:.2f} s{rate}", file=sys.stderr)
 
 
 @app.command("bench")
@@ -813,3 +823,8 @@ def _main() -> None:
         print(f"hconv: error: {' '.join(exc.format_message().split())} (see '{command} --help')", file=sys.stderr)
         sys.exit(exc.exit_code)
     sys.exit(rv if isinstance(rv, int) else 0)
+
+
+for _command in app.registered_commands:  # every command, as registered above: plain usage lines
+    if _command.cls in (None, TyperCommand):
+        _command.cls = _PlainUsage

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from hconv.errors import UsageError
 from hconv.kernels import frames, linsolve
 from hconv.kernels.inertia import Sym3, max_abs, pinv_moments, principal_frame
 from hconv.kernels.metrics import relative_error
@@ -67,9 +68,27 @@ class Result:
 
 def _as_float(name: str, a: ArrayLike) -> np.ndarray:
     try:
-        return np.asarray(a, dtype=np.float64)
+        given = np.asarray(a)
+        if given.dtype.kind not in "biuf":  # float64 would drop an imaginary part, or parse text
+            raise UsageError(
+                f"{name} must hold real numbers, got {_dtype_text(given.dtype)}; {_dtype_fix(name, given.dtype)}"
+            )
+        return np.asarray(given, dtype=np.float64)
+    except UsageError:
+        raise
     except (TypeError, ValueError) as exc:
         raise ValueError(f"{name} must be numeric: {exc}") from None
+
+
+def _dtype_text(dtype: np.dtype) -> str:
+    kinds = {"c": "complex", "U": "text", "S": "bytes", "O": "Python objects"}
+    return f"{kinds.get(dtype.kind, 'values')} (dtype {dtype})"
+
+
+def _dtype_fix(name: str, dtype: np.dtype) -> str:
+    if dtype.kind == "c":
+        return f"pass {name}.real if the imaginary part is meant to be zero"
+    return f"convert it to numbers first, e.g. np.asarray({name}, dtype=float)"
 
 
 def convert(

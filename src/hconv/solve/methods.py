@@ -165,7 +165,7 @@ def _cholesky(I: Sym3, H: np.ndarray, r: np.ndarray | None) -> tuple[np.ndarray,
     summary="ω = R·diag(1/S)·Rᵀ·H through the principal axes (numpy.linalg.eigh)",
     cost="a 3×3 eigendecomposition per row; slowest of the exact family",
     fails="zero principal moments (rod, point mass): pseudo-inverse answer, status singular; "
-    "error grows as cond(I)·eps, about 5× faster than LDLᵀ's",
+    "error grows as cond(I)·eps, but is about 6 times LDLᵀ's at the same cond (worst K measured 2.8 against 0.43)",
     nan_on={"invalid_input", "not_symmetric"},
     error_k={64: 6.0, 32: 3.0},
 )

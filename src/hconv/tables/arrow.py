@@ -17,7 +17,7 @@ from hconv import __version__
 from hconv.errors import UsageError
 from hconv.solve import bodies, methods, status, units
 from hconv.tables import layout
-from hconv.tables.job import Job
+from hconv.tables.job import Job, check_job
 from hconv.tables.sets import QUANTITY
 
 _STATUS_TYPE = pa.dictionary(pa.int8(), pa.string())
@@ -86,6 +86,7 @@ def convert_table(
             f"convert_table takes a pyarrow Table or RecordBatch, got {type(data).__name__}; "
             "make one with pyarrow.table(...)"
         )
+    check_job(job)
     if job is None:
         job = Job(
             "exact" if method is None else method, 64 if precision is None else precision, diagnostics is not False

@@ -52,6 +52,15 @@ def _check_mapping(pairs: tuple) -> None:
         seen[column] = name
 
 
+def _check_units_once(pairs: tuple) -> None:
+    """--unit gives each key one unit (the same one twice is fine), as --map gives each name one column."""
+    given: dict[str, str] = {}
+    for key, unit in pairs:
+        if key in given and given[key] != unit:
+            raise UsageError(f"{option('unit_options')} gives {key} twice ({given[key]} and {unit}); give it once")
+        given[key] = unit
+
+
 @dataclass(frozen=True)
 class Job:
     """Everything a conversion needs besides the data; checked when made.
@@ -80,6 +89,7 @@ class Job:
         object.__setattr__(self, "mapping", _pairs("mapping", self.mapping))
         object.__setattr__(self, "unit_options", _pairs("unit_options", self.unit_options))
         _check_mapping(self.mapping)
+        _check_units_once(self.unit_options)
         for key, unit in self.unit_options:
             quantity = quantity_of(key)
             if quantity is not None:  # a set or one of hconv's names: its unit can be checked now
@@ -125,3 +135,14 @@ class Job:
         if name not in given:
             return 1.0
         return units.factor(QUANTITY[name], given[name], entry("unit_options", name, given[name]))
+
+
+def check_job(job: object) -> None:
+    """UsageError unless ``job`` is a Job or None: every function that takes ``job=`` calls this
+    first, so that ``job='exact'`` is not an AttributeError deep inside."""
+    if job is None or isinstance(job, Job):
+        return
+    hint = "make one with hconv.Job(...)"
+    if isinstance(job, str) and job in methods.METHODS:
+        hint = f"for the method alone pass {option('method', job)}"
+    raise UsageError(f"job takes a hconv.Job, got {job!r} ({type(job).__name__}); {hint}")

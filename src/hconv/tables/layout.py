@@ -186,7 +186,8 @@ def _floats(col: pa.Array | pa.ChunkedArray) -> np.ndarray:
     """A numeric column or array as float64 with nulls as NaN, shape ``(N,)``."""
     if pa.types.is_null(col.type):
         return np.full(len(col), np.nan)
-    return np.asarray(pc.cast(col, pa.float64()).to_numpy(zero_copy_only=False), dtype=np.float64)
+    # unsafe: an integer beyond 2^53 rounds to the nearest float64, as the same digits in a CSV do
+    return np.asarray(pc.cast(col, pa.float64(), safe=False).to_numpy(zero_copy_only=False), dtype=np.float64)
 
 
 def _is_numeric(t: pa.DataType) -> bool:

@@ -26,7 +26,7 @@ from hconv.errors import StrictError, UsageError, option
 from hconv.solve import engines, methods, status
 from hconv.tables import csvtypes, tableio
 from hconv.tables.arrow import convert_batch
-from hconv.tables.job import Job
+from hconv.tables.job import Job, check_job
 from hconv.tables.tableio import Input, Output, format_of, open_input
 
 
@@ -192,6 +192,7 @@ def convert_file(
     if threads is not None and threads < 1:
         raise UsageError(f"{option('threads')} must be 1 or more, got {threads}")
     threads = threads or default_threads()
+    check_job(job)
     job = job or Job(method, precision, diagnostics)
     if engines.for_files(job.engine) != job.engine:
         job = dataclasses.replace(job, engine=engines.for_files(job.engine))
@@ -200,6 +201,8 @@ def convert_file(
     out = Output(dst, fout, force=force, input_path=src)  # refuses early, before reading
     t0 = time.perf_counter()
     with open_input(src, fin, job) as inp:
+        if fout == "csv":
+            tableio.check_csv_columns(inp.schema, inp.name)  # before converting anything
         # CSV's text columns get types in Parquet, the first block's (csvtypes); CSV keeps them as they were
         typed = fout != "csv" and bool(inp.text) and not job.keep_text
         run = functools.partial(_convert, job=job, strict=strict, threads=threads, progress=progress)

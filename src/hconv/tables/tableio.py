@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import BinaryIO
 
 import pyarrow as pa
+import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
@@ -51,16 +52,26 @@ UNIT_COLUMN = layout.UNIT_COLUMN
 def format_of(path: str, given: str | None, flag: str) -> str:
     """``given`` if set, else the format named by ``path``'s extension; UsageError otherwise.
     ``flag`` is ``src_format`` (``--from``) for an input, ``dst_format`` (``--to``) for an output."""
+    if path == "":  # an unset shell variable: "hconv convert "$in" out.csv"
+        which, std = ("input", "stdin") if flag == "src_format" else ("output", "stdout")
+        raise UsageError(f"the {which} path is empty (''); give a file path, or - for {std}")
     if given:
         if given not in FORMATS:
             raise UsageError(f"{option(flag)} must be {' or '.join(FORMATS)}, got {given!r}")
+        named = _named_format(path) if path != "-" else None
+        if named not in (None, given):  # out.csv with --to parquet: one of the two is a mistake
+            base = path[: -len(Path(path).suffix)]
+            raise UsageError(
+                f"{path}: the name says {_FORMAT_NAMES[named]} but {option(flag, given)} says "
+                f"{_FORMAT_NAMES[given]}; name it {base}{EXTENSIONS[given][0]}, or drop {option(flag)}"
+            )
         return given
     if path == "-":
         raise UsageError(
             f"'-' has no extension to tell the format; pass {option(flag, 'csv')} or {option(flag, 'parquet')}"
         )
     suffix = Path(path).suffix.lower()
-    fmt = next((f for f, exts in EXTENSIONS.items() if suffix in exts), None)
+    fmt = _named_format(path)
     if fmt is None:
         if flag == "src_format":
             _input_kind(path)  # a path that is missing or a directory: say so, not that its name has no format
@@ -70,6 +81,15 @@ def format_of(path: str, given: str | None, flag: str) -> str:
             f"name it .csv or .parquet, or pass {option(flag, 'csv')} or {option(flag, 'parquet')}"
         )
     return fmt
+
+
+_FORMAT_NAMES = {"csv": "CSV", "parquet": "Parquet"}
+
+
+def _named_format(path: str) -> str | None:
+    """The format ``path``'s extension names, or None."""
+    suffix = Path(path).suffix.lower()
+    return next((f for f, exts in EXTENSIONS.items() if suffix in exts), None)
 
 
 #: Compressions people often hand hconv: name, leading bytes, file suffixes, the command that
@@ -93,15 +113,27 @@ def _refuse_compressed_name(path: str, suffix: str, flag: str) -> None:
     if packed is None or not any(Path(plain).suffix.lower() in exts for exts in EXTENSIONS.values()):
         return
     what, _, _, unpack, pack = packed
+    kind = _FORMAT_NAMES[_named_format(plain) or "csv"]
     if flag == "src_format":
         raise InputError(
-            f"{path}: is {_packed(what)}; hconv reads uncompressed files, so decompress it first: "
-            f"{unpack} {shlex.quote(path)} > {shlex.quote(plain)}"
+            f"{path}: is {_packed(what)}; hconv reads uncompressed {kind}, so decompress it first: "
+            f"{unpack} {shlex.quote(path)} > {shlex.quote(_free_name(plain))}"
         )
     raise OutputError(
-        f"{path}: hconv writes uncompressed files; write {plain} and compress it afterwards: "
+        f"{path}: hconv writes uncompressed {kind}; write {plain} and compress it afterwards: "
         + pack.format(plain=shlex.quote(plain), packed=shlex.quote(path))
     )
+
+
+def _free_name(plain: str) -> str:
+    """``plain``, or if that exists ``<base>-plain<ext>`` (then -plain-2, …): a decompress command
+    must never overwrite a file, least of all the plain copy the user may already have."""
+    base, ext = os.path.splitext(plain)
+    name, k = plain, 1
+    while os.path.lexists(name):
+        name = f"{base}-plain{ext}" if k == 1 else f"{base}-plain-{k}{ext}"
+        k += 1
+    return name
 
 
 def _packed(what: str) -> str:
@@ -118,8 +150,11 @@ def _what_it_is(head: bytes, path: str, name: str, fmt: str) -> str | None:
         if piped:
             return f"in the pipe, before hconv: ... | {command} | hconv ..."
         base, ext = os.path.splitext(name)
-        plain = base if ext.lower() in suffixes else f"{base}{tag}{ext}"
-        return f"first: {command} {shlex.quote(name)} > {shlex.quote(plain)}"
+        if ext.lower() in suffixes:  # ok.csv.gz -> ok.csv; ok.zip -> ok.csv, not ok
+            plain = base if _named_format(base) else base + EXTENSIONS[fmt][0]
+        else:
+            plain = f"{base}{tag}{ext}"
+        return f"first: {command} {shlex.quote(name)} > {shlex.quote(_free_name(plain))}"
 
     for what, magic, suffixes, unpack, _ in _COMPRESSIONS:
         if not head.startswith(magic):
@@ -409,7 +444,7 @@ def _sniff_csv(path: str, name: str) -> None:
     if what:
         raise InputError(f"{name}: {what}")
     if b"\x00" in head or head.startswith(b"\x89PNG") or head.startswith(b"PAR1"):
-        parquet = f" (it looks like Parquet: name it .parquet or pass {option('src_format', 'parquet')})"
+        parquet = f" (it looks like Parquet: {_rename_or_pass(name, 'parquet')})"
         raise InputError(f"{name}: is not a text file, so not CSV" + (parquet if head.startswith(b"PAR1") else ""))
     head = head[3:] if head.startswith(b"\xef\xbb\xbf") else head
     cut = head.rfind(b"\n") + 1 if len(head) == 1 << 16 else len(head)
@@ -576,6 +611,14 @@ def _csv_value_error(path: str, name: str, names: list, ropts: pacsv.ReadOptions
     )
 
 
+def _rename_or_pass(name: str, fmt: str) -> str:
+    """How to read a file whose bytes are ``fmt`` as ``fmt``: a name with another format's
+    extension must change (--from may not contradict it); one without may keep it."""
+    if _named_format(name):
+        return f"rename it {os.path.splitext(name)[0]}{EXTENSIONS[fmt][0]}"
+    return f"name it {EXTENSIONS[fmt][0]} or pass {option('src_format', fmt)}"
+
+
 def _not_parquet(path: str, name: str, exc: Exception) -> InputError:
     """Why a file pyarrow cannot open as Parquet is not Parquet, when its first bytes tell."""
     try:
@@ -588,7 +631,7 @@ def _not_parquet(path: str, name: str, exc: Exception) -> InputError:
         return InputError(f"{name}: {what}")
     first = head.split(b"\n", 1)[0]
     looks_csv = b"," in first and b"\x00" not in head and not head.startswith(b"PAR1")
-    hint = f" (it looks like CSV text: name it .csv or pass {option('src_format', 'csv')})" if looks_csv else ""
+    hint = f" (it looks like CSV text: {_rename_or_pass(name, 'csv')})" if looks_csv else ""
     return InputError(
         f"{name}: not a readable Parquet file ({_first_line(exc)}){hint}; "
         "check that it is Parquet and was completely written"
@@ -644,11 +687,27 @@ class Output:
         self.path, self.fmt = path, fmt
         self._writer: _CsvWriter | _ParquetWriter | None = None
         self._tmp: str | None = None
+        self._target = path  #: where the file goes: ``path``, or the file a link at ``path`` names
         if path == "-":
+            if fmt == "parquet" and sys.stdout is not None and sys.stdout.isatty():
+                raise UsageError(
+                    f"Parquet is binary: redirect stdout (> out.parquet) or use {option('dst_format', 'csv')}"
+                )
             return
-        target = Path(path)
-        if target.is_dir():
+        try:
+            mode: int | None = os.stat(path).st_mode  # follows a link: what would be overwritten
+        except OSError:
+            mode = None
+        if mode is not None and stat.S_ISDIR(mode):
             raise OutputError(f"{path}: is a directory; give a file name for the output")
+        if mode is not None and not stat.S_ISREG(mode):
+            raise OutputError(
+                f"{path}: is not a regular file ({_file_kind(mode)}); hconv writes OUT by renaming a finished "
+                "file into place; give a file path, or - to write to stdout"
+            )
+        if os.path.islink(path):  # write the link's target and keep the link, as `>` would
+            self._target = os.path.realpath(path)
+        target = Path(self._target)
         if not target.parent.exists():
             raise OutputError(f"{path}: the directory {str(target.parent)!r} does not exist; create it first")
         if input_path not in (None, "-") and target.exists() and os.path.samefile(input_path, target):
@@ -660,7 +719,7 @@ class Output:
         if self.path == "-":
             fd, self._tmp = _mkstemp("hconv-stdout-")
         else:
-            target = Path(self.path)
+            target = Path(self._target)
             # cut a long name so that the pid and the rest still fit in the 255 bytes a name may have
             name = os.fsdecode(os.fsencode(target.name)[:160])
             try:
@@ -711,8 +770,21 @@ class Output:
                     devnull = os.open(os.devnull, os.O_WRONLY)
                     os.dup2(devnull, sys.stdout.fileno())
         else:
-            os.replace(self._tmp, self.path)
+            os.replace(self._tmp, self._target)
             self._tmp = None
+
+
+def _file_kind(mode: int) -> str:
+    """What a path that is not a regular file is, for a message."""
+    for test, what in (
+        (stat.S_ISFIFO, "a named pipe (FIFO)"),
+        (stat.S_ISCHR, "a character device"),
+        (stat.S_ISBLK, "a block device"),
+        (stat.S_ISSOCK, "a socket"),
+    ):
+        if test(mode):
+            return what
+    return "not a file"
 
 
 class _ParquetWriter:
@@ -736,6 +808,31 @@ class _ParquetWriter:
         self._w.close()
 
 
+def check_csv_columns(schema: pa.Schema, name: str) -> None:
+    """InputError, before anything is converted, for a column CSV cannot hold: a struct, map or
+    union (lists are written as text, :func:`_list_as_text`)."""
+    for f in schema:
+        t = f.type.value_type if pa.types.is_dictionary(f.type) else f.type
+        if pa.types.is_struct(t) or pa.types.is_map(t) or pa.types.is_union(t):
+            raise InputError(_csv_cannot_hold(name, f))
+
+
+def _csv_cannot_hold(name: str, f: pa.Field, why: str = "") -> str:
+    return (
+        f"{name + ': ' if name else ''}column {f.name!r} is {f.type}{why}, which CSV cannot hold; "
+        "write Parquet instead (OUT named .parquet), or drop the column first"
+    )
+
+
+def _binary_as_text(col: pa.ChunkedArray, f: pa.Field) -> pa.ChunkedArray:
+    """A binary column as text, which it must be to go into CSV: InputError if it holds bytes that
+    are not UTF-8 (a Parquet byte array without the string annotation usually is text)."""
+    try:
+        return col.cast(pa.string())
+    except pa.ArrowInvalid:
+        raise InputError(_csv_cannot_hold("", f, " and holds bytes that are not UTF-8 text")) from None
+
+
 def _list_as_text(col: pa.ChunkedArray) -> pa.ChunkedArray | pa.Array:
     """A list column as text, ``[1.5, 2.0, 3.0]``, since CSV has no lists; other columns as they are."""
     t = col.type
@@ -744,6 +841,36 @@ def _list_as_text(col: pa.ChunkedArray) -> pa.ChunkedArray | pa.Array:
     return pa.array(
         [None if v is None else "[" + ", ".join(repr(x) for x in v) + "]" for v in col.to_pylist()], type=pa.string()
     )
+
+
+_NEEDS_QUOTES = r'[,"\r\n]'
+
+
+def _empty_beside_null(col: pa.ChunkedArray) -> bool:
+    """A text column holding both nulls and empty strings, which unquoted CSV would merge."""
+    return (
+        (pa.types.is_string(col.type) or pa.types.is_large_string(col.type))
+        and col.null_count > 0
+        and bool(pc.any(pc.equal(col, "")).as_py())
+    )
+
+
+def _csv_rows(t: pa.Table) -> bytes:
+    """``t`` as CSV rows, each value quoted only if it must be: one holding a comma, quote or line
+    break, and, in a column that also holds nulls, the empty string (``""``; a null is empty).
+    pyarrow's own quoting (``needed``) quotes every text value, so that ``1`` became ``"1"``; the
+    values are formatted by the same cast pyarrow's writer uses, so the bytes match its unquoted
+    output otherwise."""
+    cols = []
+    for col in t.columns:
+        text = pc.cast(col, pa.string())
+        quoted = pc.binary_join_element_wise('"', pc.replace_substring(text, '"', '""'), '"', "")
+        text = pc.if_else(pc.match_substring_regex(text, _NEEDS_QUOTES), quoted, text)
+        if col.null_count:
+            text = pc.if_else(pc.equal(text, ""), '""', text)
+        cols.append(pc.fill_null(text, ""))
+    lines = pc.binary_join_element_wise(*cols, ",") if cols else pa.array([""] * t.num_rows)
+    return "".join(line + "\n" for line in lines.to_pylist()).encode()
 
 
 class _CsvWriter:
@@ -758,21 +885,31 @@ class _CsvWriter:
         csv.writer(buf, lineterminator="\n").writerow(names)
         self._f.write(buf.getvalue().encode())
         self._plain = pacsv.WriteOptions(include_header=False, quoting_style="none")
-        self._quoted = pacsv.WriteOptions(include_header=False)
 
     def write(self, table: pa.Table) -> None:
-        cols = [c.cast(pa.string()) if pa.types.is_dictionary(c.type) else _list_as_text(c) for c in table.columns]
+        check_csv_columns(table.schema, "")  # the callers check the input first, naming it
+        cols = [
+            c.cast(pa.string())
+            if pa.types.is_dictionary(c.type)
+            else _binary_as_text(c, f)
+            if pa.types.is_binary(f.type) or pa.types.is_large_binary(f.type) or pa.types.is_fixed_size_binary(f.type)
+            else _list_as_text(c)
+            for c, f in zip(table.columns, table.schema, strict=True)
+        ]
         names = table.schema.names
         if self._unit:
             cols.append(pa.repeat(self._unit, table.num_rows))
             names = names + [UNIT_COLUMN]
         t = pa.Table.from_arrays(cols, names=names)
+        if any(_empty_beside_null(c) for c in t.columns):
+            self._f.write(_csv_rows(t))
+            return
         buf = pa.BufferOutputStream()
         try:
             pacsv.write_csv(t, buf, self._plain)
-        except pa.ArrowInvalid:  # a value holds a comma, quote or newline: quote this batch's strings
-            buf = pa.BufferOutputStream()
-            pacsv.write_csv(t, buf, self._quoted)
+        except pa.ArrowInvalid:  # a value holds a comma, quote or newline: quote those values only
+            self._f.write(_csv_rows(t))
+            return
         self._f.write(buf.getvalue())
 
     def close(self) -> None:

@@ -22,7 +22,7 @@ import numpy as np
 from hconv.kernels.metrics import angle_deg, relative_error
 from hconv.solve import bodies, forms, methods
 from hconv.solve.options import Conventions
-from hconv.tables.job import Job
+from hconv.tables.job import Job, check_job
 from hconv.tools.stats import Summary
 
 OFFDIAG_BINS = (0.0, 1e-3, 1e-2, 0.1, 0.3, 1.0)
@@ -142,6 +142,7 @@ def compare_file(
     from hconv.tables.pipeline import BackgroundWriter
     from hconv.tables.tableio import Output, format_of, open_input
 
+    check_job(job)
     job = job or Job()
     fin = format_of(src, src_format, "src_format")
     out = Output(dst, format_of(dst, dst_format, "dst_format"), force=force, input_path=src) if dst else None

@@ -61,7 +61,7 @@ from hconv.errors import UsageError, option
 from hconv.kernels.metrics import angle_deg, relative_error
 from hconv.solve import bodies, forms
 from hconv.solve.options import Conventions
-from hconv.tables.job import Job
+from hconv.tables.job import Job, check_job
 from hconv.tools.stats import Summary
 
 #: The six-number orders, as positions in hconv's (xx, yy, zz, xy, xz, yz).
@@ -440,8 +440,9 @@ def diagnose_file(
 
     from hconv.tables.tableio import format_of, open_input
 
-    if not tol > 0:
-        raise UsageError(f"{option('tol')} must be positive, got {tol}")
+    if not (tol > 0 and np.isfinite(tol)):  # an infinite tol explains every row by every hypothesis
+        raise UsageError(f"{option('tol')} must be a positive finite number, got {tol}")
+    check_job(job)
     job = dataclasses.replace(job or Job(), observed=True)
     fin = format_of(src, src_format, "src_format")
     with open_input(src, fin, job) as inp:

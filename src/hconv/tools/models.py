@@ -37,10 +37,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hconv.errors import UsageError
 from hconv.kernels.frames import quaternion_matrix
 from hconv.kernels.inertia import Sym3, principal_frame
 from hconv.solve import forms, status, units
+from hconv.solve.options import check_choice
 from hconv.tables.sets import VECTOR_SETS
 from hconv.tools.modelxml import Node, error, expand_includes, read
 
@@ -106,8 +106,7 @@ class Model:
         ``principal`` (I1, I2, I3 with qw, qx, qy, qz); then the status and its reason."""
         import pyarrow as pa
 
-        if form not in OUTPUT_FORMS:
-            raise UsageError(f"form must be {' or '.join(OUTPUT_FORMS)}, got {form!r}")
+        check_choice("form", form, tuple(OUTPUT_FORMS))
         bodies = self.bodies
 
         def col(values: list[float], unit: str) -> tuple[pa.Array, dict]:

@@ -20,6 +20,7 @@ from numpy.typing import ArrayLike
 
 from hconv.errors import UsageError, option
 from hconv.kernels.frames import quaternion_matrix
+from hconv.solve.options import check_choice
 
 KINDS = ("box", "cylinder", "rod", "sphere", "ellipsoid")
 SCENES = ("mix",) + KINDS
@@ -91,10 +92,9 @@ def _shapes(rng: np.random.Generator, kind: np.ndarray, m: np.ndarray, cond_max:
 
 def check_scene(scene: str, cond_max: float) -> None:
     """UsageError (a ValueError) for a scene kind or cond_max that cannot be drawn."""
-    if scene not in SCENES:
-        raise UsageError(f"unknown scene {scene!r}; choose one of: {', '.join(SCENES)}")
-    if not cond_max >= 1:
-        raise UsageError(f"{option('cond_max')} must be at least 1, got {cond_max}")
+    check_choice("scene", scene, tuple(SCENES))
+    if not (cond_max >= 1 and np.isfinite(cond_max)):  # inf draws singular bodies, written as nan
+        raise UsageError(f"{option('cond_max')} must be a finite number, at least 1, got {cond_max}")
 
 
 def make_scene(
