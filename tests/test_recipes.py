@@ -183,3 +183,6 @@ def test_recipes_doc_quotes_every_recipe_file_word_for_word():
     for name, body in files.items():
         assert quoted[name] == body, f"docs/recipes.md quotes {name} otherwise than the file says"
 
+
+def test_readme_links_the_recipes():
+    assert "(docs/recipes.md)" in (ROOT / "README.md").read_text(encoding="utf-8")
