@@ -2,8 +2,10 @@
 
 ``hconv.convert`` works on numpy arrays; ``hconv.convert_table`` on pyarrow Tables and
 RecordBatches (pyarrow is imported only when that is called), with a :class:`Job` for the scene's
-conventions, units and column names. Conventions: :mod:`hconv.kernels.inertia`; the package's
-layers: docs/architecture.md.
+conventions, units and column names. For engines that own the data (DuckDB, Polars, Dask, Ray,
+Spark): ``hconv.output_schema`` gives ``convert_table``'s result schema without converting, and
+``hconv.parquet_write_options`` hconv's own Parquet writer settings (docs/recipes.md).
+Conventions: :mod:`hconv.kernels.inertia`; the package's layers: docs/architecture.md.
 """
 
 from __future__ import annotations
@@ -21,12 +23,28 @@ from hconv.solve.options import Conventions  # noqa: E402
 from hconv.solve.status import STATUSES  # noqa: E402
 from hconv.tables.job import Job  # noqa: E402
 
-__all__ = ["convert", "convert_table", "Job", "Conventions", "Result", "METHODS", "FORMS", "STATUSES", "__version__"]
+__all__ = [
+    "convert",
+    "convert_table",
+    "output_schema",
+    "parquet_write_options",
+    "Job",
+    "Conventions",
+    "Result",
+    "METHODS",
+    "FORMS",
+    "STATUSES",
+    "__version__",
+]
 
 
 def __getattr__(name: str) -> object:  # keeps `import hconv` free of pyarrow
-    if name == "convert_table":
-        from hconv.tables.arrow import convert_table
+    if name in ("convert_table", "output_schema"):
+        from hconv.tables import arrow
 
-        return convert_table
+        return getattr(arrow, name)
+    if name == "parquet_write_options":
+        from hconv.tables.tableio import parquet_write_options
+
+        return parquet_write_options
     raise AttributeError(f"module 'hconv' has no attribute {name!r}")

@@ -6,6 +6,10 @@ other column passes through unchanged and in order. Output: the input columns, t
 (field metadata ``unit``), ``residual``, ``cond``, ``status`` and, with ``--degenerate pinv|lock``,
 ``null_x, null_y, null_z, null_dim``. In Parquet, every column hconv read also records the unit
 it was read in as field metadata ``unit``.
+
+:func:`output_schema` gives that result's schema from the input's alone, for engines that must
+declare it before they run (Dask, Spark, Ray); :func:`convert_batch` builds every result on the
+same function, so the two cannot drift apart.
 """
 
 from __future__ import annotations
@@ -86,20 +90,61 @@ def convert_table(
             f"convert_table takes a pyarrow Table or RecordBatch, got {type(data).__name__}; "
             "make one with pyarrow.table(...)"
         )
+    job = _job("convert_table", method, precision, diagnostics, job)
+    return convert_batch(data, job, plan, source)[0]
+
+
+def output_schema(
+    input_schema: pa.Schema,
+    method: str | None = None,
+    precision: int | None = None,
+    diagnostics: bool | None = None,
+    *,
+    source: str = "schema",
+    job: Job | None = None,
+) -> pa.Schema:
+    """The schema :func:`convert_table` returns for a table of ``input_schema``, converting nothing.
+
+    Equal to ``convert_table(table, ...).schema`` for any table of that schema, metadata included:
+    the input's fields in order (each column hconv reads with its ``unit``), then ``wx, wy, wz``
+    (float64, or float32 with ``precision=32``; metadata ``unit`` and ``method``), ``residual``,
+    ``cond``, ``status`` (``dictionary<int8, string>``) and, with a degenerate mode, the null axis;
+    the schema's metadata is the input's plus ``hconv.method`` and ``hconv.version``. Takes the
+    keywords of :func:`convert_table`, and raises its errors for a schema it could not convert
+    (a missing column, two inertia forms, an output name already taken). Engines that declare a
+    result's schema before running (Dask's ``to_parquet(schema=...)``, Spark's ``mapInArrow``)
+    take it from here.
+    """
+    if not isinstance(input_schema, pa.Schema):
+        hint = "; pass its .schema" if hasattr(input_schema, "schema") else ""
+        raise UsageError(f"output_schema takes a pyarrow Schema, got {type(input_schema).__name__}{hint}")
+    job = _job("output_schema", method, precision, diagnostics, job)
+    return result_schema(input_schema, job, layout.plan(input_schema, job, source))
+
+
+def _job(caller: str, method: str | None, precision: int | None, diagnostics: bool | None, job: Job | None) -> Job:
+    """The run configuration from a function's own options, or ``job`` alone; not both."""
     check_job(job)
     if job is None:
-        job = Job(
+        return Job(
             "exact" if method is None else method, 64 if precision is None else precision, diagnostics is not False
         )
-    else:
-        given = {"method": method, "precision": precision, "diagnostics": diagnostics}
-        beside = [name for name, value in given.items() if value is not None]
-        if beside:
-            raise UsageError(
-                f"convert_table: {', '.join(beside)} given beside job=; put them in the Job "
-                f"(Job({beside[0]}=...)), which then holds the whole run configuration"
-            )
-    return convert_batch(data, job, plan, source)[0]
+    given = {"method": method, "precision": precision, "diagnostics": diagnostics}
+    beside = [name for name, value in given.items() if value is not None]
+    if beside:
+        raise UsageError(
+            f"{caller}: {', '.join(beside)} given beside job=; put them in the Job "
+            f"(Job({beside[0]}=...)), which then holds the whole run configuration"
+        )
+    return job
+
+
+def result_schema(schema: pa.Schema, job: Job, plan: layout.Layout) -> pa.Schema:
+    """The schema of a conversion of a table of ``schema`` planned as ``plan``: the one owner of
+    it, for :func:`output_schema` and for every converted batch."""
+    meta = dict(schema.metadata or {})
+    meta.update({b"hconv.method": job.method.encode(), b"hconv.version": __version__.encode()})
+    return pa.schema(_with_input_units(schema, plan) + output_fields(job), metadata=meta)
 
 
 def convert_batch(
@@ -128,10 +173,7 @@ def convert_batch(
     if res.null_axis is not None:  # degenerate pinv or lock
         columns += [pa.array(res.null_axis[:, k]) for k in range(3)]
         columns.append(pa.array(res.null_dim, type=pa.int8()))
-    meta = dict(data.schema.metadata or {})
-    meta.update({b"hconv.method": job.method.encode(), b"hconv.version": __version__.encode()})
-    schema = pa.schema(_with_input_units(data.schema, plan) + output_fields(job), metadata=meta)
-    return pa.Table.from_arrays(list(data.columns) + columns, schema=schema), res.engine
+    return pa.Table.from_arrays(list(data.columns) + columns, schema=result_schema(data.schema, job, plan)), res.engine
 
 
 def _with_input_units(schema: pa.Schema, plan: layout.Layout) -> list[pa.Field]:

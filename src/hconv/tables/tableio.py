@@ -787,19 +787,29 @@ def _file_kind(mode: int) -> str:
     return "not a file"
 
 
+def parquet_write_options(schema: pa.Schema) -> dict:
+    """hconv's Parquet settings for a table of ``schema``, as keyword arguments of
+    ``pyarrow.parquet.ParquetWriter`` and ``pyarrow.parquet.write_table`` (and of what passes
+    them on: Dask's ``to_parquet``, Ray's ``arrow_parquet_args``); hconv's own writer uses them.
+
+    Float columns plain: no dictionary, no compression. Every other column (ids, labels,
+    ``status``) dictionary-encoded and snappy-compressed. The settings name top-level columns, so
+    the values of a list column get pyarrow's writer defaults: no dictionary, no compression.
+    """
+    # Dictionary encoding and compression pay for labels and statuses. On floats that rarely
+    # repeat, dictionaries only cost time and snappy saves little space for much writing
+    # time (docs/measurements.md), so float columns are written plain.
+    floats = {f.name for f in schema if pa.types.is_floating(f.type)}
+    others = [f.name for f in schema if f.name not in floats]
+    return {
+        "use_dictionary": others or False,
+        "compression": {f.name: "none" if f.name in floats else "snappy" for f in schema},
+    }
+
+
 class _ParquetWriter:
     def __init__(self, path: str, schema: pa.Schema):
-        # Dictionary encoding and compression pay for labels and statuses. On floats that rarely
-        # repeat, dictionaries only cost time and snappy saves little space for much writing
-        # time (docs/measurements.md), so float columns are written plain.
-        floats = {f.name for f in schema if pa.types.is_floating(f.type)}
-        others = [f.name for f in schema if f.name not in floats]
-        self._w = pq.ParquetWriter(
-            path,
-            schema,
-            use_dictionary=others or False,
-            compression={f.name: "none" if f.name in floats else "snappy" for f in schema},
-        )
+        self._w = pq.ParquetWriter(path, schema, **parquet_write_options(schema))
 
     def write(self, table: pa.Table) -> None:
         self._w.write_table(table)

@@ -1,0 +1,186 @@
+"""The recipes of docs/recipes.md: each is a file in docs/recipes/, quoted word for word in the doc,
+and each, run as a user runs it on the real engine, writes what ``hconv convert`` writes for the
+same files: the same rows in the same order, every value to the bit, the statuses, and ω's unit.
+
+Each test skips when its engine is not installed (``pip install -e '.[recipes]'``; Spark also
+needs Java). The dataset is twelve files from ``hconv generate``, so that a directory of output
+files whose names do not sort (part.10 before part.2) shows, with rows flagged singular (ω NaN)
+and ill_conditioned among the ok ones.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+import pyarrow.parquet as pq
+import pytest
+
+from hconv.tables.pipeline import convert_file
+from hconv.tools.generate import generate_file
+
+ROOT = Path(__file__).resolve().parents[1]
+RECIPES = ROOT / "docs" / "recipes"
+DOC = ROOT / "docs" / "recipes.md"
+FILES = 12
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory) -> Path:
+    """Twelve Parquet files of 2,000 to 4,750 rows, named so that they sort."""
+    folder = tmp_path_factory.mktemp("recipes") / "in"
+    folder.mkdir()
+    for k in range(FILES):
+        generate_file(str(folder / f"part-{k:02d}.parquet"), 2000 + 250 * k, seed=k, cond_max=1e17)
+    return folder
+
+
+@pytest.fixture(scope="module")
+def reference(dataset) -> pa.Table:
+    """``hconv convert`` of each file (its library call, which is what the command runs), in the
+    files' order."""
+    out = dataset.parent / "hconv"
+    out.mkdir()
+    for path in sorted(dataset.iterdir()):
+        convert_file(str(path), str(out / path.name))
+    table = _read(out)
+    # rows of every kind: ok, ill_conditioned, and singular with ω NaN
+    assert {"ok", "ill_conditioned", "singular"} <= set(_plain(table.column("status")).to_pylist())
+    assert np.isnan(table.column("wx").to_numpy()).any()
+    return table
+
+
+def _read(path: Path) -> pa.Table:
+    """A Parquet file, or a folder's Parquet files one after the other in the order of their names."""
+    files = sorted(path.glob("*.parquet")) if path.is_dir() else [path]
+    assert files, f"{path}: no Parquet files"
+    return pa.concat_tables([pq.read_table(f) for f in files])
+
+
+def _run(recipe: str, *args: Path) -> str:
+    """Run docs/recipes/RECIPE as a user does; its stderr and stdout."""
+    proc = subprocess.run(
+        [sys.executable, str(RECIPES / recipe), *map(str, args)], capture_output=True, timeout=600, text=True
+    )
+    assert proc.returncode == 0, f"{recipe} failed:\n{proc.stdout}\n{proc.stderr}"
+    return proc.stdout + proc.stderr
+
+
+def _plain(column: pa.ChunkedArray) -> pa.ChunkedArray:
+    return column.cast(column.type.value_type) if pa.types.is_dictionary(column.type) else column
+
+
+def assert_same_rows(got: pa.Table, want: pa.Table) -> None:
+    """The same columns and rows in the same order; floats to the bit (NaN included), other
+    columns by value (a string may come back as large_string, status as text)."""
+    assert got.column_names == want.column_names
+    assert got.num_rows == want.num_rows
+    for name in want.column_names:
+        a, b = _plain(got.column(name)), _plain(want.column(name))
+        assert a.null_count == b.null_count, name
+        if pa.types.is_floating(b.type):
+            assert a.type == b.type, name
+            bits = np.uint64 if b.type.bit_width == 64 else np.uint32
+            np.testing.assert_array_equal(a.to_numpy().view(bits), b.to_numpy().view(bits), err_msg=name)
+        else:
+            assert a.cast(b.type).equals(b), name
+
+
+def _units(schema: pa.Schema) -> dict:
+    return {f.name: (f.metadata or {}).get(b"unit", b"").decode() for f in schema if f.name in ("wx", "wy", "wz")}
+
+
+def _sorted(table: pa.Table) -> pa.Table:
+    return table.take(pc.sort_indices(table, [(c, "ascending") for c in ("Hx", "Hy", "Hz", "Ixx")]))
+
+
+def test_duckdb_recipe_writes_what_hconv_convert_writes(dataset, reference, tmp_path):
+    pytest.importorskip("duckdb")
+    _run("duckdb_hconv.py", dataset / "*.parquet", tmp_path / "omega.parquet")
+    got = _read(tmp_path / "omega.parquet")
+    assert_same_rows(got, reference)
+    assert got.schema.equals(reference.schema, check_metadata=True)
+
+
+def test_polars_recipe_writes_what_hconv_convert_writes(dataset, reference, tmp_path):
+    pytest.importorskip("polars")
+    _run("polars_hconv.py", dataset / "*.parquet", tmp_path / "omega.parquet")
+    got = _read(tmp_path / "omega.parquet")
+    assert_same_rows(got, reference)
+    assert _units(got.schema) == _units(reference.schema) == dict.fromkeys(("wx", "wy", "wz"), "rad/s")
+    assert got.schema.field("status").type == reference.schema.field("status").type
+    assert got.schema.field("body").type == pa.large_string()  # Polars' text
+
+
+def test_dask_recipe_writes_what_hconv_convert_writes_in_files_that_sort(dataset, reference, tmp_path):
+    pytest.importorskip("dask.dataframe")
+    _run("dask_hconv.py", dataset, tmp_path / "omega")
+    names = sorted(p.name for p in (tmp_path / "omega").glob("*.parquet"))
+    assert names == [f"part-{k:05d}.parquet" for k in range(FILES)]
+    got = _read(tmp_path / "omega")
+    assert_same_rows(got, reference)
+    assert _units(got.schema) == _units(reference.schema)
+    assert got.schema.field("status").type == reference.schema.field("status").type
+    assert got.schema.field("Ixx").metadata == reference.schema.field("Ixx").metadata
+
+
+def test_ray_data_recipe_writes_hconv_converts_rows(dataset, reference, tmp_path):
+    pytest.importorskip("ray.data")
+    _run("ray_data_hconv.py", dataset, tmp_path / "omega")
+    got = _read(tmp_path / "omega")
+    # Ray does not promise the order (the recipe says so): the same rows, in any order
+    assert_same_rows(_sorted(got), _sorted(reference))
+    assert got.schema.equals(reference.schema, check_metadata=True)
+
+
+def test_ray_tasks_recipe_writes_what_hconv_convert_writes_file_by_file(dataset, reference, tmp_path):
+    pytest.importorskip("ray")
+    out = _run("ray_tasks_hconv.py", dataset, tmp_path / "omega")
+    assert f"{reference.num_rows} rows in {FILES} files" in out
+    assert sorted(p.name for p in (tmp_path / "omega").iterdir()) == sorted(p.name for p in dataset.iterdir())
+    got = _read(tmp_path / "omega")
+    assert_same_rows(got, reference)
+    assert got.schema.equals(reference.schema, check_metadata=True)
+
+
+def test_spark_recipe_writes_hconv_converts_rows_in_order_with_the_unit_in_sparks_schema(dataset, reference, tmp_path):
+    pytest.importorskip("pyspark.sql")
+    if shutil.which("java") is None:
+        pytest.skip("Spark needs Java (apt-get install openjdk-17-jre-headless)")
+    _run("spark_hconv.py", dataset, tmp_path / "omega")
+    got = _read(tmp_path / "omega")
+    assert_same_rows(got, reference)
+    assert got.schema.field("status").type == pa.string()
+    first = sorted((tmp_path / "omega").glob("*.parquet"))[0]
+    spark = json.loads(pq.read_metadata(first).metadata[b"org.apache.spark.sql.parquet.row.metadata"])
+    units = {f["name"]: f["metadata"].get("unit", "") for f in spark["fields"] if f["name"] in ("wx", "wy", "wz")}
+    assert units == _units(reference.schema)
+
+
+# ---- the doc quotes the files it shows ----
+
+FENCE = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
+
+
+def test_recipes_doc_quotes_every_recipe_file_word_for_word():
+    text = DOC.read_text(encoding="utf-8")
+    quoted = {}
+    for body in FENCE.findall(text):
+        m = re.search(r"python (docs/recipes/\w+\.py)", body)
+        if m:
+            quoted[m.group(1)] = body
+    files = {f"docs/recipes/{p.name}": p.read_text(encoding="utf-8") for p in sorted(RECIPES.glob("*.py"))}
+    assert sorted(quoted) == sorted(files), "every recipe file is quoted once in docs/recipes.md, and no other"
+    for name, body in files.items():
+        assert quoted[name] == body, f"docs/recipes.md quotes {name} otherwise than the file says"
+
+
+def test_readme_links_the_recipes():
+    assert "(docs/recipes.md)" in (ROOT / "README.md").read_text(encoding="utf-8")
