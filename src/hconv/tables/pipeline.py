@@ -178,6 +178,7 @@ def convert_file(
     strict: bool = False,
     threads: int | None = None,
     progress: Callable[[int, int | None], None] | None = None,
+    name: str | None = None,
 ) -> Tally:
     """Convert the table in ``src`` into ``dst`` ("-" for stdin/stdout); returns the tally.
 
@@ -187,6 +188,8 @@ def convert_file(
     ``threads``: batches converted at once (default :func:`default_threads`); the output is the
     same, in the same order, for any number.
     ``progress(done, total)`` is called after each batch with rows or bytes read so far.
+    ``name``: what messages call the input (default: ``src``), such as the URI of an object
+    fetched into ``src`` (:func:`hconv.tables.dataset.convert_dataset`).
     Raises :class:`hconv.errors.HconvError` subclasses with one-line messages.
     """
     if threads is not None and threads < 1:
@@ -199,7 +202,7 @@ def convert_file(
     fout = format_of(dst, dst_format, "dst_format")
     out = Output(dst, fout, force=force, input_path=src)  # refuses early, before reading
     t0 = time.perf_counter()
-    with open_input(src, fin, job) as inp:
+    with open_input(src, fin, job, name) as inp:
         # CSV's text columns get types in Parquet, the first block's (csvtypes); CSV keeps them as they were
         typed = fout != "csv" and bool(inp.text) and not job.keep_text
         run = functools.partial(_convert, job=job, strict=strict, threads=threads, progress=progress)
