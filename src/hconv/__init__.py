@@ -2,7 +2,8 @@
 
 ``hconv.convert`` works on numpy arrays; ``hconv.convert_table`` on pyarrow Tables and
 RecordBatches (pyarrow is imported only when that is called), with a :class:`Job` for the scene's
-conventions, units and column names. Conventions: :mod:`hconv.kernels.inertia`; the package's
+conventions, units and column names; ``hconv.convert_dataset`` on a directory, glob or prefix of
+files, local or on object storage. Conventions: :mod:`hconv.kernels.inertia`; the package's
 layers: docs/architecture.md.
 """
 
@@ -21,7 +22,18 @@ from hconv.solve.options import Conventions  # noqa: E402
 from hconv.solve.status import STATUSES  # noqa: E402
 from hconv.tables.job import Job  # noqa: E402
 
-__all__ = ["convert", "convert_table", "Job", "Conventions", "Result", "METHODS", "FORMS", "STATUSES", "__version__"]
+__all__ = [
+    "convert",
+    "convert_table",
+    "convert_dataset",
+    "Job",
+    "Conventions",
+    "Result",
+    "METHODS",
+    "FORMS",
+    "STATUSES",
+    "__version__",
+]
 
 
 def __getattr__(name: str) -> object:  # keeps `import hconv` free of pyarrow
@@ -29,4 +41,8 @@ def __getattr__(name: str) -> object:  # keeps `import hconv` free of pyarrow
         from hconv.tables.arrow import convert_table
 
         return convert_table
+    if name == "convert_dataset":
+        from hconv.tables.dataset import convert_dataset
+
+        return convert_dataset
     raise AttributeError(f"module 'hconv' has no attribute {name!r}")
