@@ -288,8 +288,8 @@ def friendly(fn: Callable) -> Callable:
                 return fn(*args, **kwargs)
         except HconvError as exc:
             _fail(str(exc), exc.exit_code)
-        except KeyboardInterrupt:
-            _fail(INTERRUPTED, 130)
+        except KeyboardInterrupt as exc:  # a dataset run says what it kept (hconv.tables.dataset)
+            _fail(str(exc) or INTERRUPTED, 130)
         except BrokenPipeError:  # the reader stopped early (`| head`): its choice, not a failure
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
             raise typer.Exit(0) from None

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hconv import interrupts
 from hconv.errors import HconvError, OutputError, UsageError, option
 from hconv.solve import methods, status
 from hconv.tables import storage
@@ -290,9 +291,22 @@ def plan_dataset(
 
 
 def convert_one(
-    task: Task, src: Place, dst: Place, job: Job, *, strict: bool = False, threads: int | None = None
+    task: Task,
+    src: Place,
+    dst: Place,
+    job: Job,
+    *,
+    strict: bool = False,
+    threads: int | None = None,
+    done: Callable[[FileRecord], None] | None = None,
 ) -> FileRecord:
-    """Convert one input file into its output; raises HconvError subclasses naming the file."""
+    """Convert one input file into its output; raises HconvError subclasses naming the file.
+
+    The file is converted into a temporary file (beside the output, or a local one for object
+    storage), then committed: renamed into place, or uploaded. The commit and ``done(record)``
+    (the caller recording the file for the manifest) happen with interrupts held
+    (:class:`hconv.interrupts.held`), so that a Ctrl-C leaves the output either not there or
+    there and recorded, never there and unrecorded."""
     t0 = time.perf_counter()
     rel = task.input.rel
     name = src.name(rel)
@@ -303,32 +317,58 @@ def convert_one(
         else:
             local_in, etag = storage.fetch(src, rel)
             cleanup.callback(_remove, local_in)
-        kwargs: dict = dict(src_format=task.src_format, dst_format=task.dst_format, job=job, strict=strict)
         if dst.local:
             target = dst.name(task.output)
             _make_folders(os.path.dirname(target), cleanup)
-            tally = convert_file(local_in, target, force=task.overwrite, threads=threads, name=name, **kwargs)
-            size = _flushed(target)
+            staged = storage.stage(target)
         else:
             staged = storage.stage()
-            cleanup.callback(_remove, staged)
-            tally = convert_file(local_in, staged, force=True, threads=threads, name=name, **kwargs)
-            size = storage.put(staged, dst, task.output)
-    worst = tally.worst_residual
-    return FileRecord(
-        input=rel,
-        output=task.output,
-        input_size=task.input.size,
-        input_mtime_ns=task.input.mtime_ns,
-        input_etag=etag,
-        output_size=size,
-        rows=tally.rows,
-        statuses=tally.counts(),
-        worst_residual=None if np.isnan(worst) else worst,
-        worst_row=tally.worst_row,
-        engines=dict(tally.engines),
-        seconds=time.perf_counter() - t0,
-    )
+        cleanup.callback(_remove, staged)
+        tally = convert_file(
+            local_in,
+            staged,
+            src_format=task.src_format,
+            dst_format=task.dst_format,
+            force=True,
+            job=job,
+            strict=strict,
+            threads=threads,
+            name=name,
+        )
+        worst = tally.worst_residual
+        record = FileRecord(
+            input=rel,
+            output=task.output,
+            input_size=task.input.size,
+            input_mtime_ns=task.input.mtime_ns,
+            input_etag=etag,
+            output_size=_flushed(staged) if dst.local else os.path.getsize(staged),
+            rows=tally.rows,
+            statuses=tally.counts(),
+            worst_residual=None if np.isnan(worst) else worst,
+            worst_row=tally.worst_row,
+            engines=dict(tally.engines),
+            seconds=0.0,
+        )
+        with interrupts.held():
+            if dst.local:
+                _commit(staged, target, task.overwrite)
+            else:
+                storage.put(staged, dst, task.output)
+            record.seconds = time.perf_counter() - t0
+            if done is not None:
+                done(record)
+    return record
+
+
+def _commit(staged: str, target: str, overwrite: bool) -> None:
+    """Rename a finished output into place; refuse one that appeared since the plan was made."""
+    if not overwrite and os.path.lexists(target):
+        raise OutputError(f"{target}: appeared while hconv was converting its input; move it away and run again")
+    try:
+        os.replace(staged, target)
+    except OSError as exc:
+        raise OutputError(f"{target}: could not be written ({exc.strerror or exc}); nothing was written") from None
 
 
 def _make_folders(folder: str, cleanup: contextlib.ExitStack) -> None:
@@ -417,16 +457,18 @@ def convert_dataset(
     if plan.todo:
         _write_manifest(plan, records, failed, written, t0)
     last = time.monotonic()
+
+    def keep(rec: FileRecord) -> None:
+        records[rec.input] = rec
+        converted.append(rec.input)
+
     try:
         for k, task in enumerate(plan.todo):
             try:
-                rec = convert_one(task, plan.src.place, plan.dst, job, strict=strict, threads=threads)
+                convert_one(task, plan.src.place, plan.dst, job, strict=strict, threads=threads, done=keep)
             except HconvError as exc:
                 failed[task.input.rel] = exc
                 say(f"error: {exc}")
-            else:
-                records[rec.input] = rec
-                converted.append(rec.input)
             if progress is not None:
                 progress(k + 1, len(plan.todo))
             if time.monotonic() - last > CHECKPOINT_SECONDS:

@@ -306,9 +306,14 @@ def fetch(where: Place, rel: str) -> tuple[str, str | None]:
     return path, (etag.decode() if isinstance(etag, bytes) else etag)
 
 
-def stage() -> str:
-    """An empty local temporary file to convert into before :func:`put`; the caller removes it."""
-    fd, path = tableio.temporary_file("hconv-stage-")
+def stage(beside: str | None = None) -> str:
+    """An empty temporary file to convert into before the output is committed: beside the local
+    output ``beside`` (renamed over it), or in the temporary directory (for :func:`put`). The
+    caller removes it."""
+    if beside is None:
+        fd, path = tableio.temporary_file("hconv-stage-")
+    else:
+        fd, path = tableio.temporary_file(f".{os.path.basename(beside)}.", os.path.dirname(beside) or ".")
     os.close(fd)
     return path
 
