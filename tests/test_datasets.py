@@ -454,3 +454,21 @@ def test_convert_dataset_s3_failing_file_and_missing_bucket_are_named(s3, tmp_pa
     err = proc.stderr.decode()
     assert f"hconv: error: s3://no-such-bucket-here/conv/{MANIFEST}: could not be written (" in err
     assert "The specified bucket does not exist" in err
+
+
+def test_remove_stale_temporaries_sweeps_a_killed_dataset_runs_fetched_and_staged_files(tmp_path, capsys):
+    """A dataset run killed outright leaves hconv-fetch- and hconv-stage- files in TMPDIR, and
+    .NAME.…hconv-tmp files beside outputs; the next run there removes those of ended processes."""
+    from hconv.tables import tableio
+
+    pid, start, tag = tableio._maker().split("-")
+    gone = f"{pid}-{int(start) + 1}-{tag}"  # this pid with another start: a process that has ended
+    names = [f"hconv-fetch-{gone}-abcd1234.hconv-tmp", f"hconv-stage-{gone}-abcd1234.hconv-tmp"]
+    names += [f".part-0.parquet.{gone}-abcd1234.hconv-tmp"]
+    for name in names:
+        (tmp_path / name).write_bytes(b"")
+    live = tmp_path / f"hconv-stage-{pid}-{start}-{tag}-abcd1234.hconv-tmp"
+    live.write_bytes(b"")
+    assert sorted(tableio.remove_stale_temporaries(str(tmp_path))) == sorted(str(tmp_path / n) for n in names)
+    assert [p.name for p in tmp_path.iterdir()] == [live.name]
+    capsys.readouterr()

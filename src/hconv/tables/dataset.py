@@ -217,10 +217,11 @@ def plan_dataset(
         raise UsageError(f"{option('endpoint_url')} is for s3:// URIs, and neither {src} nor {dst} is one")
     source = storage.source(src, endpoint_url)
     out = storage.place(dst, endpoint_url)
-    if source.place.contains(out) or out.contains(source.place):
-        raise UsageError(
-            f"{dst} and {src} overlap; write the dataset outside its input, so that a re-run does not read outputs"
-        )
+    overlap = UsageError(
+        f"{dst} and {src} overlap; write the dataset outside its input, so that a re-run does not read outputs"
+    )
+    if out.contains(source.place) or (source.pattern is None and source.place.contains(out)):
+        raise overlap
     if storage.format_by_name(out.root) and out.fs.get_file_info(out.root).type != storage.DIRECTORY:
         stem = os.path.splitext(out.shown)[0]
         raise UsageError(
@@ -235,6 +236,11 @@ def plan_dataset(
             shown = os.path.dirname(out.shown) or parent
             raise OutputError(f"{dst}: the directory {shown!r} does not exist; create it first")
     inputs = source.files(src_format)
+    if source.place.contains(out):  # a glob's folder holds OUT: fine unless the glob takes outputs
+        inside = out.identity[len(source.place.identity) :].strip("/")
+        match = storage.glob_regex(source.pattern or "**").match
+        if any(match(f"{inside}/{_output_rel(f.rel, src_format or '', dst_format)[0]}") for f in inputs):
+            raise overlap
     identity = job_identity(job, src_format, dst_format)
     before = _read_manifest(out, force)
     existing = {f.rel: f for f in out.list()}
