@@ -472,3 +472,24 @@ def test_remove_stale_temporaries_sweeps_a_killed_dataset_runs_fetched_and_stage
     assert sorted(tableio.remove_stale_temporaries(str(tmp_path))) == sorted(str(tmp_path / n) for n in names)
     assert [p.name for p in tmp_path.iterdir()] == [live.name]
     capsys.readouterr()
+
+
+def test_convert_dataset_glob_may_write_into_its_own_folder_unless_it_would_take_the_outputs(
+    tmp_path, capsys, monkeypatch
+):
+    monkeypatch.chdir(_dataset(tmp_path / "data", rows=20))
+    assert _hconv("convert", "*/*.parquet", "out", capsys=capsys)[0] == 0  # out/date=…/x is not */*
+    assert _hconv("convert", "*/*.parquet", "out", capsys=capsys)[0] == 0  # nor taken by the re-run
+    code, err = _hconv("convert", "**/*.parquet", "out2", capsys=capsys)
+    assert code == 2 and "out2 and **/*.parquet overlap" in err
+
+
+def test_held_interrupt_waits_for_the_block_then_acts():
+    from hconv import interrupts
+
+    done = []
+    with pytest.raises(KeyboardInterrupt), interrupts.held():
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.05)  # the handler would have run by now
+        done.append(1)
+    assert done == [1] and signal.getsignal(signal.SIGINT) is signal.default_int_handler
