@@ -318,18 +318,20 @@ def convert_one(
     name = src.name(rel)
     etag = None
     with contextlib.ExitStack() as cleanup:
-        if src.local:
-            local_in = name
-        else:
-            local_in, etag = storage.fetch(src, rel)
-            cleanup.callback(_remove, local_in)
+        # Each temporary file is made and its removal registered with interrupts held, so that a
+        # Ctrl-C cannot fall between the two; the long work that fills it can be interrupted.
+        local_in = name
+        if not src.local:
+            with interrupts.held():
+                local_in = storage.stage(kind="fetch")
+                cleanup.callback(_remove, local_in)
+            etag = storage.fetch(src, rel, local_in)
+        target = dst.name(task.output)
         if dst.local:
-            target = dst.name(task.output)
             _make_folders(os.path.dirname(target), cleanup)
-            staged = storage.stage(target)
-        else:
-            staged = storage.stage()
-        cleanup.callback(_remove, staged)
+        with interrupts.held():
+            staged = storage.stage(target if dst.local else None)
+            cleanup.callback(_remove, staged)
         tally = convert_file(
             local_in,
             staged,
@@ -385,13 +387,14 @@ def _make_folders(folder: str, cleanup: contextlib.ExitStack) -> None:
         made.append(folder)
         folder = os.path.dirname(folder)
     for path in reversed(made):
-        try:
-            os.mkdir(path)
-        except FileExistsError:
-            continue
-        except OSError as exc:
-            raise OutputError(f"{path}: cannot make this folder ({exc.strerror or exc})") from None
-        cleanup.callback(_remove_if_empty, path)
+        with interrupts.held():
+            try:
+                os.mkdir(path)
+            except FileExistsError:
+                continue
+            except OSError as exc:
+                raise OutputError(f"{path}: cannot make this folder ({exc.strerror or exc})") from None
+            cleanup.callback(_remove_if_empty, path)
 
 
 def _remove_if_empty(path: str) -> None:

@@ -288,30 +288,43 @@ def glob_regex(pattern: str) -> re.Pattern:
     return re.compile("".join(out) + r"\Z")
 
 
-def fetch(where: Place, rel: str) -> tuple[str, str | None]:
-    """Copy ``rel`` from object storage into a local temporary file; returns its path (the caller
-    removes it) and the object's ETag, if the store gives one."""
+def fetch(where: Place, rel: str, path: str) -> str | None:
+    """Copy ``rel`` from object storage into the local file ``path`` (made by :func:`stage`);
+    returns the object's ETag, if the store gives one."""
     name = where.name(rel)
     try:
         stream = where.fs.open_input_stream(where.path(rel), buffer_size=FETCH_BUFFER)
     except OSError as exc:
         raise InputError(f"{name}: cannot read it ({first_line(exc)})") from None
-    with stream:
+    with stream, open(path, "wb") as f:
         try:
             meta = stream.metadata() or {}
         except (OSError, NotImplementedError, pa.ArrowNotImplementedError):
             meta = {}
-        etag = meta.get(b"ETag") or meta.get("ETag")
-        path = tableio.spool(stream, name, "fetch")
-    return path, (etag.decode() if isinstance(etag, bytes) else etag)
+        while True:
+            try:
+                chunk = stream.read(FETCH_BUFFER)
+            except OSError as exc:
+                raise InputError(f"{name}: cannot read it ({first_line(exc)})") from None
+            if not chunk:
+                break
+            try:
+                f.write(chunk)
+            except OSError as exc:
+                raise OutputError(
+                    f"{name}: could not be copied to a temporary file in {os.path.dirname(path)!r} "
+                    f"({exc.strerror or exc}); set TMPDIR to a directory with room"
+                ) from None
+    etag = meta.get(b"ETag") or meta.get("ETag")
+    return etag.decode() if isinstance(etag, bytes) else etag
 
 
-def stage(beside: str | None = None) -> str:
-    """An empty temporary file to convert into before the output is committed: beside the local
-    output ``beside`` (renamed over it), or in the temporary directory (for :func:`put`). The
-    caller removes it."""
+def stage(beside: str | None = None, kind: str = "stage") -> str:
+    """An empty temporary file: to convert into before the output is committed, beside the local
+    output ``beside`` (renamed over it) or in the temporary directory (for :func:`put`); or, with
+    ``kind="fetch"``, to :func:`fetch` an input into. The caller removes it."""
     if beside is None:
-        fd, path = tableio.temporary_file("hconv-stage-")
+        fd, path = tableio.temporary_file(f"hconv-{kind}-")
     else:
         fd, path = tableio.temporary_file(f".{os.path.basename(beside)}.", os.path.dirname(beside) or ".")
     os.close(fd)
@@ -360,13 +373,15 @@ def write_bytes(where: Place, rel: str, data: bytes) -> None:
             if tmp and os.path.exists(tmp):
                 os.unlink(tmp)
         return
-    staged = stage()
+    staged = ""
     try:
+        staged = stage()
         with open(staged, "wb") as f:
             f.write(data)
         put(staged, where, rel)
     finally:
-        os.unlink(staged)
+        if staged:
+            os.unlink(staged)
 
 
 def read_bytes(where: Place, rel: str) -> bytes | None:

@@ -372,24 +372,23 @@ def temporary_file(prefix: str, directory: str | None = None) -> tuple[int, str]
     return _mkstemp(prefix, directory)
 
 
-def spool(stream: BinaryIO, name: str, kind: str = "stdin") -> str:
-    """Copy ``stream`` into a temporary file and return its path; the caller removes it.
-    ``kind``: ``stdin`` (stdin or a pipe) or ``fetch`` (a file fetched from object storage).
+def spool(stream: BinaryIO, name: str) -> str:
+    """Copy ``stream`` (stdin, or a pipe) into a temporary file and return its path; the caller
+    removes it.
 
     Reading stdin can take as long as whatever feeds it, so this is where Ctrl-C and SIGTERM
     (raised as KeyboardInterrupt) usually land: any way out but success removes the file.
     """
-    fd, spooled = _mkstemp(f"hconv-{kind}-")
+    fd, spooled = _mkstemp("hconv-stdin-")
     try:
         try:
             with os.fdopen(fd, "wb") as f:
                 while chunk := _read_chunk(stream, name):
                     f.write(chunk)
         except OSError as exc:  # reading fails as InputError, so this is the temporary directory
-            other = ", or give a file instead of '-'" if kind == "stdin" else ""
             raise OutputError(
                 f"{name}: could not be copied to a temporary file in {os.path.dirname(spooled)!r} "
-                f"({exc.strerror or exc}); set TMPDIR to a directory with room{other}"
+                f"({exc.strerror or exc}); set TMPDIR to a directory with room, or give a file instead of '-'"
             ) from None
     except BaseException:
         os.unlink(spooled)
@@ -685,11 +684,15 @@ class Output:
                 raise OutputError(
                     f"{self.path}: cannot write in {str(target.parent)!r} ({exc.strerror}); check its permissions"
                 ) from None
-        os.close(fd)
-        if self.path != "-":  # mkstemp makes the file 0600; the output should get the usual permissions
-            umask = os.umask(0)
-            os.umask(umask)
-            os.chmod(self._tmp, 0o666 & ~umask)
+        try:  # __exit__ does not run when __enter__ fails: remove the file here
+            os.close(fd)
+            if self.path != "-":  # mkstemp makes the file 0600; the output should get the usual permissions
+                umask = os.umask(0)
+                os.umask(umask)
+                os.chmod(self._tmp, 0o666 & ~umask)
+        except BaseException:
+            os.unlink(self._tmp)
+            raise
         return self
 
     def write(self, table: pa.Table) -> None:
