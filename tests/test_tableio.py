@@ -81,7 +81,7 @@ def test_spool_read_error_or_full_temporary_directory_is_one_line_and_no_spool(t
 
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
     with pytest.raises(InputError, match=r"^stdin: cannot read it \(Input/output error\)$"):
-        tableio._spool(_FailingStream(error=OSError(errno.EIO, "Input/output error")), "stdin")
+        tableio.spool(_FailingStream(error=OSError(errno.EIO, "Input/output error")), "stdin")
     assert list(tmp_path.iterdir()) == []
 
     real = os.fdopen
@@ -101,7 +101,7 @@ def test_spool_read_error_or_full_temporary_directory_is_one_line_and_no_spool(t
 
     monkeypatch.setattr(os, "fdopen", lambda fd, mode: Full(real(fd, mode)))
     with pytest.raises(OutputError, match="No space left on device.*set TMPDIR to a directory with room"):
-        tableio._spool(_FailingStream(b"Hx,Hy,Hz,I\n1,2,3,4\n"), "stdin")
+        tableio.spool(_FailingStream(b"Hx,Hy,Hz,I\n1,2,3,4\n"), "stdin")
     assert list(tmp_path.iterdir()) == []
 
 
@@ -323,31 +323,38 @@ def test_format_of_compressed_name_says_how_to_compress_or_decompress(
     assert (got, err) == (code, f"hconv: error: {message}\n")
 
 
-README_POINTER = "(see 'Whole files with hconv convert' in the README)"
+README_POINTER = "(hconv convert takes a whole directory: see 'Datasets' in the README)"
 
 
 @pytest.mark.parametrize(
-    "given, message",
+    "command, given, message",
     [
         (
+            "diagnose",
             "data",
-            f"data: is a directory, and hconv converts one file per run; give one of the 2 CSV or Parquet files in "
-            f"it, such as data/part-0.parquet, or convert each in a loop {README_POINTER}",
+            f"data: is a directory, and this command reads one file; give one of the 2 CSV or Parquet files in "
+            f"it, such as data/part-0.parquet {README_POINTER}",
         ),
         (
+            "compare",
             "empty.parquet",
-            "empty.parquet: is a directory, and hconv converts one file per run; give a CSV or Parquet file "
+            "empty.parquet: is a directory, and this command reads one file; give a CSV or Parquet file "
             + README_POINTER,
         ),
-        ("scene.cvs", "scene.cvs: does not exist (did you mean scene.csv?); check the path"),
-        ("nothing", "nothing: does not exist; check the path"),
-        ("nowhere/in.csv", "nowhere/in.csv: does not exist, nor does the directory 'nowhere'; check the path"),
-        ("link.csv", "link.csv: is a link to 'gone.csv', which does not exist; check the link"),
+        ("convert", "scene.cvs", "scene.cvs: does not exist (did you mean scene.csv?); check the path"),
+        ("convert", "nothing", "nothing: does not exist; check the path"),
+        (
+            "convert",
+            "nowhere/in.csv",
+            "nowhere/in.csv: does not exist, nor does the directory 'nowhere'; check the path",
+        ),
+        ("convert", "link.csv", "link.csv: is a link to 'gone.csv', which does not exist; check the link"),
     ],
 )
-def test_open_input_directory_or_missing_path_says_so(given, message, tmp_path, capsys, monkeypatch):
+def test_open_input_directory_or_missing_path_says_so(command, given, message, tmp_path, capsys, monkeypatch):
     """Before: 'cannot tell the format' (exit 2) for a directory or a missing path without an
-    extension, and 'is a directory, not a CSV file' with no way on."""
+    extension, and 'is a directory, not a CSV file' with no way on. (hconv convert takes a
+    directory as a dataset: test_datasets.py.)"""
     monkeypatch.chdir(tmp_path)
     Path("data").mkdir()
     Path("data/part-0.parquet").write_bytes(b"")
@@ -355,7 +362,7 @@ def test_open_input_directory_or_missing_path_says_so(given, message, tmp_path, 
     Path("empty.parquet").mkdir()
     Path("scene.csv").write_bytes(SCENE_CSV.read_bytes())
     os.symlink("gone.csv", "link.csv")
-    code, _, err = run_inprocess("convert", given, "out.csv", capsys=capsys)
+    code, _, err = run_inprocess(command, given, *(["out.csv"] if command == "convert" else []), capsys=capsys)
     assert (code, err) == (3, f"hconv: error: {message}\n")
 
 

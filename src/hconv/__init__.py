@@ -2,7 +2,8 @@
 
 ``hconv.convert`` works on numpy arrays; ``hconv.convert_table`` on pyarrow Tables and
 RecordBatches (pyarrow is imported only when that is called), with a :class:`Job` for the scene's
-conventions, units and column names. For engines that own the data (DuckDB, Polars, Dask, Ray,
+conventions, units and column names; ``hconv.convert_dataset`` on a directory, glob or prefix of
+files, local or on object storage. For engines that own the data (DuckDB, Polars, Dask, Ray,
 Spark): ``hconv.output_schema`` gives ``convert_table``'s result schema without converting, and
 ``hconv.parquet_write_options`` hconv's own Parquet writer settings (docs/recipes.md).
 Conventions: :mod:`hconv.kernels.inertia`; the package's layers: docs/architecture.md.
@@ -28,6 +29,7 @@ __all__ = [
     "convert_table",
     "output_schema",
     "parquet_write_options",
+    "convert_dataset",
     "Job",
     "Conventions",
     "Result",
@@ -47,4 +49,8 @@ def __getattr__(name: str) -> object:  # keeps `import hconv` free of pyarrow
         from hconv.tables.tableio import parquet_write_options
 
         return parquet_write_options
+    if name == "convert_dataset":
+        from hconv.tables.dataset import convert_dataset
+
+        return convert_dataset
     raise AttributeError(f"module 'hconv' has no attribute {name!r}")

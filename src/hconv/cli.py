@@ -297,8 +297,8 @@ def friendly(fn: Callable) -> Callable:
                 return fn(*args, **kwargs)
         except HconvError as exc:
             _fail(str(exc), exc.exit_code)
-        except KeyboardInterrupt:
-            _fail(INTERRUPTED, 130)
+        except KeyboardInterrupt as exc:  # a dataset run says what it kept (hconv.tables.dataset)
+            _fail(str(exc) or INTERRUPTED, 130)
         except BrokenPipeError:  # the reader stopped early (`| head`): its choice, not a failure
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
             raise typer.Exit(0) from None
@@ -473,12 +473,26 @@ def _invalid_hint(causes: list[tuple[str, str]], given: dict[str, str | None], p
 @friendly
 @job_options("method", "precision", "engine", *SCENE, *DEGENERATE, *COLUMNS, "omega_unit", "keep_text")
 def convert_cmd(
-    src: str = typer.Argument(..., metavar="IN", help="input .csv or .parquet, or - for stdin"),
-    dst: str = typer.Argument(..., metavar="OUT", help="output .csv or .parquet, or - for stdout"),
+    src: str = typer.Argument(
+        ...,
+        metavar="IN",
+        help="input .csv or .parquet, or - for stdin; or a dataset: a directory, a quoted glob "
+        "('data/*/*.parquet') or a URI (s3://bucket/prefix/)",
+    ),
+    dst: str = typer.Argument(
+        ..., metavar="OUT", help="output .csv or .parquet, or - for stdout; for a dataset, a directory or a URI prefix"
+    ),
     job: Job = JOB,  # the run options go here (job_options)
     from_: Fmt | None = typer.Option(None, "--from", help="input format; needed when IN is -"),
-    to: Fmt | None = typer.Option(None, "--to", help="output format; needed when OUT is -"),
-    force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
+    to: Fmt | None = typer.Option(
+        None, "--to", help="output format; needed when OUT is -; for a dataset, default: each input's own"
+    ),
+    force: bool = typer.Option(
+        False,
+        "--force",
+        help="overwrite OUT if it exists; for a dataset, convert every file again and overwrite "
+        "files hconv did not write (it never deletes one)",
+    ),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no summary on stderr"),
     strict: bool = typer.Option(False, "--strict", help="fail (exit 5, nothing written) if any row's status is not ok"),
     threads: int | None = typer.Option(
@@ -487,14 +501,27 @@ def convert_cmd(
         help="batches converted at once; default: the cores available, "
         "at most 4 (the output is the same for any number)",
     ),
+    endpoint_url: str | None = typer.Option(
+        None,
+        "--endpoint-url",
+        metavar="URL",
+        help="an S3-compatible server for s3:// URIs (MinIO, Ceph, ...); "
+        "default: AWS_ENDPOINT_URL_S3 or AWS_ENDPOINT_URL",
+    ),
 ) -> None:
-    """Convert every row of a CSV or Parquet table; OUT gets the input columns, ω and diagnostics."""
+    """Convert every row of a CSV or Parquet table, or of each file of a dataset; OUT gets the input
+    columns, ω and diagnostics."""
     from hconv import report
-    from hconv.tables import pipeline
+    from hconv.tables import dataset, pipeline
 
     kwargs: dict[str, Any] = dict(
         job=job, src_format=_value(from_), dst_format=_value(to), force=force, strict=strict, threads=threads
     )
+    if dataset.is_dataset(src, dst):
+        _convert_dataset(src, dst, kwargs, endpoint_url, quiet)
+        return
+    if endpoint_url is not None:
+        raise UsageError("--endpoint-url is for s3:// URIs; IN and OUT are local")
     if sys.stderr.isatty() and dst != "-" and not quiet:
         with report.ProgressBar(f"converting {os.path.basename(src)}") as bar:  # the path crowded out the bar
             tally = pipeline.convert_file(src, dst, progress=bar, **kwargs)
@@ -502,6 +529,31 @@ def convert_cmd(
         tally = pipeline.convert_file(src, dst, **kwargs)
     if not quiet:
         report.summary(tally)
+
+
+def _convert_dataset(src: str, dst: str, kwargs: dict[str, Any], endpoint_url: str | None, quiet: bool) -> None:
+    """``hconv convert`` of a dataset: a line per failing file as it fails, the summary, then the
+    exit code of the failures (hconv.tables.dataset)."""
+    from hconv import report
+    from hconv.tables import dataset
+
+    def log(line: str) -> None:
+        if not quiet or line.startswith("error: "):
+            print(f"hconv: {line}", file=sys.stderr)
+
+    run = functools.partial(dataset.convert_dataset, src, dst, endpoint_url=endpoint_url, log=log, **kwargs)
+    try:
+        if sys.stderr.isatty() and not quiet:
+            with report.ProgressBar("converting files") as bar:
+                result = run(progress=bar)
+        else:
+            result = run()
+    except dataset.DatasetError as exc:
+        if not quiet:
+            report.dataset_summary(exc.result)
+        raise
+    if not quiet:
+        report.dataset_summary(result)
 
 
 @app.command("diagnose")
@@ -820,7 +872,11 @@ def _main() -> None:
             print(ctx.get_help())
             sys.exit(0)
         command = getattr(ctx, "command_path", "hconv")
-        print(f"hconv: error: {' '.join(exc.format_message().split())} (see '{command} --help')", file=sys.stderr)
+        message = " ".join(exc.format_message().split())
+        if command.endswith(" convert") and "unexpected extra argument" in message:
+            # the shell expanded a glob into many files: hconv expands one given in quotes
+            message += "; for several files, give their directory, or quote the glob so that hconv expands it"
+        print(f"hconv: error: {message} (see '{command} --help')", file=sys.stderr)
         sys.exit(exc.exit_code)
     sys.exit(rv if isinstance(rv, int) else 0)
 

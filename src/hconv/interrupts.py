@@ -1,4 +1,5 @@
-"""Ctrl-C and SIGTERM while the hconv command starts: exit 130 with one line, never a traceback.
+"""Ctrl-C and SIGTERM while the hconv command starts: exit 130 with one line, never a traceback;
+and :func:`held`, which makes them wait while a few steps that must not be cut finish.
 
 The command spends its first few tenths of a second importing numpy, typer and the rest. A
 KeyboardInterrupt raised in there printed a traceback, or, inside numpy's import, an ImportError
@@ -65,3 +66,42 @@ def hand_over(on_sigterm: Callable[[int, object], None]) -> None:
         _signal.signal(_signal.SIGINT, _signal.default_int_handler)
     if _signal.getsignal(_signal.SIGTERM) is _end:
         _signal.signal(_signal.SIGTERM, on_sigterm)
+
+
+def held() -> Held:
+    """``with held(): ...``: see :class:`Held`."""
+    return Held()
+
+
+class Held:
+    """``with held(): ...``: a Ctrl-C or SIGTERM that arrives inside the block is acted on when the
+    block ends (by the handler that was in place), so that the steps inside either all happen or
+    none does: a dataset's output renamed into place and recorded for its manifest, say. Keep the
+    block short: the interrupt waits for it. Outside the main thread, where no handler runs,
+    it does nothing."""
+
+    _SIGNALS = (_signal.SIGINT, _signal.SIGTERM)
+
+    def __enter__(self) -> Held:
+        self._caught: list[int] = []
+        self._before: dict = {}
+        try:
+            for s in self._SIGNALS:
+                self._before[s] = _signal.signal(s, self._catch)
+        except ValueError:  # not the main thread
+            self._before.clear()
+        return self
+
+    def _catch(self, signum: int, frame: object) -> None:
+        self._caught.append(signum)
+
+    def __exit__(self, *exc: object) -> None:
+        for s, handler in self._before.items():
+            _signal.signal(s, handler)
+        if self._caught:
+            signum = self._caught[0]
+            handler = self._before[signum]
+            if callable(handler):  # Python's default for SIGINT raises KeyboardInterrupt; hconv's SIGTERM too
+                handler(signum, None)
+            elif handler == _signal.SIG_DFL:
+                os.kill(os.getpid(), signum)

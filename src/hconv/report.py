@@ -26,6 +26,7 @@ from hconv.solve.methods import METHODS
 
 if TYPE_CHECKING:
     from hconv.solve.methods import Method
+    from hconv.tables.dataset import DatasetResult
     from hconv.tables.pipeline import Tally
     from hconv.tools.bench import Result as BenchResult
     from hconv.tools.compare import Comparison
@@ -197,6 +198,40 @@ def summary(tally: Tally, console: Console | None = None) -> None:
     if tally.worst_row is not None:
         note(console, f"worst residual {tally.worst_residual:.3g} (data row {tally.worst_row}), relative to I⁻¹H")
     note(console, f"time {tally.seconds:.3f} s ({rate})")
+
+
+def dataset_summary(result: DatasetResult, console: Console | None = None) -> None:
+    """Print a dataset run's summary: the whole dataset's rows per status and worst residual
+    (naming its file), the files converted, up to date and failed, and this run's time."""
+    console = console or Console(stderr=True)
+    tally = result.tally
+    engines = " + ".join(tally.engines) or "-"
+    files = f"{result.total:,} file" + ("s" if result.total != 1 else "")
+    head = Text.assemble(
+        ("hconv convert", "bold"), f" · {files} · method {tally.method} · ω in {tally.unit} · engine {engines}"
+    )
+    counts = tally.counts()
+    show(
+        console,
+        (Col("status"), Col("rows", right=True)),
+        [(name, count(console, n)) for name, n in counts.items()] + [("total", count(console, tally.rows))],
+        title=head,
+        styles=[None if name == "ok" else "yellow" for name in counts] + ["bold"],
+    )
+    if tally.worst_row is not None:
+        note(
+            console,
+            f"worst residual {tally.worst_residual:.3g} ({result.worst_file}, data row {tally.worst_row}), "
+            "relative to I⁻¹H",
+        )
+    done = len(result.converted)
+    parts = [f"{done:,} converted", f"{len(result.files) - done:,} already up to date"]
+    parts += [f"{len(result.failed):,} failed"] if result.failed else []
+    parts += [f"{len(result.pending):,} not reached"] if result.pending else []
+    state = "complete" if result.complete else "not complete"
+    note(console, f"files: {', '.join(parts)}; {result.manifest} says the dataset is {state}")
+    rate = f", {result.rows_converted / result.seconds:,.0f} rows/s" if result.seconds > 0 and done else ""
+    note(console, f"time {result.seconds:.3f} s ({result.rows_converted:,} rows converted{rate})")
 
 
 class ProgressBar:

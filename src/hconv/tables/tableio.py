@@ -224,21 +224,22 @@ def _missing(path: str) -> str:
 
 
 def _directory(path: str) -> str:
-    """A directory given as the input, perhaps a partitioned dataset: hconv converts one file."""
+    """A directory given to a command that reads one file (``hconv convert`` takes a directory as a
+    dataset, hconv.tables.dataset, and does not get here)."""
     known = {e for exts in EXTENSIONS.values() for e in exts}
     try:
         files = sorted(e.name for e in os.scandir(path) if e.is_file() and Path(e.name).suffix.lower() in known)
     except OSError:
         files = []
-    head = f"{path}: is a directory, and hconv converts one file per run"
-    readme = "see 'Whole files with hconv convert' in the README"
+    head = f"{path}: is a directory, and this command reads one file"
+    readme = "hconv convert takes a whole directory: see 'Datasets' in the README"
     if not files:
         return f"{head}; give a CSV or Parquet file ({readme})"
     if len(files) == 1:
         return f"{head}; give the file in it, {os.path.join(path, files[0])} ({readme})"
     return (
         f"{head}; give one of the {len(files)} CSV or Parquet files in it, such as "
-        f"{os.path.join(path, files[0])}, or convert each in a loop ({readme})"
+        f"{os.path.join(path, files[0])} ({readme})"
     )
 
 
@@ -269,11 +270,13 @@ class Input:
         self.close()
 
 
-def open_input(path: str, fmt: str, job: Job) -> Input:
+def open_input(path: str, fmt: str, job: Job, name: str | None = None) -> Input:
     """Open ``path`` ("-" for stdin) as ``fmt``, planned for ``job`` (:func:`hconv.tables.layout.plan`);
-    InputError with a fix if it can't be. Stdin, or a pipe given by name, is spooled first."""
+    InputError with a fix if it can't be. Stdin, or a pipe given by name, is spooled first.
+    ``name``: what messages call the input (default: ``path``), such as the URI of an object
+    that was fetched into ``path``."""
     closers = []
-    name = path
+    name = name or path
     if path == "-":
         name = "stdin"
         if sys.stdin is None or sys.stdin.isatty():
@@ -281,9 +284,9 @@ def open_input(path: str, fmt: str, job: Job) -> Input:
                 "input is '-' but stdin is a terminal; pipe a file in, "
                 "e.g. `cat in.csv | hconv convert - out.csv --from csv`"
             )
-        spool = _spool(sys.stdin.buffer, name)
-        closers.append(lambda: os.unlink(spool))
-        path = spool
+        spooled = spool(sys.stdin.buffer, name)
+        closers.append(lambda: os.unlink(spooled))
+        path = spooled
     elif _input_kind(path) == "pipe":
         try:
             stream = open(path, "rb")  # noqa: SIM115 - closed by the with below, once spooled
@@ -292,9 +295,9 @@ def open_input(path: str, fmt: str, job: Job) -> Input:
         with stream:
             if stream.isatty():
                 raise UsageError(f"input {name} is a terminal; give a file, or pipe one in")
-            spool = _spool(stream, name)
-        closers.append(lambda: os.unlink(spool))
-        path = spool
+            spooled = spool(stream, name)
+        closers.append(lambda: os.unlink(spooled))
+        path = spooled
     try:
         inp = _open_csv(path, name, job) if fmt == "csv" else _open_parquet(path, name, job)
     except BaseException:
@@ -308,8 +311,11 @@ def open_input(path: str, fmt: str, job: Job) -> Input:
 #: Every temporary file hconv makes ends so; its name also carries the process that made it.
 TEMP_SUFFIX = ".hconv-tmp"
 # .OUT.<token>-XXXXXXXX.hconv-tmp beside the output; hconv-stdin-/hconv-stdout-<token>-XXXXXXXX.hconv-tmp
-# in the temporary directory. <token> is pid-start-tag (_maker).
-_TEMP_NAME = re.compile(r"^(?:\..+\.|hconv-std(?:in|out)-)(\d+)-(\d+)-([0-9a-f]{8})-[a-z0-9_]+\.hconv-tmp$")
+# in the temporary directory, and hconv-fetch-/hconv-stage- for a dataset's files on object storage
+# (hconv.tables.storage). <token> is pid-start-tag (_maker).
+_TEMP_NAME = re.compile(
+    r"^(?:\..+\.|hconv-(?:stdin|stdout|fetch|stage)-)(\d+)-(\d+)-([0-9a-f]{8})-[a-z0-9_]+\.hconv-tmp$"
+)
 
 
 def _proc_start(pid: int) -> int | None:
@@ -393,13 +399,22 @@ def _mkstemp(prefix: str, directory: str | None = None) -> tuple[int, str]:
     return tempfile.mkstemp(prefix=f"{prefix}{_maker()}-", suffix=TEMP_SUFFIX, dir=directory)
 
 
-def _spool(stream: BinaryIO, name: str) -> str:
-    """Copy ``stream`` into a temporary file and return its path; the caller removes it.
+def temporary_file(prefix: str, directory: str | None = None) -> tuple[int, str]:
+    """A new temporary file (descriptor, path) named ``PREFIX<pid-start-host>-XXXXXXXX.hconv-tmp``
+    in ``directory`` (default: the temporary directory), so that if this process is killed the
+    next hconv run there removes it (:func:`remove_stale_temporaries`). ``prefix`` is one of
+    ``.NAME.`` (beside a file NAME being written), ``hconv-fetch-`` or ``hconv-stage-``."""
+    return _mkstemp(prefix, directory)
+
+
+def spool(stream: BinaryIO, name: str) -> str:
+    """Copy ``stream`` (stdin, or a pipe) into a temporary file and return its path; the caller
+    removes it.
 
     Reading stdin can take as long as whatever feeds it, so this is where Ctrl-C and SIGTERM
     (raised as KeyboardInterrupt) usually land: any way out but success removes the file.
     """
-    fd, spool = _mkstemp("hconv-stdin-")
+    fd, spooled = _mkstemp("hconv-stdin-")
     try:
         try:
             with os.fdopen(fd, "wb") as f:
@@ -407,13 +422,13 @@ def _spool(stream: BinaryIO, name: str) -> str:
                     f.write(chunk)
         except OSError as exc:  # reading fails as InputError, so this is the temporary directory
             raise OutputError(
-                f"{name}: could not be copied to a temporary file in {os.path.dirname(spool)!r} "
+                f"{name}: could not be copied to a temporary file in {os.path.dirname(spooled)!r} "
                 f"({exc.strerror or exc}); set TMPDIR to a directory with room, or give a file instead of '-'"
             ) from None
     except BaseException:
-        os.unlink(spool)
+        os.unlink(spooled)
         raise
-    return spool
+    return spooled
 
 
 def _read_chunk(stream: BinaryIO, name: str) -> bytes:
@@ -728,11 +743,15 @@ class Output:
                 raise OutputError(
                     f"{self.path}: cannot write in {str(target.parent)!r} ({exc.strerror}); check its permissions"
                 ) from None
-        os.close(fd)
-        if self.path != "-":  # mkstemp makes the file 0600; the output should get the usual permissions
-            umask = os.umask(0)
-            os.umask(umask)
-            os.chmod(self._tmp, 0o666 & ~umask)
+        try:  # __exit__ does not run when __enter__ fails: remove the file here
+            os.close(fd)
+            if self.path != "-":  # mkstemp makes the file 0600; the output should get the usual permissions
+                umask = os.umask(0)
+                os.umask(umask)
+                os.chmod(self._tmp, 0o666 & ~umask)
+        except BaseException:
+            os.unlink(self._tmp)
+            raise
         return self
 
     def write(self, table: pa.Table) -> None:

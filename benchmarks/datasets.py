@@ -1,0 +1,156 @@
+"""What converting a dataset file by file costs: the same rows as one file, as 40 files and as
+400, with ``hconv convert``; and on object storage through a local S3-compatible server (moto's
+server mode, the ``test-s3`` extra), if installed.
+
+    python benchmarks/datasets.py --rows 2000000 --s3-rows 400000 --repeats 3
+
+Each figure is the median of ``--repeats`` runs of the real command, in a fresh process: the wall
+time (with the command's start, about half a second) and the time the summary reports (from the
+plan to the manifest). Per-file overhead is the difference in reported time between 400 files
+and 1, over the 399 files more. docs/measurements.md keeps the figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import shutil
+import socket
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+import urllib.request
+from pathlib import Path
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from hconv.tools.scene import make_scene
+
+S3_ENV = {
+    "AWS_ACCESS_KEY_ID": "bench",
+    "AWS_SECRET_ACCESS_KEY": "bench",
+    "AWS_DEFAULT_REGION": "us-east-1",
+    "AWS_EC2_METADATA_DISABLED": "true",
+}
+
+
+def write_dataset(root: Path, rows: int, files: int) -> None:
+    """``files`` Parquet files of ``rows // files`` rows each, in 4 hive partitions."""
+    each = rows // files
+    table = pa.table(make_scene(each * files, seed=1, cond_max=1e6))
+    for k in range(files):
+        path = root / f"day={k % 4}" / f"part-{k:04d}.parquet"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        pq.write_table(table.slice(k * each, each), path)
+
+
+def run(args: list[str], env: dict | None = None) -> tuple[float, float]:
+    """(wall seconds, the seconds the summary reports) for one ``hconv convert``."""
+    t0 = time.perf_counter()
+    proc = subprocess.run(
+        [sys.executable, "-m", "hconv", "convert", *args, "--force"],
+        capture_output=True,
+        env=dict(os.environ, **(env or {})),
+    )
+    wall = time.perf_counter() - t0
+    err = proc.stderr.decode()
+    if proc.returncode != 0:
+        raise SystemExit(f"hconv convert {' '.join(args)} failed:\n{err}")
+    return wall, float(re.search(r"time ([0-9.]+) s", err).group(1))
+
+
+def median_of(repeats: int, args: list[str], env: dict | None = None) -> tuple[float, float]:
+    runs = [run(args, env) for _ in range(repeats)]
+    return statistics.median(r[0] for r in runs), statistics.median(r[1] for r in runs)
+
+
+def local(work: Path, rows: int, repeats: int) -> None:
+    one = work / "one.parquet"
+    pq.write_table(pa.table(make_scene(rows, seed=1, cond_max=1e6)), one)
+    results = {"1 file": median_of(repeats, [str(one), str(work / "one-out.parquet")])}
+    for files in (40, 400):
+        write_dataset(work / f"d{files}", rows, files)
+        results[f"{files} files"] = median_of(repeats, [str(work / f"d{files}"), str(work / f"d{files}-out")])
+    print(f"local, {rows:,} rows, median of {repeats}")
+    base = results["1 file"][1]
+    for name, (wall, reported) in results.items():
+        print(
+            f"  {name:>9}: wall {wall:6.2f} s, reported {reported:6.2f} s, {rows / reported:12,.0f} rows/s, "
+            f"{reported / base:.2f}x the one file's time"
+        )
+    per_file = (results["400 files"][1] - base) / 399
+    print(f"  per-file overhead: {per_file * 1e3:.1f} ms ((400 files - 1 file) / 399)")
+
+
+def s3(work: Path, rows: int, repeats: int) -> None:
+    import importlib.util
+
+    if importlib.util.find_spec("moto") is None:
+        print("s3: skipped (pip install -e '.[test-s3]')")
+        return
+    import pyarrow.fs as pafs
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    server = subprocess.Popen(
+        [sys.executable, "-m", "moto.server", "-H", "127.0.0.1", "-p", str(port)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    url = f"http://127.0.0.1:{port}"
+    try:
+        for _ in range(300):
+            try:
+                urllib.request.urlopen(url + "/", timeout=1).close()
+                break
+            except OSError:
+                time.sleep(0.1)
+        os.environ.update(S3_ENV)
+        fs = pafs.S3FileSystem(endpoint_override=url, allow_bucket_creation=True)
+        fs.create_dir("bench")
+        data = work / "s3-data"
+        write_dataset(data, rows, 40)
+        pafs.copy_files(str(data), "bench/raw", source_filesystem=pafs.LocalFileSystem(), destination_filesystem=fs)
+        env = dict(S3_ENV, AWS_ENDPOINT_URL=url)
+        cases = {
+            "local -> local": [str(data), str(work / "s3-local-out")],
+            "s3 -> local": ["s3://bench/raw/", str(work / "s3-in-out")],
+            "local -> s3": [str(data), "s3://bench/from-local/"],
+            "s3 -> s3": ["s3://bench/raw/", "s3://bench/conv/"],
+        }
+        print(f"moto S3 server (one Python process on this machine), 40 files, {rows:,} rows, median of {repeats}")
+        base = None
+        for name, args in cases.items():
+            wall, reported = median_of(repeats, args, env)
+            base = base or reported
+            print(
+                f"  {name:>14}: wall {wall:6.2f} s, reported {reported:6.2f} s, {rows / reported:12,.0f} rows/s, "
+                f"{reported / base:.2f}x local"
+            )
+    finally:
+        server.terminate()
+        server.wait(timeout=10)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--rows", type=int, default=2_000_000)
+    ap.add_argument("--s3-rows", type=int, default=400_000)
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--dir", default=None, help="where to write the datasets (default: a temporary directory)")
+    a = ap.parse_args()
+    work = Path(tempfile.mkdtemp(prefix="hconv-bench-datasets-", dir=a.dir))
+    try:
+        local(work, a.rows, a.repeats)
+        s3(work, a.s3_rows, a.repeats)
+    finally:
+        shutil.rmtree(work)
+
+
+if __name__ == "__main__":
+    main()

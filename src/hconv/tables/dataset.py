@@ -1,0 +1,596 @@
+"""Datasets: a directory, a glob or a prefix of files converted file by file into a directory or
+prefix, with a manifest written last; the CLI's ``convert`` is thin over :func:`convert_dataset`
+when IN or OUT is one.
+
+Each input file gives one output file at the same relative path (hive partition folders such as
+``date=2026-01-01/`` kept; with ``dst_format`` the extension becomes the format's), written
+atomically (:mod:`hconv.tables.storage` says how, locally and on object storage). The manifest,
+``OUT/_hconv_manifest.json``, is written last, and again whenever a run stops early: it lists
+only outputs that are complete and were made from their input as it is now, by the job it
+records, and says ``"complete": true`` only when every input file has one. During a run that
+will rewrite files, it is first written without them, so it never claims a file being replaced.
+
+A re-run converts only what is missing or stale: an input whose size or modification time
+differs from the manifest's record, an output missing or not of the recorded size, or every
+file when the job (the Job's fields and the formats) or the input's place differs. A file in OUT
+that hconv did not write (the manifest's ``hconv_outputs``) is never overwritten without
+``force``, and hconv deletes nothing in OUT.
+
+One file's failure (hconv's one-line errors) is named and the others still run; the run then
+raises :class:`DatasetError`, whose exit code is the failures' (the highest when they differ).
+The unit of work, :func:`convert_one`, takes and returns picklable values, so that a runner on
+other machines can map it over :attr:`Plan.todo` and hand the records to the same manifest.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import datetime
+import json
+import os
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from hconv import interrupts
+from hconv.errors import HconvError, OutputError, UsageError, option
+from hconv.solve import methods, status
+from hconv.tables import storage
+from hconv.tables.formats import EXTENSIONS, FORMATS
+from hconv.tables.job import Job
+from hconv.tables.pipeline import Tally, convert_file
+from hconv.tables.storage import Listed, Place, Source
+
+MANIFEST = "_hconv_manifest.json"
+MANIFEST_KIND = "hconv dataset manifest"
+MANIFEST_VERSION = 1
+#: While files convert, the manifest is rewritten at most this often, so that a run killed
+#: outright (kill -9, a lost machine) loses the record of this much work at most: the next run
+#: converts those files again (the manifest claimed their paths before the run wrote them).
+CHECKPOINT_SECONDS = 10.0
+
+
+def is_dataset(src: str, dst: str) -> bool:
+    """Whether ``hconv convert SRC DST`` converts a dataset: SRC is a directory, a glob or a URI,
+    or DST is a URI. One file (or stdin) into a file keeps :func:`convert_file`'s behaviour."""
+    if src == "-":
+        return False
+    if storage.is_uri(src) or storage.is_uri(dst):
+        return True
+    return os.path.isdir(src) or (storage.has_glob(src) and not os.path.exists(src))
+
+
+@dataclass
+class FileRecord:
+    """One complete output, as the manifest lists it."""
+
+    input: str  #: path relative to IN
+    output: str  #: path relative to OUT
+    input_size: int
+    input_mtime_ns: int | None
+    input_etag: str | None  #: where the store gives one (object storage)
+    output_size: int
+    rows: int
+    statuses: dict  #: status -> rows
+    worst_residual: float | None
+    worst_row: int | None  #: 1-based data row in this file
+    engines: dict  #: engine -> rows
+    seconds: float
+
+    def to_json(self) -> dict:
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_json(cls, d: dict) -> FileRecord:
+        return cls(**{f.name: d[f.name] for f in dataclasses.fields(cls)})
+
+
+@dataclass(frozen=True)
+class Task:
+    """One input file to convert: picklable, for :func:`convert_one` wherever it runs."""
+
+    input: Listed
+    output: str  #: path relative to OUT
+    src_format: str
+    dst_format: str
+    overwrite: bool  #: the output exists and may be replaced (hconv's own, stale; or force)
+
+
+@dataclass
+class Plan:
+    """What a run will do: files kept from the manifest, files to convert, files refused."""
+
+    src: Source
+    dst: Place
+    job: Job
+    identity: dict  #: the job and the formats, as the manifest records them
+    inputs: list[Listed]
+    kept: list[FileRecord]  #: up to date: listed in the manifest, left alone
+    todo: list[Task]
+    refused: list[tuple[str, HconvError]]  #: (input, why): outputs in the way that hconv did not write
+    why: str | None  #: why files that look converted are converted again (the job changed), if so
+    manifest_before: dict | None
+
+    def describe(self) -> str:
+        n, kept = len(self.inputs), len(self.kept)
+        if self.why:
+            return f"{self.why}; converting all {len(self.todo)} files"
+        if not self.todo:
+            return f"all {n} files already converted and up to date; nothing to convert" if kept == n else ""
+        if kept:
+            return f"{kept} of {n} files already converted and up to date; converting {len(self.todo)}"
+        return f"converting {len(self.todo)} files" if n > 1 else f"converting {len(self.todo)} file"
+
+
+@dataclass
+class DatasetResult:
+    """What a dataset run did, and what the dataset now holds."""
+
+    src: str
+    dst: str
+    manifest: str  #: where the manifest is
+    files: list[FileRecord]  #: every complete output, in input order
+    converted: list[str]  #: inputs converted by this run
+    failed: list[tuple[str, HconvError]]  #: (input, error)
+    pending: list[str]  #: inputs neither converted nor failed (an interrupted run)
+    total: int  #: input files
+    tally: Tally  #: the whole dataset's rows per status and worst residual; seconds: this run's
+    worst_file: str | None  #: the output holding the worst residual
+    rows_converted: int  #: rows converted by this run
+    seconds: float
+
+    @property
+    def complete(self) -> bool:
+        return len(self.files) == self.total
+
+
+class DatasetError(HconvError):
+    """Some files of a dataset failed; the others were converted. ``result`` holds the run."""
+
+    def __init__(self, message: str, exit_code: int, result: DatasetResult):
+        super().__init__(message)
+        self.exit_code = exit_code
+        self.result = result
+
+
+def job_identity(job: Job, src_format: str | None, dst_format: str | None) -> dict:
+    """The job as the manifest records it: every Job field, and the formats asked for."""
+    d = dataclasses.asdict(job)
+    d["src_format"], d["dst_format"] = src_format, dst_format
+    return json.loads(json.dumps(d))  # tuples as lists, as they come back from the file
+
+
+def _output_rel(rel: str, fmt_in: str, dst_format: str | None) -> tuple[str, str]:
+    if dst_format is None or dst_format == fmt_in:
+        return rel, fmt_in
+    stem, ext = os.path.splitext(rel)
+    return (stem if storage.format_by_name(rel) else rel) + EXTENSIONS[dst_format][0], dst_format
+
+
+def _difference(before: dict, now: dict) -> str:
+    """The first job setting that differs, as ``method: exact → refined``."""
+    for key in list(now) + [k for k in before if k not in now]:
+        if before.get(key) != now.get(key):
+            return f"{key}: {before.get(key)!r} → {now.get(key)!r}"
+    return ""
+
+
+def _read_manifest(dst: Place, force: bool) -> dict | None:
+    raw = storage.read_bytes(dst, MANIFEST)
+    if raw is None:
+        return None
+    try:
+        m = json.loads(raw)
+        if m.get("kind") != MANIFEST_KIND:
+            raise ValueError("not an hconv manifest")
+        [FileRecord.from_json(d) for d in m["files"]]
+    except (ValueError, KeyError, TypeError, AttributeError) as exc:
+        if force:
+            return None
+        raise OutputError(
+            f"{dst.name(MANIFEST)}: is not a manifest hconv can read ({exc}); move it away, "
+            f"or pass {option('force', True)} to convert every file and write a new one"
+        ) from None
+    return m
+
+
+def plan_dataset(
+    src: str,
+    dst: str,
+    *,
+    job: Job,
+    src_format: str | None = None,
+    dst_format: str | None = None,
+    force: bool = False,
+    endpoint_url: str | None = None,
+) -> Plan:
+    """List the input files and OUT, read the manifest, and decide what to convert."""
+    for flag, fmt in (("src_format", src_format), ("dst_format", dst_format)):
+        if fmt is not None and fmt not in FORMATS:
+            raise UsageError(f"{option(flag)} must be {' or '.join(FORMATS)}, got {fmt!r}")
+    if dst == "-":
+        raise UsageError("a dataset is written into a directory or prefix, not to stdout ('-')")
+    if endpoint_url and not any(s.lower().startswith("s3://") for s in (src, dst)):
+        raise UsageError(f"{option('endpoint_url')} is for s3:// URIs, and neither {src} nor {dst} is one")
+    source = storage.source(src, endpoint_url)
+    out = storage.place(dst, endpoint_url)
+    overlap = UsageError(
+        f"{dst} and {src} overlap; write the dataset outside its input, so that a re-run does not read outputs"
+    )
+    if out.contains(source.place) or (source.pattern is None and source.place.contains(out)):
+        raise overlap
+    if storage.format_by_name(out.root) and out.fs.get_file_info(out.root).type != storage.DIRECTORY:
+        stem = os.path.splitext(out.shown)[0]
+        raise UsageError(
+            f"{dst}: names a file, but {src} is a dataset, converted file by file into a directory; "
+            f"give a directory for OUT, such as {stem}/ (hconv makes it)"
+        )
+    if out.local:
+        if os.path.isfile(out.root):
+            raise OutputError(f"{dst}: is a file; a dataset is written into a directory (it is made if missing)")
+        parent = os.path.dirname(out.root)
+        if not os.path.isdir(parent):
+            shown = os.path.dirname(out.shown) or parent
+            raise OutputError(f"{dst}: the directory {shown!r} does not exist; create it first")
+    inputs = source.files(src_format)
+    if source.place.contains(out):  # a glob's folder holds OUT: fine unless the glob takes outputs
+        inside = out.identity[len(source.place.identity) :].strip("/")
+        match = storage.glob_regex(source.pattern or "**").match
+        if any(match(f"{inside}/{_output_rel(f.rel, src_format or '', dst_format)[0]}") for f in inputs):
+            raise overlap
+    identity = job_identity(job, src_format, dst_format)
+    before = _read_manifest(out, force)
+    existing = {f.rel: f for f in out.list()}
+    same_job = before is not None and before.get("job") == identity
+    same_source = before is not None and before.get("source") == source.place.identity
+    why = None
+    if before is not None and before.get("files") and not force:
+        if not same_source:
+            why = f"the input differs from the one {MANIFEST} records ({before.get('source')})"
+        elif not same_job:
+            why = f"the job differs from the one {MANIFEST} records ({_difference(before.get('job') or {}, identity)})"
+    recorded = {d["output"]: FileRecord.from_json(d) for d in before["files"]} if before else {}
+    ours = set(before.get("hconv_outputs", [])) | set(recorded) if before else set()
+    kept: list[FileRecord] = []
+    todo: list[Task] = []
+    refused: list[tuple[str, HconvError]] = []
+    outputs: dict[str, str] = {}
+    for f in inputs:
+        fmt_in = src_format or storage.format_by_name(f.rel) or ""
+        out_rel, fmt_out = _output_rel(f.rel, fmt_in, dst_format)
+        if out_rel in outputs:
+            raise UsageError(
+                f"{source.place.name(outputs[out_rel])} and {source.place.name(f.rel)} would both be written to "
+                f"{out.name(out_rel)}; convert them into separate directories"
+            )
+        outputs[out_rel] = f.rel
+        rec = recorded.get(out_rel)
+        there = existing.get(out_rel)
+        if (
+            not force
+            and same_job
+            and same_source
+            and rec is not None
+            and rec.input == f.rel
+            and (rec.input_size, rec.input_mtime_ns) == (f.size, f.mtime_ns)
+            and there is not None
+            and there.size == rec.output_size
+        ):
+            kept.append(rec)
+            continue
+        if there is not None and not force and out_rel not in ours:
+            refused.append(
+                (
+                    f.rel,
+                    OutputError(
+                        f"{out.name(out_rel)}: already exists, and {MANIFEST} does not say hconv wrote it; "
+                        f"move it away, or pass {option('force', True)} to overwrite it"
+                    ),
+                )
+            )
+            continue
+        todo.append(Task(f, out_rel, fmt_in, fmt_out, overwrite=there is not None))
+    return Plan(source, out, job, identity, inputs, kept, todo, refused, why if todo else None, before)
+
+
+def convert_one(
+    task: Task,
+    src: Place,
+    dst: Place,
+    job: Job,
+    *,
+    strict: bool = False,
+    threads: int | None = None,
+    done: Callable[[FileRecord], None] | None = None,
+) -> FileRecord:
+    """Convert one input file into its output; raises HconvError subclasses naming the file.
+
+    The file is converted into a temporary file (beside the output, or a local one for object
+    storage), then committed: renamed into place, or uploaded. The commit and ``done(record)``
+    (the caller recording the file for the manifest) happen with interrupts held
+    (:class:`hconv.interrupts.held`), so that a Ctrl-C leaves the output either not there or
+    there and recorded, never there and unrecorded."""
+    t0 = time.perf_counter()
+    rel = task.input.rel
+    name = src.name(rel)
+    etag = None
+    with contextlib.ExitStack() as cleanup:
+        # Each temporary file is made and its removal registered with interrupts held, so that a
+        # Ctrl-C cannot fall between the two; the long work that fills it can be interrupted.
+        local_in = name
+        if not src.local:
+            with interrupts.held():
+                local_in = storage.stage(kind="fetch")
+                cleanup.callback(_remove, local_in)
+            etag = storage.fetch(src, rel, local_in)
+        target = dst.name(task.output)
+        if dst.local:
+            _make_folders(os.path.dirname(target), cleanup)
+        with interrupts.held():
+            staged = storage.stage(target if dst.local else None)
+            cleanup.callback(_remove, staged)
+        tally = convert_file(
+            local_in,
+            staged,
+            src_format=task.src_format,
+            dst_format=task.dst_format,
+            force=True,
+            job=job,
+            strict=strict,
+            threads=threads,
+            name=name,
+        )
+        worst = tally.worst_residual
+        record = FileRecord(
+            input=rel,
+            output=task.output,
+            input_size=task.input.size,
+            input_mtime_ns=task.input.mtime_ns,
+            input_etag=etag,
+            output_size=_flushed(staged) if dst.local else os.path.getsize(staged),
+            rows=tally.rows,
+            statuses=tally.counts(),
+            worst_residual=None if np.isnan(worst) else worst,
+            worst_row=tally.worst_row,
+            engines=dict(tally.engines),
+            seconds=0.0,
+        )
+        with interrupts.held():
+            if dst.local:
+                _commit(staged, target, task.overwrite)
+            else:
+                storage.put(staged, dst, task.output)
+            record.seconds = time.perf_counter() - t0
+            if done is not None:
+                done(record)
+    return record
+
+
+def _commit(staged: str, target: str, overwrite: bool) -> None:
+    """Rename a finished output into place; refuse one that appeared since the plan was made."""
+    if not overwrite and os.path.lexists(target):
+        raise OutputError(f"{target}: appeared while hconv was converting its input; move it away and run again")
+    try:
+        os.replace(staged, target)
+    except OSError as exc:
+        raise OutputError(f"{target}: could not be written ({exc.strerror or exc}); nothing was written") from None
+
+
+def _make_folders(folder: str, cleanup: contextlib.ExitStack) -> None:
+    """Make ``folder`` and its missing parents (partition folders); if the conversion then fails,
+    remove those it made that stayed empty, so that a failed file leaves nothing behind."""
+    made = []
+    while folder and not os.path.isdir(folder):
+        made.append(folder)
+        folder = os.path.dirname(folder)
+    for path in reversed(made):
+        with interrupts.held():
+            try:
+                os.mkdir(path)
+            except FileExistsError:
+                continue
+            except OSError as exc:
+                raise OutputError(f"{path}: cannot make this folder ({exc.strerror or exc})") from None
+            cleanup.callback(_remove_if_empty, path)
+
+
+def _remove_if_empty(path: str) -> None:
+    with contextlib.suppress(OSError):  # not empty: the output, or another file, is in it
+        os.rmdir(path)
+
+
+def _remove(path: str) -> None:
+    with contextlib.suppress(FileNotFoundError):
+        os.unlink(path)
+
+
+def _flushed(path: str) -> int:
+    """Flush a finished output to the disk before the manifest can claim it; its size."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+        return os.fstat(fd).st_size
+    finally:
+        os.close(fd)
+
+
+def convert_dataset(
+    src: str,
+    dst: str,
+    *,
+    method: str = "exact",
+    precision: int = 64,
+    src_format: str | None = None,
+    dst_format: str | None = None,
+    force: bool = False,
+    diagnostics: bool = True,
+    job: Job | None = None,
+    strict: bool = False,
+    threads: int | None = None,
+    endpoint_url: str | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    log: Callable[[str], None] | None = None,
+) -> DatasetResult:
+    """Convert every file of the dataset ``src`` (a directory, a glob or a URI) into ``dst`` (a
+    directory or prefix), each at its relative path, and write the manifest last; see the module.
+
+    The keywords are :func:`~hconv.tables.pipeline.convert_file`'s, plus: ``force``: convert every
+    file again, and overwrite outputs the manifest does not list (nothing is ever deleted);
+    ``endpoint_url``: an S3-compatible server (default: AWS_ENDPOINT_URL_S3, AWS_ENDPOINT_URL);
+    ``progress(done, total)`` after each file to convert; ``log(line)`` for what the run decided
+    and for each failing file (``error: ...``). Raises :class:`DatasetError` after the run if a
+    file failed, KeyboardInterrupt (with what was kept) if interrupted, and HconvError subclasses
+    if the dataset cannot be read or written at all.
+    """
+    t0 = time.perf_counter()
+    job = job or Job(method, precision, diagnostics)
+    say = log or (lambda line: None)
+    plan = plan_dataset(
+        src, dst, job=job, src_format=src_format, dst_format=dst_format, force=force, endpoint_url=endpoint_url
+    )
+    if plan.describe():
+        say(plan.describe())
+    records: dict[str, FileRecord] = {r.input: r for r in plan.kept}
+    failed: dict[str, HconvError] = {}
+    for rel, exc in plan.refused:
+        failed[rel] = exc
+        say(f"error: {exc}")
+    converted: list[str] = []
+    # Before any file is written: the manifest takes back what it said of the files about to be
+    # replaced, and claims the paths this run will write, so that a run killed outright leaves
+    # outputs the next run knows as hconv's own.
+    written = _written_before(plan) | {t.output for t in plan.todo}
+    if plan.todo:
+        _write_manifest(plan, records, failed, written, t0)
+    last = time.monotonic()
+
+    def keep(rec: FileRecord) -> None:
+        records[rec.input] = rec
+        converted.append(rec.input)
+
+    try:
+        for k, task in enumerate(plan.todo):
+            try:
+                convert_one(task, plan.src.place, plan.dst, job, strict=strict, threads=threads, done=keep)
+            except HconvError as exc:
+                failed[task.input.rel] = exc
+                say(f"error: {exc}")
+            if progress is not None:
+                progress(k + 1, len(plan.todo))
+            if time.monotonic() - last > CHECKPOINT_SECONDS:
+                _write_manifest(plan, records, failed, written, t0)
+                last = time.monotonic()
+    except KeyboardInterrupt:
+        _write_manifest(plan, records, failed, written, t0)
+        kept = len(records)
+        raise KeyboardInterrupt(
+            f"interrupted; {kept} of {len(plan.inputs)} files are converted and listed in "
+            f"{plan.dst.name(MANIFEST)} (complete: false), and no other file was written; "
+            "run the same command again to convert the rest"
+        ) from None
+    if plan.todo or plan.refused or _manifest_stale(plan, records, failed):
+        _write_manifest(plan, records, failed, written, t0)
+    result = _result(plan, records, failed, converted, t0)
+    if failed:
+        codes = [exc.exit_code for exc in failed.values()]
+        raise DatasetError(
+            f"{len(failed)} of {result.total} files failed (named above); {len(result.files)} are converted "
+            f"and listed in {result.manifest}, which says complete: false",
+            max(codes),
+            result,
+        )
+    return result
+
+
+def _written_before(plan: Plan) -> set[str]:
+    """Outputs hconv wrote, or began to write, into this OUT in earlier runs (the manifest's)."""
+    before = plan.manifest_before or {}
+    return {d["output"] for d in before.get("files", [])} | set(before.get("hconv_outputs", []))
+
+
+def _manifest(plan: Plan, records: dict[str, FileRecord], failed: dict[str, HconvError], written: set[str]) -> dict:
+    files = [records[f.rel] for f in plan.inputs if f.rel in records]
+    tally, worst_file = _sum(plan.job, files)
+    return {
+        "kind": MANIFEST_KIND,
+        "version": MANIFEST_VERSION,
+        "complete": len(files) == len(plan.inputs),
+        "hconv": _version(),
+        "source": plan.src.place.identity,
+        "job": plan.identity,
+        "inputs": len(plan.inputs),
+        "rows": tally.rows,
+        "statuses": tally.counts(),
+        "worst_residual": None
+        if worst_file is None
+        else {"value": tally.worst_residual, "file": worst_file, "row": tally.worst_row},
+        "files": [r.to_json() for r in files],
+        "failed": [{"input": rel, "error": str(exc)} for rel, exc in failed.items()],
+        "pending": [f.rel for f in plan.inputs if f.rel not in records and f.rel not in failed],
+        # every path hconv has written, or begun to write, into OUT, listed in files or not: the
+        # files it may replace without force (it never deletes one)
+        "hconv_outputs": sorted(written),
+    }
+
+
+def _manifest_stale(plan: Plan, records: dict, failed: dict) -> bool:
+    """Whether the manifest on disk says anything else than this run would write."""
+    before = plan.manifest_before
+    if before is None:
+        return True
+    now = _manifest(plan, records, failed, _written_before(plan))
+    keys = ("complete", "source", "job", "files", "failed", "pending", "version")
+    return any(before.get(k) != now[k] for k in keys)
+
+
+def _write_manifest(plan: Plan, records: dict, failed: dict, written: set[str], t0: float) -> None:
+    m = _manifest(plan, records, failed, written)
+    m["written_at"] = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+    m["seconds"] = round(time.perf_counter() - t0, 3)
+    storage.write_bytes(plan.dst, MANIFEST, (json.dumps(m, indent=1) + "\n").encode())
+
+
+def _version() -> str:
+    from hconv import __version__
+
+    return __version__
+
+
+def _sum(job: Job, files: list[FileRecord]) -> tuple[Tally, str | None]:
+    """The whole dataset's tally from its files' records, and the output with the worst residual."""
+    tally = Tally(methods.get(job.method).name, job.unit)
+    index = {s: k for k, s in enumerate(status.STATUSES)}
+    worst_file = None
+    for r in files:
+        for s, n in r.statuses.items():
+            tally.per_status[index[s]] += n
+        for e, n in r.engines.items():
+            tally.engines[e] = tally.engines.get(e, 0) + n
+        if r.worst_residual is not None and not r.worst_residual <= tally.worst_residual:
+            tally.worst_residual, tally.worst_row, worst_file = r.worst_residual, r.worst_row, r.output
+        tally.rows += r.rows
+    return tally, worst_file
+
+
+def _result(plan: Plan, records: dict, failed: dict, converted: list[str], t0: float) -> DatasetResult:
+    files = [records[f.rel] for f in plan.inputs if f.rel in records]
+    tally, worst_file = _sum(plan.job, files)
+    seconds = time.perf_counter() - t0
+    tally.seconds = seconds
+    return DatasetResult(
+        src=plan.src.spec,
+        dst=plan.dst.shown,
+        manifest=plan.dst.name(MANIFEST),
+        files=files,
+        converted=converted,
+        failed=list(failed.items()),
+        pending=[f.rel for f in plan.inputs if f.rel not in records and f.rel not in failed],
+        total=len(plan.inputs),
+        tally=tally,
+        worst_file=worst_file,
+        rows_converted=sum(records[rel].rows for rel in converted),
+        seconds=seconds,
+    )

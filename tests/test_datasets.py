@@ -1,0 +1,495 @@
+"""Datasets: ``hconv convert IN OUT`` with IN a directory, a glob or a URI and OUT a directory or
+prefix. Every test runs the real command (or ``hconv.convert_dataset``) on real files; the object
+storage tests run against a local S3-compatible server started as a process (moto's server mode,
+the ``test-s3`` extra) and skip without it."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+import pyarrow as pa
+import pyarrow.csv as pacsv
+import pyarrow.parquet as pq
+import pytest
+from helpers import run_hconv, run_inprocess, terminal_signals
+
+import hconv
+from hconv.tables import dataset, pipeline, storage
+from hconv.tables.dataset import MANIFEST
+from hconv.tools.scene import make_scene
+
+PARTS = ("date=2026-01-01/part-0.parquet", "date=2026-01-01/part-1.parquet", "date=2026-01-02/part-0.parquet")
+
+
+def _write(path: Path, rows: int, seed: int) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    table = pa.table(make_scene(rows, seed=seed, cond_max=1e6))
+    if path.suffix == ".csv":
+        pacsv.write_csv(table, path)
+    else:
+        pq.write_table(table, path)
+
+
+def _dataset(root: Path, rows: int = 300) -> Path:
+    """A hive-partitioned dataset: three Parquet parts, a CSV, and files a dataset leaves out."""
+    for k, rel in enumerate(PARTS):
+        _write(root / rel, rows + k, seed=k)
+    _write(root / "date=2026-01-02" / "extra.csv", rows, seed=9)
+    (root / "_SUCCESS").write_bytes(b"")
+    (root / "date=2026-01-01" / ".part-0.parquet.crc").write_bytes(b"\x00")
+    (root / "notes.txt").write_text("not a table\n")
+    return root
+
+
+def _manifest(out: Path) -> dict:
+    return json.loads((out / MANIFEST).read_text())
+
+
+def _files(root: Path) -> set[str]:
+    return {p.relative_to(root).as_posix() for p in root.rglob("*") if p.is_file()}
+
+
+def _hconv(*args: str, capsys) -> tuple[int, str]:
+    """``hconv ARGS`` in this process, in the working directory (the tests chdir to tmp_path);
+    (exit code, stderr)."""
+    code, _, err = run_inprocess(*args, capsys=capsys)
+    return code, err
+
+
+def _single(src: Path, tmp: Path, **kw) -> bytes:
+    """The bytes `hconv convert SRC OUT` writes for one file (the single-file path)."""
+    dst = tmp / f"single-{os.urandom(4).hex()}{src.suffix}"
+    pipeline.convert_file(str(src), str(dst), **kw)
+    return dst.read_bytes()
+
+
+def test_convert_dataset_directory_keeps_hive_folders_and_each_file_is_its_single_conversion(tmp_path):
+    data = _dataset(tmp_path / "data")
+    proc = run_hconv("convert", "data", "out", cwd=tmp_path)
+    err = proc.stderr.decode()
+    assert proc.returncode == 0, err
+    out = tmp_path / "out"
+    converted = set(PARTS) | {"date=2026-01-02/extra.csv"}
+    assert _files(out) == converted | {MANIFEST}
+    for rel in converted:
+        assert (out / rel).read_bytes() == _single(data / rel, tmp_path), rel
+    m = _manifest(out)
+    assert m["complete"] is True and m["inputs"] == 4 and m["failed"] == [] and m["pending"] == []
+    assert m["hconv"] == hconv.__version__ and m["job"]["method"] == "exact"
+    assert [f["output"] for f in m["files"]] == sorted(converted)
+    assert sum(f["rows"] for f in m["files"]) == m["rows"] == 300 + 301 + 302 + 300
+    for f in m["files"]:
+        st = (data / f["input"]).stat()
+        assert (f["input_size"], f["input_mtime_ns"]) == (st.st_size, st.st_mtime_ns)
+        assert f["output_size"] == (out / f["output"]).stat().st_size
+        assert f["rows"] == sum(f["statuses"].values())
+    assert "converting 4 files" in err and "# hconv convert · 4 files" in err
+    assert "says the dataset is complete" in err
+    worst = m["worst_residual"]
+    assert f"worst residual {worst['value']:.3g} ({worst['file']}, data row {worst['row']})" in err
+
+
+def test_convert_dataset_glob_takes_the_files_it_matches(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    _dataset(tmp_path / "data")
+    code, err = _hconv("convert", "data/date=*/part-0.parquet", "out", "--to", "csv", capsys=capsys)
+    assert code == 0, err
+    out = tmp_path / "out"
+    assert _files(out) == {"date=2026-01-01/part-0.csv", "date=2026-01-02/part-0.csv", MANIFEST}
+    assert _manifest(out)["job"]["dst_format"] == "csv"
+    ref = _single(tmp_path / "data" / PARTS[0], tmp_path, dst_format="csv")
+    assert (out / "date=2026-01-01/part-0.csv").read_bytes() == ref
+
+
+@pytest.mark.parametrize(
+    "pattern, matches, misses",
+    [
+        ("*.parquet", ["a.parquet"], ["d=1/a.parquet", "a.csv"]),
+        ("d=*/*.parquet", ["d=1/a.parquet"], ["a.parquet", "d=1/x/a.parquet"]),
+        ("**/*.parquet", ["a.parquet", "d=1/a.parquet", "d=1/x/a.parquet"], ["a.csv"]),
+        ("d=**", ["d=1/a.csv", "d=2/x/y.pq"], ["e=1/a.csv"]),
+        ("part-?.csv", ["part-1.csv"], ["part-10.csv"]),
+        ("part-[01].csv", ["part-0.csv", "part-1.csv"], ["part-2.csv"]),
+        ("part-[!01].csv", ["part-2.csv"], ["part-0.csv"]),
+        ("a[.csv", ["a[.csv"], ["a.csv"]),
+    ],
+)
+def test_glob_regex_matches_as_a_shell_with_globstar(pattern, matches, misses):
+    rx = storage.glob_regex(pattern)
+    assert [m for m in matches if rx.match(m)] == matches
+    assert [m for m in misses if rx.match(m)] == []
+
+
+def test_convert_dataset_rerun_converts_only_missing_or_stale_files(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    data = _dataset(tmp_path / "data")
+    out = tmp_path / "out"
+    assert _hconv("convert", "data", "out", capsys=capsys)[0] == 0
+    before = {rel: (out / rel).stat().st_mtime_ns for rel in _files(out)}
+    _write(data / PARTS[1], 50, seed=42)  # changed input
+    (out / PARTS[2]).unlink()  # missing output
+    _write(data / "date=2026-01-03" / "part-0.parquet", 40, seed=7)  # new input
+    code, err = _hconv("convert", "data", "out", capsys=capsys)
+    assert code == 0, err
+    assert "hconv: 2 of 5 files already converted and up to date; converting 3\n" in err
+    assert "files: 3 converted, 2 already up to date;" in err
+    after = {rel: (out / rel).stat().st_mtime_ns for rel in _files(out)}
+    kept = {PARTS[0], "date=2026-01-02/extra.csv"}
+    assert {rel for rel in kept if after[rel] == before[rel]} == kept
+    assert after[PARTS[1]] != before[PARTS[1]]
+    assert (out / PARTS[1]).read_bytes() == _single(data / PARTS[1], tmp_path)
+    assert (out / PARTS[2]).exists() and (out / "date=2026-01-03/part-0.parquet").exists()
+    m = _manifest(out)
+    assert m["complete"] and m["inputs"] == 5 and m["rows"] == 300 + 50 + 302 + 300 + 40
+    again = _hconv("convert", "data", "out", capsys=capsys)[1]
+    assert "hconv: all 5 files already converted and up to date; nothing to convert\n" in again
+    assert {rel: (out / rel).stat().st_mtime_ns for rel in _files(out)} == after  # not even the manifest
+
+
+def test_convert_dataset_changed_job_converts_every_file_and_says_why(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    _dataset(tmp_path / "data")
+    assert _hconv("convert", "data", "out", capsys=capsys)[0] == 0
+    code, err = _hconv("convert", "data", "out", "--method", "refined", capsys=capsys)
+    assert code == 0, err
+    assert (
+        f"hconv: the job differs from the one {MANIFEST} records (method: 'exact' → 'refined'); converting all 4 files"
+        in err
+    )
+    assert _manifest(tmp_path / "out")["job"]["method"] == "refined"
+
+
+def test_convert_dataset_failing_file_is_named_the_others_finish_and_exit_code_is_its(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    data = _dataset(tmp_path / "data")
+    bad = data / "date=2026-01-01" / "part-1.parquet"
+    bad.write_bytes(b"PAR1 truncated")
+    code, err = _hconv("convert", "data", "out", capsys=capsys)
+    assert code == 3, err
+    errors = [line for line in err.splitlines() if line.startswith("hconv: error:")]
+    assert len(errors) == 2
+    assert errors[0].startswith("hconv: error: data/date=2026-01-01/part-1.parquet: not a readable Parquet file")
+    assert errors[1] == (
+        f"hconv: error: 1 of 4 files failed (named above); 3 are converted and listed in out/{MANIFEST}, "
+        "which says complete: false"
+    )
+    out = tmp_path / "out"
+    assert _files(out) == {PARTS[0], PARTS[2], "date=2026-01-02/extra.csv", MANIFEST}
+    m = _manifest(out)
+    assert m["complete"] is False and [f["input"] for f in m["failed"]] == [PARTS[1]]
+    assert len(m["files"]) == 3 and m["pending"] == []
+    _write(bad, 30, seed=5)
+    code, err = _hconv("convert", "data", "out", capsys=capsys)
+    assert code == 0 and "3 of 4 files already converted and up to date; converting 1" in err
+    assert _manifest(out)["complete"] is True and _manifest(out)["failed"] == []
+
+
+def test_convert_dataset_strict_fails_only_the_file_with_flagged_rows(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    data = tmp_path / "data"
+    _write(data / "a.parquet", 100, seed=1)
+    t = pa.table(make_scene(100, seed=2))
+    pq.write_table(
+        t.set_column(t.schema.get_field_index("Hx"), "Hx", pa.array([float("nan")] * 100)), data / "b.parquet"
+    )
+    code, err = _hconv("convert", "data", "out", "--strict", capsys=capsys)
+    assert code == 5, err
+    assert "hconv: error: data/b.parquet: --strict, and row 1 (invalid_input)" in err
+    assert _files(tmp_path / "out") == {"a.parquet", MANIFEST}
+
+
+def test_convert_dataset_never_overwrites_or_deletes_files_it_did_not_write_without_force(
+    tmp_path, capsys, monkeypatch
+):
+    monkeypatch.chdir(tmp_path)
+    data = _dataset(tmp_path / "data")
+    out = tmp_path / "out"
+    (out / "date=2026-01-01").mkdir(parents=True)
+    (out / PARTS[0]).write_bytes(b"someone else's")
+    (out / "README.txt").write_text("mine\n")
+    code, err = _hconv("convert", "data", "out", capsys=capsys)
+    assert code == 4
+    assert (
+        f"hconv: error: out/{PARTS[0]}: already exists, and {MANIFEST} does not say hconv wrote it; move it away, "
+        "or pass --force to overwrite it\n"
+    ) in err
+    assert (out / PARTS[0]).read_bytes() == b"someone else's"
+    assert _manifest(out)["complete"] is False
+    code, err = _hconv("convert", "data", "out", "--force", capsys=capsys)
+    assert code == 0, err
+    assert (out / PARTS[0]).read_bytes() == _single(data / PARTS[0], tmp_path)
+    assert (out / "README.txt").read_text() == "mine\n" and _manifest(out)["complete"] is True
+
+
+def test_convert_dataset_force_converts_every_file_again(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    _dataset(tmp_path / "data")
+    assert _hconv("convert", "data", "out", capsys=capsys)[0] == 0
+    code, err = _hconv("convert", "data", "out", "--force", capsys=capsys)
+    assert code == 0 and "files: 4 converted, 0 already up to date" in err
+
+
+@pytest.mark.parametrize(
+    "args, code, message",
+    [
+        (("data", "out.parquet"), 2, "out.parquet: names a file, but data is a dataset, converted file by file "
+         "into a directory; give a directory for OUT, such as out/ (hconv makes it)"),
+        (("data", "data/converted"), 2, "data/converted and data overlap; write the dataset outside its input, so "
+         "that a re-run does not read outputs"),
+        (("data", "-", "--to", "csv"), 2, "a dataset is written into a directory or prefix, not to stdout ('-')"),
+        (("data", "nowhere/out"), 4, "nowhere/out: the directory 'nowhere' does not exist; create it first"),
+        (("data/*.pq", "out"), 3, "no file matches 'data/*.pq' (names starting with . or _ are left out); "
+         "check the path"),
+        (("empty", "out"), 3, "empty: holds no file (names starting with . or _ are left out); check the path"),
+        (("data", "out", "--endpoint-url", "http://127.0.0.1:1"), 2, "--endpoint-url is for s3:// URIs, and "
+         "neither data nor out is one"),
+        (("data/date=2026-01-01/part-0.parquet", "data/*.parquet", "out"), 2, "Got unexpected extra argument"),
+    ],
+)  # fmt: skip
+def test_convert_dataset_that_cannot_run_says_why_in_one_line_and_writes_nothing(
+    args, code, message, tmp_path, capsys, monkeypatch
+):
+    monkeypatch.chdir(tmp_path)
+    _dataset(tmp_path / "data", rows=20)
+    (tmp_path / "empty").mkdir()
+    got, err = _hconv("convert", *args, capsys=capsys)
+    assert (got, err.count("\n")) == (code, 1), err
+    assert err.startswith(f"hconv: error: {message}")
+    assert not (tmp_path / "out").exists() and not (tmp_path / "data" / "converted").exists()
+
+
+def test_convert_dataset_python_api_returns_the_run_and_raises_with_it_on_failure(tmp_path):
+    data = _dataset(tmp_path / "data")
+    lines: list[str] = []
+    result = hconv.convert_dataset(str(data), str(tmp_path / "out"), method="refined", log=lines.append)
+    assert result.complete and len(result.files) == 4 and result.rows_converted == result.tally.rows == 1203
+    assert result.tally.method == "refined" and lines == ["converting 4 files"]
+    (data / "late.csv").write_text("Hx,Hy\n1,2\n")
+    with pytest.raises(dataset.DatasetError, match=r"^1 of 5 files failed") as info:
+        hconv.convert_dataset(str(data), str(tmp_path / "out"), method="refined")
+    assert info.value.exit_code == 3 and not info.value.result.complete
+    assert [rel for rel, _ in info.value.result.failed] == ["late.csv"]
+
+
+def _no_temporaries(*roots: Path) -> list[str]:
+    return [str(p) for root in roots for p in root.rglob("*") if p.name.endswith(".hconv-tmp")]
+
+
+def test_convert_dataset_interrupted_keeps_complete_files_in_a_partial_manifest_and_no_temporary(tmp_path):
+    """Ctrl-C (SIGINT to the real command) while the files convert: the outputs already written
+    stay, the manifest lists exactly those and says complete: false, no temporary file is left
+    in OUT or TMPDIR, and the same command then converts the rest."""
+    data = tmp_path / "data"
+    for k in range(10):
+        _write(data / f"day={k:02d}" / "part.parquet", 30_000, seed=k)
+    spools = tmp_path / "tmp"
+    spools.mkdir()
+    out = tmp_path / "out"
+    env = dict(os.environ, TMPDIR=str(spools), COLUMNS="200")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hconv", "convert", "data", "out", "--threads", "1"],
+        cwd=tmp_path,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        env=env,
+        preexec_fn=terminal_signals,
+    )
+    deadline = time.time() + 120
+    while time.time() < deadline and not (out / "day=01" / "part.parquet").exists():
+        assert proc.poll() is None, proc.stderr.read().decode() if proc.stderr else ""
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err.decode()
+    m = _manifest(out)
+    listed = [f["output"] for f in m["files"]]
+    assert m["complete"] is False and 2 <= len(listed) < 10
+    assert err.decode().endswith(
+        f"hconv: error: interrupted; {len(listed)} of 10 files are converted and listed in out/{MANIFEST} "
+        "(complete: false), and no other file was written; run the same command again to convert the rest\n"
+    )
+    assert _files(out) == set(listed) | {MANIFEST}  # the file being converted is not there
+    for f in m["files"]:
+        assert pq.ParquetFile(out / f["output"]).metadata.num_rows == f["rows"] == 30_000
+    assert _no_temporaries(out, spools) == [] and list(spools.iterdir()) == []
+    assert set(m["pending"]) == {f"day={k:02d}/part.parquet" for k in range(10)} - {f["input"] for f in m["files"]}
+    proc2 = run_hconv("convert", "data", "out", cwd=tmp_path)
+    assert proc2.returncode == 0
+    assert f"{len(listed)} of 10 files already converted and up to date; converting {10 - len(listed)}" in (
+        proc2.stderr.decode()
+    )
+    assert _manifest(out)["complete"] is True
+
+
+# Object storage: a local S3-compatible server (moto's server mode), as a real process.
+
+S3_ENV = {
+    "AWS_ACCESS_KEY_ID": "testing",
+    "AWS_SECRET_ACCESS_KEY": "testing",
+    "AWS_DEFAULT_REGION": "us-east-1",
+    "AWS_EC2_METADATA_DISABLED": "true",  # never ask an instance-metadata address for credentials
+}
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def s3_server(tmp_path_factory):
+    """The URL of a moto S3 server on 127.0.0.1, running as its own process for these tests."""
+    if importlib.util.find_spec("moto") is None or importlib.util.find_spec("flask") is None:
+        pytest.skip("needs moto's server mode: pip install -e '.[test-s3]'")
+    port = _free_port()
+    log = tmp_path_factory.mktemp("moto") / "server.log"
+    with open(log, "wb") as f:
+        server = subprocess.Popen(
+            [sys.executable, "-m", "moto.server", "-H", "127.0.0.1", "-p", str(port)], stdout=f, stderr=f
+        )
+    url = f"http://127.0.0.1:{port}"
+    deadline = time.time() + 30
+    while True:
+        try:
+            urllib.request.urlopen(url + "/", timeout=1).close()
+            break
+        except OSError:
+            if server.poll() is not None or time.time() > deadline:
+                server.kill()
+                pytest.fail(f"moto's server did not start: {log.read_text()[-2000:]}")
+            time.sleep(0.1)
+    yield url
+    server.terminate()
+    server.wait(timeout=10)
+
+
+@pytest.fixture
+def s3(s3_server, monkeypatch, tmp_path):
+    """A fresh bucket on the server, with credentials in the environment; yields (url, fs, bucket)."""
+    import pyarrow.fs as pafs
+
+    for name in list(os.environ):
+        if name.startswith("AWS_"):
+            monkeypatch.delenv(name)
+    for name, value in S3_ENV.items():
+        monkeypatch.setenv(name, value)
+    monkeypatch.setenv("AWS_CONFIG_FILE", str(tmp_path / "no-aws-config"))
+    monkeypatch.setenv("AWS_SHARED_CREDENTIALS_FILE", str(tmp_path / "no-aws-credentials"))
+    fs = pafs.S3FileSystem(endpoint_override=s3_server, allow_bucket_creation=True)
+    bucket = f"hconv-{os.urandom(4).hex()}"
+    fs.create_dir(bucket)
+    return s3_server, fs, bucket
+
+
+def _objects(fs, prefix: str) -> dict[str, bytes]:
+    import pyarrow.fs as pafs
+
+    infos = fs.get_file_info(pafs.FileSelector(prefix, recursive=True))
+    return {
+        i.path[len(prefix) + 1 :]: fs.open_input_stream(i.path).read() for i in infos if i.type == pafs.FileType.File
+    }
+
+
+def test_convert_dataset_s3_to_s3_is_bit_for_bit_the_local_conversion(s3, tmp_path):
+    import pyarrow.fs as pafs
+
+    url, fs, bucket = s3
+    data = _dataset(tmp_path / "data")
+    pafs.copy_files(str(data), f"{bucket}/raw", source_filesystem=pafs.LocalFileSystem(), destination_filesystem=fs)
+    proc = run_hconv("convert", f"s3://{bucket}/raw/", f"s3://{bucket}/conv/", "--endpoint-url", url, cwd=tmp_path)
+    err = proc.stderr.decode()
+    assert proc.returncode == 0, err
+    assert "converting 4 files" in err and f"s3://{bucket}/conv/{MANIFEST} says the dataset is complete" in err
+    assert run_hconv("convert", "data", "local", cwd=tmp_path).returncode == 0
+    local = tmp_path / "local"
+    stored = _objects(fs, f"{bucket}/conv")
+    assert set(stored) == _files(local)
+    for rel, body in stored.items():
+        if rel != MANIFEST:
+            assert body == (local / rel).read_bytes(), rel
+    m = json.loads(stored[MANIFEST])
+    assert m["complete"] and m["source"] == f"s3://{bucket}/raw"
+    assert all(f["input_etag"] for f in m["files"])  # S3 gives ETags; a local input has none
+    again = run_hconv("convert", f"s3://{bucket}/raw/", f"s3://{bucket}/conv/", "--endpoint-url", url, cwd=tmp_path)
+    assert "all 4 files already converted and up to date; nothing to convert" in again.stderr.decode()
+
+
+def test_convert_dataset_s3_endpoint_from_aws_endpoint_url_glob_in_and_local_out(s3, tmp_path, monkeypatch):
+    import pyarrow.fs as pafs
+
+    url, fs, bucket = s3
+    data = _dataset(tmp_path / "data")
+    pafs.copy_files(str(data), f"{bucket}/raw", source_filesystem=pafs.LocalFileSystem(), destination_filesystem=fs)
+    monkeypatch.setenv("AWS_ENDPOINT_URL", url)  # pyarrow 26 does not read it; hconv does
+    proc = run_hconv("convert", f"s3://{bucket}/raw/date=*/part-0.parquet", "out", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr.decode()
+    assert _files(tmp_path / "out") == {"date=2026-01-01/part-0.parquet", "date=2026-01-02/part-0.parquet", MANIFEST}
+    assert (tmp_path / "out" / PARTS[0]).read_bytes() == _single(data / PARTS[0], tmp_path)
+
+
+def test_convert_dataset_s3_failing_file_and_missing_bucket_are_named(s3, tmp_path):
+    import pyarrow.fs as pafs
+
+    url, fs, bucket = s3
+    data = _dataset(tmp_path / "data")
+    (data / PARTS[1]).write_bytes(b"PAR1 truncated")
+    pafs.copy_files(str(data), f"{bucket}/raw", source_filesystem=pafs.LocalFileSystem(), destination_filesystem=fs)
+    proc = run_hconv("convert", f"s3://{bucket}/raw", f"s3://{bucket}/conv", "--endpoint-url", url, cwd=tmp_path)
+    err = proc.stderr.decode()
+    assert proc.returncode == 3, err
+    assert f"hconv: error: s3://{bucket}/raw/{PARTS[1]}: not a readable Parquet file" in err
+    assert set(_objects(fs, f"{bucket}/conv")) == {PARTS[0], PARTS[2], "date=2026-01-02/extra.csv", MANIFEST}
+    proc = run_hconv("convert", "data", "s3://no-such-bucket-here/conv", "--endpoint-url", url, cwd=tmp_path)
+    assert proc.returncode == 4
+    err = proc.stderr.decode()
+    assert f"hconv: error: s3://no-such-bucket-here/conv/{MANIFEST}: could not be written (" in err
+    assert "The specified bucket does not exist" in err
+
+
+def test_remove_stale_temporaries_sweeps_a_killed_dataset_runs_fetched_and_staged_files(tmp_path, capsys):
+    """A dataset run killed outright leaves hconv-fetch- and hconv-stage- files in TMPDIR, and
+    .NAME.…hconv-tmp files beside outputs; the next run there removes those of ended processes."""
+    from hconv.tables import tableio
+
+    pid, start, tag = tableio._maker().split("-")
+    gone = f"{pid}-{int(start) + 1}-{tag}"  # this pid with another start: a process that has ended
+    names = [f"hconv-fetch-{gone}-abcd1234.hconv-tmp", f"hconv-stage-{gone}-abcd1234.hconv-tmp"]
+    names += [f".part-0.parquet.{gone}-abcd1234.hconv-tmp"]
+    for name in names:
+        (tmp_path / name).write_bytes(b"")
+    live = tmp_path / f"hconv-stage-{pid}-{start}-{tag}-abcd1234.hconv-tmp"
+    live.write_bytes(b"")
+    assert sorted(tableio.remove_stale_temporaries(str(tmp_path))) == sorted(str(tmp_path / n) for n in names)
+    assert [p.name for p in tmp_path.iterdir()] == [live.name]
+    capsys.readouterr()
+
+
+def test_convert_dataset_glob_may_write_into_its_own_folder_unless_it_would_take_the_outputs(
+    tmp_path, capsys, monkeypatch
+):
+    monkeypatch.chdir(_dataset(tmp_path / "data", rows=20))
+    assert _hconv("convert", "*/*.parquet", "out", capsys=capsys)[0] == 0  # out/date=…/x is not */*
+    assert _hconv("convert", "*/*.parquet", "out", capsys=capsys)[0] == 0  # nor taken by the re-run
+    code, err = _hconv("convert", "**/*.parquet", "out2", capsys=capsys)
+    assert code == 2 and "out2 and **/*.parquet overlap" in err
+
+
+def test_held_interrupt_waits_for_the_block_then_acts():
+    from hconv import interrupts
+
+    done = []
+    with pytest.raises(KeyboardInterrupt), interrupts.held():
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.05)  # the handler would have run by now
+        done.append(1)
+    assert done == [1] and signal.getsignal(signal.SIGINT) is signal.default_int_handler
