@@ -67,7 +67,8 @@ def _hconv(*args: str, capsys) -> tuple[int, str]:
 
 def _single(src: Path, tmp: Path, **kw) -> bytes:
     """The bytes `hconv convert SRC OUT` writes for one file (the single-file path)."""
-    dst = tmp / f"single-{os.urandom(4).hex()}{src.suffix}"
+    suffix = "." + kw["dst_format"] if kw.get("dst_format") else src.suffix  # the name agrees with --to
+    dst = tmp / f"single-{os.urandom(4).hex()}{suffix}"
     pipeline.convert_file(str(src), str(dst), **kw)
     return dst.read_bytes()
 
