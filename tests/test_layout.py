@@ -12,7 +12,7 @@ import pyarrow.parquet as pq
 import pytest
 from helpers import run_hconv
 
-from hconv.errors import InputError
+from hconv.errors import InputError, UsageError
 from hconv.tables import layout, pipeline
 from hconv.tables.job import Job
 
@@ -170,3 +170,11 @@ def test_read_integer_column_beyond_2_53_rounds_to_float64_as_csv_does(tmp_path)
     pipeline.convert_file(str(tmp_path / "in.csv"), str(tmp_path / "c.parquet"))
     got = [pq.read_table(tmp_path / f"{n}.parquet").column("wx").to_pylist() for n in "pc"]
     assert got[0] == got[1] == from_ints.column("wx").to_pylist() == [1.0]
+
+
+def test_plan_quat_order_with_named_quaternion_columns_is_refused():
+    names = ("Hx", "Hy", "Hz", "I1", "I2", "I3", "qw", "qx", "qy", "qz")
+    schema = pa.schema([(c, pa.float64()) for c in names])
+    with pytest.raises(UsageError, match=r"quat_order='xyzw' orders a list column q, but this input names"):
+        layout.plan(schema, Job(quat_order="xyzw"), "x.csv")
+    assert layout.plan(schema, Job(), "x.csv").groups["q"].columns == ("qw", "qx", "qy", "qz")

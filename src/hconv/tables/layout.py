@@ -265,6 +265,14 @@ def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
                 raise InputError(
                     f"{source}: column {c!r} has type {t}, but must be numeric; store it as a number (float64)"
                 )
+    q = groups.get("q")
+    if job.quat_order != "wxyz" and q is not None and not q.is_list:
+        # qw, qx, qy, qz say their order by name; an order option that did nothing was a trap
+        raise UsageError(
+            f"{source}: {option('quat_order', job.quat_order)} orders a list column q, but this input names its "
+            f"quaternion columns {', '.join(q.columns)}; drop {option('quat_order')}, or point "
+            f"{option('mapping')} at the columns that hold w, x, y and z"
+        )
     groups = {k: _with_units(g, schema, job.unit_options, mapping) for k, g in groups.items()}
     _check_unit_keys(job.unit_options, groups, present)
     return Layout(groups, form, source, job.quat_order)
