@@ -187,6 +187,14 @@ def summary(tally: Tally, console: Console | None = None) -> None:
     rate = f"{tally.rows / tally.seconds:,.0f} rows/s" if tally.seconds > 0 and tally.rows else "-"
     engines = " + ".join(tally.engines) or "-"
     head = Text.assemble(("hconv convert", "bold"), f" · method {tally.method} · ω in {tally.unit} · engine {engines}")
+    _status_table(console, tally, head)
+    if tally.worst_row is not None:
+        note(console, f"worst residual {tally.worst_residual:.3g} (data row {tally.worst_row}), relative to I⁻¹H")
+    note(console, f"time {tally.seconds:.3f} s ({rate})")
+
+
+def _status_table(console: Console, tally: Tally, head: Text) -> None:
+    """Rows per status and the total, under ``head``: the table both summaries open with."""
     counts = tally.counts()
     show(
         console,
@@ -195,9 +203,6 @@ def summary(tally: Tally, console: Console | None = None) -> None:
         title=head,
         styles=[None if name == "ok" else "yellow" for name in counts] + ["bold"],
     )
-    if tally.worst_row is not None:
-        note(console, f"worst residual {tally.worst_residual:.3g} (data row {tally.worst_row}), relative to I⁻¹H")
-    note(console, f"time {tally.seconds:.3f} s ({rate})")
 
 
 def dataset_summary(result: DatasetResult, console: Console | None = None) -> None:
@@ -210,14 +215,7 @@ def dataset_summary(result: DatasetResult, console: Console | None = None) -> No
     head = Text.assemble(
         ("hconv convert", "bold"), f" · {files} · method {tally.method} · ω in {tally.unit} · engine {engines}"
     )
-    counts = tally.counts()
-    show(
-        console,
-        (Col("status"), Col("rows", right=True)),
-        [(name, count(console, n)) for name, n in counts.items()] + [("total", count(console, tally.rows))],
-        title=head,
-        styles=[None if name == "ok" else "yellow" for name in counts] + ["bold"],
-    )
+    _status_table(console, tally, head)
     if tally.worst_row is not None:
         note(
             console,
