@@ -425,3 +425,20 @@ def test_convert_command_free_counts_cancellation(tmp_path, capsys):
     assert code == 0 and "cancellation" in err
     rows = dst.read_text().splitlines()
     assert rows[1].split(",")[-2:] == ["cancellation", "rad/s"] and rows[2].split(",")[-2:] == ["ok", "rad/s"]
+
+
+def test_solve_pivot_keeps_a_centre_of_mass_tensor_that_no_body_has_not_physical():
+    from hconv.solve import bodies
+
+    # diag(1, 1, 3) about C breaks I3 <= I1 + I2; shifted 2 m along z with 1 kg it is diag(5, 5, 3),
+    # which would pass: the check must look at the tensor about C
+    sets = {
+        "H": np.array([[0.0], [0.0], [1.0]]),
+        "I": np.array([[1.0], [1.0], [3.0], [0.0], [0.0], [0.0]]),
+        "m": np.array([1.0]),
+        "r": np.array([[0.0], [0.0], [2.0]]),
+    }
+    pivot = bodies.solve(sets, "sym6", "exact", 64, Conventions(about="pivot"))
+    assert list(pivot.status) == ["not_physical"]
+    sets["I"] = np.array([[2.0], [2.0], [3.0], [0.0], [0.0], [0.0]])  # a real body stays ok
+    assert list(bodies.solve(sets, "sym6", "exact", 64, Conventions(about="pivot")).status) == ["ok"]

@@ -37,6 +37,7 @@ import numpy as np
 from hconv.errors import UsageError
 from hconv.kernels import frames
 from hconv.kernels.inertia import Sym3
+from hconv.kernels.spectrum import eigenvalues
 from hconv.solve import convert as core
 from hconv.solve import forms, methods, status, units
 from hconv.solve.options import Conventions
@@ -197,6 +198,16 @@ def _solve(
         # Without --about, I may be about a distant pivot: only "too dense" is certain then.
         slip = units.implausible(form.trace(I_given), m, both_sides=conv.about != "same")
         code = status.merge(code, slip, "unit_suspect")
+    if conv.about == "pivot":
+        # The shift adds a point mass's tensor, which can make a centre-of-mass tensor that no
+        # body has look valid about the pivot: the triangle inequality is checked about C too.
+        six = form.as_six(I_given)
+        finite = np.isfinite(six).all(axis=0)  # the others are invalid_input already
+        six = np.where(finite, six, np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])[:, None])
+        lam = eigenvalues(Sym3(*six))
+        with np.errstate(invalid="ignore", over="ignore"):
+            broken = finite & (lam[2] - lam[1] - lam[0] > status.TRIANGLE_RTOL * np.abs(lam).sum(axis=0))
+        code = status.merge(code, broken, "not_physical")
     return dataclasses.replace(res, w=w_out, null_axis=axis_out, status_code=code)
 
 
