@@ -548,7 +548,7 @@ def test_convert_table_accepts_record_batch():
     [
         (["convert", "in.csv", "out.csv", "--method", "nope"], "'nope' is not one of"),
         (["convert", "in.csv", "out.csv", "--precision", "16"], "must be 64 or 32"),
-        (["convert", "in.csv", "out.csv", "--threads", "0"], "--threads must be 1 or more"),
+        (["convert", "in.csv", "out.csv", "--threads", "0"], "--threads must be a whole number, 1 or more"),
         (["convert", "in.csv"], "Missing argument 'OUT'"),
         (["bogus"], "No such command 'bogus'"),
     ],

@@ -494,3 +494,16 @@ def test_held_interrupt_waits_for_the_block_then_acts():
         time.sleep(0.05)  # the handler would have run by now
         done.append(1)
     assert done == [1] and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_convert_dataset_bad_threads_fails_at_once_and_writes_nothing(tmp_path):
+    from hconv.errors import UsageError
+
+    _dataset(tmp_path / "data")
+    for threads in (0, "2"):
+        with pytest.raises(UsageError, match="threads must be a whole number, 1 or more"):
+            dataset.convert_dataset(tmp_path / "data", tmp_path / "out", threads=threads)  # paths as Path too
+    assert not (tmp_path / "out").exists()
+    proc = run_hconv("convert", "data", "out", "--threads", "0", cwd=tmp_path)
+    assert proc.returncode == 2 and len(proc.stderr.decode().splitlines()) == 1
+    assert not (tmp_path / "out").exists()

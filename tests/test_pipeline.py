@@ -80,7 +80,7 @@ def test_convert_file_same_output_for_any_threads(tmp_path):
 def test_convert_file_threads_below_one_is_usage_error(tmp_path):
     from hconv.errors import UsageError
 
-    with pytest.raises(UsageError, match="^threads must be 1 or more"):
+    with pytest.raises(UsageError, match="^threads must be a whole number, 1 or more"):
         pipeline.convert_file("in.parquet", str(tmp_path / "out.parquet"), threads=0)
 
 

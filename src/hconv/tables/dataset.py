@@ -40,8 +40,8 @@ from hconv.errors import HconvError, OutputError, UsageError, option
 from hconv.solve import methods, status
 from hconv.tables import storage
 from hconv.tables.formats import EXTENSIONS, FORMATS
-from hconv.tables.job import Job
-from hconv.tables.pipeline import Tally, convert_file
+from hconv.tables.job import Job, check_job
+from hconv.tables.pipeline import Tally, check_threads, convert_file
 from hconv.tables.storage import Listed, Place, Source
 
 MANIFEST = "_hconv_manifest.json"
@@ -418,8 +418,8 @@ def _flushed(path: str) -> int:
 
 
 def convert_dataset(
-    src: str,
-    dst: str,
+    src: str | os.PathLike[str],
+    dst: str | os.PathLike[str],
     *,
     method: str = "exact",
     precision: int = 64,
@@ -446,10 +446,19 @@ def convert_dataset(
     if the dataset cannot be read or written at all.
     """
     t0 = time.perf_counter()
+    check_job(job)
+    check_threads(threads)  # before anything is written: a bad option fails the run, not each file
+    src_path, dst_path = os.fspath(src), os.fspath(dst)
     job = job or Job(method, precision, diagnostics)
     say = log or (lambda line: None)
     plan = plan_dataset(
-        src, dst, job=job, src_format=src_format, dst_format=dst_format, force=force, endpoint_url=endpoint_url
+        src_path,
+        dst_path,
+        job=job,
+        src_format=src_format,
+        dst_format=dst_format,
+        force=force,
+        endpoint_url=endpoint_url,
     )
     if plan.describe():
         say(plan.describe())

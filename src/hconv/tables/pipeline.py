@@ -170,6 +170,12 @@ def ordered_map(fn: Callable[[T], R], items: Iterable[T], threads: int) -> Gener
                 f.cancel()
 
 
+def check_threads(threads: object) -> None:
+    """UsageError unless ``threads`` is None (the default) or a whole number of at least 1."""
+    if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1):
+        raise UsageError(f"{option('threads')} must be a whole number, 1 or more, got {threads!r}")
+
+
 def convert_file(
     src: str,
     dst: str,
@@ -198,8 +204,7 @@ def convert_file(
     fetched into ``src`` (:func:`hconv.tables.dataset.convert_dataset`).
     Raises :class:`hconv.errors.HconvError` subclasses with one-line messages.
     """
-    if threads is not None and threads < 1:
-        raise UsageError(f"{option('threads')} must be 1 or more, got {threads}")
+    check_threads(threads)
     threads = threads or default_threads()
     check_job(job)
     job = job or Job(method, precision, diagnostics)
