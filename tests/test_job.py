@@ -110,3 +110,21 @@ def test_check_job_not_a_job_is_refused_naming_the_fix(function, tmp_path):
         UsageError, match=r"^job takes a hconv.Job, got \{'method': 'exact'\} \(dict\); make one with hconv.Job"
     ):
         call({"method": "exact"})
+
+
+@pytest.mark.parametrize(
+    "kwargs, needle",
+    [
+        ({"omega_unit": 5}, "omega_unit takes a unit as text, e.g. 'deg/s', got 5"),
+        ({"omega_unit": None}, "omega_unit takes a unit as text"),
+        ({"conventions": Conventions(degenerate="pinv", degenerate_rtol=1e-9)}, None),
+    ],
+)
+def test_job_wrong_type_is_a_usage_error_naming_the_keyword(kwargs, needle):
+    if needle is None:
+        assert Job(**kwargs).conventions.degenerate_rtol == 1e-9
+        with pytest.raises(UsageError, match="degenerate_rtol must be at least 0 and below 1, got '1e-9'"):
+            Conventions(degenerate="pinv", degenerate_rtol="1e-9")
+        return
+    with pytest.raises(UsageError, match=needle):
+        Job(**kwargs)

@@ -47,7 +47,7 @@ def check_degenerate(mode: str, rtol: float | None, method: str | None = None) -
     """The degenerate mode and threshold and, given a method, that a mode other than error is
     only asked of the exact family."""
     check_choice("degenerate", mode, DEGENERATE_MODES)
-    if rtol is not None and not 0 <= rtol < 1:
+    if rtol is not None and (isinstance(rtol, bool) or not isinstance(rtol, (int, float)) or not 0 <= rtol < 1):
         raise UsageError(f"{option('degenerate_rtol')} must be at least 0 and below 1, got {rtol!r}")
     if method is not None and mode != "error" and not methods.get(method).exact:
         raise UsageError(f"{option('degenerate', mode)} applies to the exact methods, not to {method!r}")

@@ -104,6 +104,8 @@ class Job:
         if not isinstance(self.keep_text, bool):
             raise UsageError(f"keep_text must be True or False, got {self.keep_text!r}")
         # an unknown unit fails now, not mid-run
+        if not isinstance(self.omega_unit, str):
+            raise UsageError(f"{option('omega_unit')} takes a unit as text, e.g. 'deg/s', got {self.omega_unit!r}")
         w_factor = units.factor("w", self.omega_unit, option("omega_unit"))
         if m.unit != methods.RAD_S and w_factor != 1.0:
             raise UsageError(
