@@ -774,6 +774,15 @@ def test_cli_bodies_strict_exits_5_when_a_body_is_not_ok(tmp_path):
     assert run_hconv("bodies", str(tmp_path / "good.urdf"), "--strict").returncode == 0
 
 
+def test_cli_bodies_strict_fails_a_model_with_no_bodies(tmp_path):
+    (tmp_path / "empty.xml").write_text("<mujoco><worldbody/></mujoco>")
+    proc = run_hconv("bodies", str(tmp_path / "empty.xml"), str(tmp_path / "o.csv"), "--strict")
+    err = proc.stderr.decode()
+    assert proc.returncode == 5 and "has no bodies to check (--strict)" in err and len(err.splitlines()) == 1
+    assert not (tmp_path / "o.csv").exists()
+    assert run_hconv("bodies", str(tmp_path / "empty.xml")).returncode == 0  # without --strict: listed, 0 bodies
+
+
 @pytest.mark.parametrize(
     "text", [LAUGHS, "<robot><link name='a'><inertial><mass value='x'/></inertial></link></robot>", "<robot>"]
 )

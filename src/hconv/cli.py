@@ -648,6 +648,13 @@ def bodies_cmd(
 
     m = models.read_model(model)
     bad = [b for b in m.bodies if b.status != "ok"]
+    if strict and not m.bodies:  # a model with nothing to check passes no check
+        from hconv.errors import StrictError
+
+        raise StrictError(
+            f"{model}: has no bodies to check (--strict); is it a fragment that another model includes?"
+            + ("; nothing was written" if dst is not None else "")
+        )
     if dst is None:
         modelview.show(m)
     elif not (strict and bad):  # as convert --strict: no output when a row is not ok
