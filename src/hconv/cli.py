@@ -22,7 +22,7 @@ import typer
 from typer.core import TyperCommand
 
 from hconv import errors, interrupts
-from hconv.errors import INTERRUPTED, HconvError, UsageError
+from hconv.errors import INTERRUPTED, HconvError, StrictError, UsageError
 from hconv.kernels import allocator
 from hconv.solve import forms, options
 from hconv.solve.engines import ENGINES
@@ -649,8 +649,6 @@ def bodies_cmd(
     m = models.read_model(model)
     bad = [b for b in m.bodies if b.status != "ok"]
     if strict and not m.bodies:  # a model with nothing to check passes no check
-        from hconv.errors import StrictError
-
         raise StrictError(
             f"{model}: has no bodies to check (--strict); is it a fragment that another model includes?"
             + ("; nothing was written" if dst is not None else "")
@@ -664,8 +662,6 @@ def bodies_cmd(
             for note in m.notes:
                 print(f"note: {note}", file=sys.stderr)
     if strict and bad:
-        from hconv.errors import StrictError
-
         first = ", ".join(f"{b.name} ({b.status})" for b in bad[:5])
         raise StrictError(
             f"{len(bad)} of {len(m.bodies)} bodies are not ok (--strict): {first}"

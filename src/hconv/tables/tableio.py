@@ -495,8 +495,6 @@ def _header_hint(names: list) -> str:
 
 
 def _open_csv(path: str, name: str, job: Job) -> Input:
-    if os.path.isdir(path):
-        raise InputError(f"{name}: is a directory, not a CSV file")
     _sniff_csv(path, name)
     ropts = pacsv.ReadOptions(block_size=CSV_BLOCK_BYTES)
     try:
