@@ -214,10 +214,44 @@ def test_read_sdf_relative_to_follows_frames_links_and_joints(tmp_path):
     assert_tensor(got["d"].I_C_B, Rx(0.7) @ I @ Rx(0.7).T)
 
 
+def test_read_sdf_relative_to_a_nested_models_frame_is_placed(tmp_path):
+    """inner::l and inner::f name frames of the nested model inner (SDF's scoping); before, any
+    name with :: was unresolved_frame."""
+    I = box(2.0, 0.1, 0.2, 0.3)
+    inertia = "".join(f"<{k}>{num(v)}</{k}>" for k, v in zip(("ixx", "iyy", "izz"), np.diag(I)))
+
+    def link(name, pose, inertial_pose):
+        return (
+            f"<link name='{name}'>{pose}<inertial>{inertial_pose}<mass>2</mass>"
+            f"<inertia>{inertia}</inertia></inertial></link>"
+        )
+
+    half_pi = num(math.pi / 2)
+    text = (
+        "<sdf version='1.9'><model name='m'>"
+        + link("a", "<pose>0 0 1 0 0 0</pose>", "<pose relative_to='inner::l'>0.5 0 0 0.3 0 0</pose>")
+        + link("b", "<pose>0 0 1 0 0 0</pose>", "<pose relative_to='inner::f'>0 0 0 0 0 0</pose>")
+        + f"<model name='inner'><pose>1 0 0 0 0 {half_pi}</pose>"
+        + link("l", "<pose>0 2 0 0 0 0</pose>", "")
+        + "<frame name='f' attached_to='l'><pose relative_to='l'>0 0 0.2 0 0 0</pose></frame>"
+        + "</model></model></sdf>"
+    )
+    got = by_name(model(tmp_path, "n.sdf", text))
+    # inner::l in m: (1, 0, 0) + Rz(90°)·(0, 2, 0) = (-1, 0, 0), turned by Rz(90°); a's origin is 1 up
+    R = Rz(math.pi / 2) @ Rx(0.3)
+    assert got["a"].status == "ok", got["a"].reason
+    assert np.allclose(got["a"].p_BC_B, [-1, 0.5, -1], rtol=0, atol=1e-15)
+    assert_tensor(got["a"].I_C_B, R @ I @ R.T)
+    # inner::f is 0.2 up l's z: (-1, 0, 0.2) in m, (-1, 0, -0.8) in b
+    assert np.allclose(got["b"].p_BC_B, [-1, 0, -0.8], rtol=0, atol=1e-15)
+    assert_tensor(got["b"].I_C_B, Rz(math.pi / 2) @ I @ Rz(math.pi / 2).T)
+
+
 @pytest.mark.parametrize(
     "ref, why",
     [
-        ("other::frame", "another model's scope"),
+        ("other::frame", "'other', which is not a model nested in model 'm'"),
+        ("f3", "there is no frame 'f3' in model 'm'"),
         ("nowhere", "there is no frame 'nowhere'"),
         ("f1", "form a cycle"),
         ("world", "frame 'world'"),
@@ -610,7 +644,7 @@ def test_read_refuses_entities_hidden_by_another_encoding(tmp_path):
             {"m.xml": "<mujoco><include file='a.xml'/><include file='a.xml'/></mujoco>", "a.xml": "<mujoco/>"},
             "which 'a.xml' already brought in",
         ),
-        ({"m.xml": "<mujoco><include file='gone.xml'/></mujoco>"}, "gone.xml: cannot read it"),
+        ({"m.xml": "<mujoco><include file='gone.xml'/></mujoco>"}, "m.xml, line 1, <include> names 'gone.xml'"),
         ({"m.xml": "<mujoco><include file='../outside.xml'/></mujoco>"}, "outside the model's folder"),
         ({"m.xml": "<mujoco><include file='/etc/hostname'/></mujoco>"}, "outside the model's folder"),
         ({"m.xml": "<mujoco><include file='http://example.invalid/a.xml'/></mujoco>"}, "hconv reads no URLs"),
@@ -626,6 +660,44 @@ def test_read_mjcf_include_refusals(tmp_path, files, says):
     with pytest.raises(InputError) as e:
         models.read_model(tmp_path / "sub" / "m.xml")
     assert says in str(e.value) and "\n" not in str(e.value)
+
+
+def test_read_mjcf_include_missing_names_the_including_file_and_line(tmp_path):
+    """Before, the message named only the missing file: which of the includes to fix was left
+    to guess."""
+    (tmp_path / "parts").mkdir()
+    (tmp_path / "m.xml").write_text("<mujoco><worldbody><include file='parts/arm.xml'/></worldbody></mujoco>")
+    (tmp_path / "parts" / "arm.xml").write_text("<mujoco>\n<body name='arm'/>\n<include file='parts/gone.xml'/></mujoco>")
+    with pytest.raises(InputError) as e:
+        models.read_model(tmp_path / "m.xml")
+    msg = str(e.value)
+    assert msg.startswith("parts/arm.xml, line 3, <include> names 'parts/gone.xml' (")
+    assert os.path.join(str(tmp_path), "parts", "gone.xml") in msg and "check the path" in msg and "\n" not in msg
+
+
+@pytest.mark.parametrize(
+    "text, says",
+    [
+        (
+            "<mujoco><default><body name='lost'/></default><worldbody>{b}</worldbody></mujoco>",
+            "line 1, <body> 'lost' is inside <default>, where MuJoCo reads no body",
+        ),
+        (
+            "<mujoco><worldbody>{b}<geom type='sphere' size='1'>\n<body name='lost'/></geom></worldbody></mujoco>",
+            "line 2, <body> 'lost' is inside <geom> (",
+        ),
+        ("<mujoco><worldbody>{b}</worldbody><body name='lost'><body/></body></mujoco>", "a fragment made for <include>?"),
+    ],
+)
+def test_read_mjcf_body_outside_the_body_tree_is_a_note(tmp_path, text, says):
+    """MuJoCo refuses a <body> outside <worldbody>, a <body>, a <frame> or a <replicate>; hconv
+    had left it out without a word."""
+    b = "<body name='b'><inertial pos='0 0 0' mass='1' diaginertia='1 1 1'/></body>"
+    m = model(tmp_path, "x.xml", text.format(b=b))
+    assert [x.name for x in m.bodies] == ["b"]
+    lost = [n for n in m.notes if "'lost'" in n]
+    assert len(lost) == 1 and says in lost[0] and "hconv does not list it" in lost[0], m.notes
+    assert len(m.notes) == 1  # a misplaced body's own bodies go with it, unmentioned
 
 
 def test_read_refuses_a_fifo_without_blocking(tmp_path):

@@ -364,24 +364,43 @@ class _UnresolvedError(Exception):
     """An SDF frame hconv cannot place; the message says which and why."""
 
 
-def _sdf_in_model(model: Node, name: str) -> _Pose:
+def _sdf_in_model(model: Node, name: str, outer: tuple = ()) -> _Pose:
     """The pose of frame ``name`` (a link, frame, joint or nested model of ``model``, or
-    ``__model__``) in ``model``'s frame, following relative_to and attached_to."""
+    ``__model__``; ``inner::name`` a frame of the nested model ``inner``, as SDF scopes names) in
+    ``model``'s frame, following relative_to and attached_to. ``outer``: the (model, frame) pairs
+    being placed further up, so that a nested model placed relative to its own frame is a cycle."""
+    if (id(model), name) in outer:
+        raise _UnresolvedError(f"frame {name!r} is placed relative to itself through a nested model: a cycle")
+    outer = (*outer, (id(model), name))
     elements = {
         c.attrib.get("name", "").strip(): c for c in model.children if c.tag in ("link", "frame", "joint", "model")
     }
+    scope = model.attrib.get("name", "").strip()
     chain: list[_Pose] = []
     seen: list[str] = []
+    base: _Pose = (np.zeros(3), np.eye(3))  # where the chain ends: the model's frame, or a nested model's frame
     while name != "__model__":
         if "::" in name:
-            raise _UnresolvedError(f"frame {name!r} is in another model's scope, which hconv does not resolve")
+            inner, _, rest = name.partition("::")
+            sub = elements.get(inner)
+            if sub is None or sub.tag != "model":
+                raise _UnresolvedError(
+                    f"frame {name!r} names {inner!r}, which is not a model nested in model {scope!r} "
+                    "(SDF names reach only into nested models, never out to an enclosing one)"
+                )
+            # the nested model's frame in this one, then the frame in the nested model's
+            base = _compose(_sdf_in_model(model, inner, outer), _sdf_in_model(sub, rest, outer))
+            break
         if name == "world":
             raise _UnresolvedError("frame 'world': hconv reads no model's place in a world")
         if name in seen:
             raise _UnresolvedError(f"frames {' → '.join([*seen, name])} form a cycle")
         node = elements.get(name)
         if node is None:
-            raise _UnresolvedError(f"there is no frame {name!r} in the model")
+            raise _UnresolvedError(
+                f"there is no frame {name!r} in model {scope!r} (SDF resolves a name in the model that "
+                "holds it, and in nested models as inner::name)"
+            )
         seen.append(name)
         pose, ref = _sdf_pose(node)
         chain.append(pose)
@@ -392,7 +411,7 @@ def _sdf_in_model(model: Node, name: str) -> _Pose:
                 child = node.find("child")
                 ref = child.text.strip() if child is not None else None
         name = ref or "__model__"
-    out: _Pose = (np.zeros(3), np.eye(3))
+    out = base
     for pose in reversed(chain):
         out = _compose(out, pose)
     return out
@@ -521,12 +540,47 @@ def _mjcf(root: Node, path: Path, shown: str) -> tuple[list[_Raw], list[str]]:
     top = [b for wb in root.findall("worldbody") for b in _child_bodies(wb)]
     stack = [(b, "world", k) for k, b in reversed(list(enumerate(top, 1)))]
     raws = []
+    listed: set[int] = set()
     while stack:
         body, parent, k = stack.pop()
+        listed.add(id(body))
         name = body.attrib.get("name", "").strip() or f"{parent}/body[{k}]"
         raws.append(_mjcf_body(body, name, comp, shown))
         stack.extend(reversed([(c, name, j) for j, c in enumerate(_child_bodies(body), 1)]))
+    notes += _misplaced_bodies(root, listed)
     return raws, notes
+
+
+def _misplaced_bodies(root: Node, listed: set[int]) -> list[str]:
+    """A note per outermost <body> that the body tree does not reach (``listed``: the ids of
+    those it does): MuJoCo's schema refuses a body anywhere but in <worldbody>, a <body>, a
+    <frame> or a <replicate>, so leaving it out without a word would hide a model MuJoCo rejects."""
+    notes = []
+    stack = [(c, root) for c in reversed(root.children)]
+    while stack:
+        node, parent = stack.pop()
+        if node.tag == "body" and id(node) not in listed:
+            if parent is root:  # a file made to be included, or a <worldbody> forgotten
+                why = (
+                    f"is at the top of <{root.tag}>, not in <worldbody>, so hconv does not list it (MuJoCo "
+                    "refuses it there); a fragment made for <include>? Run hconv bodies on the model that "
+                    "includes it"
+                )
+            else:
+                at = "" if (parent.file, parent.line) == (node.file, node.line) else f" ({parent.file}, line {parent.line})"
+                why = (
+                    f"is inside <{parent.tag}>{at}, where MuJoCo reads no body (it refuses the model), so "
+                    "hconv does not list it; move it into <worldbody> or a <body>"
+                )
+            notes.append(f"{node.where}{_named(node)} {why}")
+            continue  # its own bodies go with it
+        stack.extend((c, node) for c in reversed(node.children))
+    return notes
+
+
+def _named(node: Node) -> str:
+    name = node.attrib.get("name", "").strip()
+    return f" {name!r}" if name else ""
 
 
 def _child_bodies(node: Node) -> list[Node]:

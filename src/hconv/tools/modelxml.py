@@ -273,9 +273,27 @@ def expand_includes(root: Node, model: Path, shown: str) -> None:
                     "include each file once (MuJoCo refuses it too)",
                 )
             seen[target] = name
+            _check_included(child, name, target, shown)
             sub = read(target, name)
             pending[k:k] = [(c, ch + (target,)) for c in sub.children]
         node.children = kept
+
+
+def _check_included(node: Node, name: str, target: Path, shown: str) -> None:
+    """InputError naming the including file and line when the included file cannot be read:
+    read() alone would name only the missing file, and the user could not tell which include
+    (of several, perhaps in an included file) to fix."""
+    try:
+        os.stat(target)
+    except OSError as exc:
+        # where the user looks for it: beside the main model, as they named that
+        expected = os.path.join(os.path.dirname(shown), name)
+        at = f" ({expected})" if expected != name else ""
+        raise error(
+            node,
+            f"names {name!r}{at}, which cannot be read: {exc.strerror or exc}",
+            "includes are relative to the main model's folder, as in MuJoCo: check the path",
+        ) from None
 
 
 def _include_target(node: Node, name: str, folder: Path) -> Path:
