@@ -444,6 +444,36 @@ def test_one_invalid_input_says_which_value_on_stderr(capsys, args, hint):
     assert json.loads(out)["status"] == "invalid_input" and err_json == err
 
 
+SATELLITE = ["--H", "1,2,52500000000003", "--I", "1000", "--m", "1000", "--r", "7e6,0,0", "--v", "0,7500,0"]
+
+
+def test_one_cancellation_says_what_it_means_and_the_fix(capsys):
+    """A newcomer saw status cancellation with a residual labelled as measured, and no word on
+    what to do; the label now says the bound is in it, and stderr says what the status means."""
+    code, out, err = run_inprocess("one", *SATELLITE, "--about", "free", capsys=capsys)
+    assert code == 0 and "status   = cancellation" in out
+    assert "residual = 0.00623  (|w - I⁻¹H_C| / |I⁻¹H_C| + cond(I)·ε_C, H_C = H - r × m·v)" in out
+    assert len(err.splitlines()) == 1 and err.startswith("hconv: cancellation: H - r × m·v cancels most of H's")
+    assert "off by up to 0.0062 of |ω|" in err and err.rstrip().endswith("with --about same")
+    code, out, err_json = run_inprocess("one", *SATELLITE, "--about", "free", "--json", capsys=capsys)
+    assert json.loads(out)["status"] == "cancellation" and err_json == err
+
+
+@pytest.mark.parametrize(
+    "given, needs, wanted",
+    [
+        ([], "needs r, the centre of mass relative to the origin of H; the mass m; and v,", "--r rx,ry,rz --m MASS --v vx,vy,vz"),
+        (["--m", "1"], "needs r, the centre of mass relative to the origin of H; and v,", "pass --r rx,ry,rz --v vx,vy,vz"),
+        (["--m", "1", "--r", "1,0,0"], "needs v, the velocity", "pass --v vx,vy,vz"),
+    ],
+)
+def test_one_about_free_names_every_missing_value(capsys, given, needs, wanted):
+    """Before, only the first missing value was named, so a user found them one run at a time."""
+    code, out, err = run_inprocess("one", "--H", "1,2,3", "--I", "1,2,3", "--about", "free", *given, capsys=capsys)
+    assert code == 2 and out == "" and len(err.splitlines()) == 1
+    assert err.startswith("hconv: error: --about free " + needs) and err.rstrip().endswith(wanted), err
+
+
 def test_one_valid_input_prints_nothing_on_stderr(capsys):
     code, out, err = run_inprocess("one", "--H", "1,2,3", "--I", "1,2,3", "--r", "nan,0,0", capsys=capsys)
     assert code == 0 and "status   = ok" in out and err == ""  # r is not used by exact

@@ -403,8 +403,9 @@ def one(
             sets[name] = np.asarray(sets[name], dtype=np.float64)[:, None] * job.set_factor(name)
     need = job.needs()
     missing = [k for k in need if k not in sets]
-    if missing:
-        raise UsageError(f"{need[missing[0]]}; pass --{missing[0]} {ONE_VALUES[missing[0]]}")
+    if missing:  # every value at once: one run to find them all, not one per missing value
+        wanted = " ".join(f"--{k} {ONE_VALUES[k]}" for k in missing)
+        raise UsageError(f"{_needs_text([need[k] for k in missing])}; pass {wanted}")
     res = bodies.solve(sets, form.name, job.method, job.precision, job.conventions)
     unit_out, scale = job.unit, job.omega_scale
     w = [float(x) * scale for x in res.w[0]]
@@ -432,9 +433,10 @@ def one(
         if res.null_dim is not None:
             out.update(null_axis=axis, null_dim=int(res.null_dim[0]))
         print(json.dumps(out))
+        _status_hint(state, residual)
         return
     print(f"w        = [{', '.join(repr(x) for x in w)}] {unit_out}")
-    print(f"residual = {residual:.3g}  (|w - I⁻¹H| / |I⁻¹H|)")
+    print(f"residual = {residual:.3g}  {RESIDUAL_FREE if job.conventions.about == 'free' else RESIDUAL}")
     print(f"cond     = {cond:.3g}")
     print(f"status   = {state}")
     print(f"method   = {job.method}")
@@ -443,6 +445,14 @@ def one(
     if unit_out == methods.M2_S:
         print(f"note: {unit_out} is not a unit of angular velocity;")
         print("      see 'The seed's three questions' in the README")
+    _status_hint(state, residual)
+
+
+def _status_hint(state: str, residual: float) -> None:
+    """After the result, on stderr: what a status that the result alone does not explain means."""
+    if state == "cancellation":  # the status says that digits were lost, not how many, nor what to do
+        sys.stdout.flush()  # after the result on a shared terminal too
+        print(_cancellation_hint(residual), file=sys.stderr)
 
 
 #: What is wrong and what to give instead, per cause that hconv.solve.bodies.invalid_inputs names.
@@ -453,6 +463,38 @@ INVALID_HINTS = {
     "mass_negative": "is a negative mass; give m >= 0",
     "beyond_float32": "is beyond float32's range (3.4e+38) for --precision 32; use --precision 64",
 }
+
+
+#: What ``hconv one``'s residual is: measured; with --about free, measured against H_C and with
+#: the bound on what taking r × m·v out of H lost added (hconv.solve.bodies), which it can not see.
+RESIDUAL = "(|w - I⁻¹H| / |I⁻¹H|)"
+RESIDUAL_FREE = "(|w - I⁻¹H_C| / |I⁻¹H_C| + cond(I)·ε_C, H_C = H - r × m·v)"
+
+
+def _needs_text(reasons: list[str]) -> str:
+    """Reasons such as "--about free needs r, ..." as one sentence, each option named once."""
+    heads: dict[str, list[str]] = {}
+    for reason in reasons:
+        head, sep, tail = reason.partition(" needs ")
+        heads.setdefault(head if sep else reason, []).append(tail if sep else "")
+    parts = []
+    for head, tails in heads.items():
+        tails = [t for t in tails if t]
+        if not tails:
+            parts.append(head)
+        else:
+            listed = tails[0] if len(tails) == 1 else "; ".join(tails[:-1]) + "; and " + tails[-1]
+            parts.append(f"{head} needs {listed}")
+    return "; ".join(parts)
+
+
+def _cancellation_hint(residual: float) -> str:
+    """One line for stderr: what the status cancellation means for this row, and the fix."""
+    return (
+        f"hconv: cancellation: H - r × m·v cancels most of H's digits, so the inputs' rounding to float64 "
+        f"may put ω off by up to {residual:.2g} of |ω| (the residual); give H about the centre of mass, with "
+        f"{errors.option('about', 'same')}"
+    )
 
 
 def _invalid_hint(causes: list[tuple[str, str]], given: dict[str, str | None], precision: int) -> str:
