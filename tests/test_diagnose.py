@@ -291,13 +291,30 @@ def test_diagnose_products_positive_declared_flips_the_hypothesis(rng, tmp_path)
 def test_diagnose_omega_declared_in_degrees(rng, tmp_path):
     s = scene(rng)
     d = diagnosed(tmp_path, scene_table(s, plant(s, "omega-deg-per-s")), unit_options={"w_obs": "deg/s"})
-    assert first_group(d) == ["exact"] and not_scored(d) == {"omega-deg-per-s": "w_obs is declared in deg/s"}
+    assert first_group(d) == ["exact"] and not_scored(d) == {}
     # declared rpm: rpm numbers are exact, and degrees per second are the mistake
     rpm = plant(s, "exact") * 60 / (2 * np.pi)
     d = diagnosed(tmp_path, scene_table(s, rpm), unit_options={"w_obs": "rpm"})
     assert first_group(d) == ["exact"]
     d = diagnosed(tmp_path, scene_table(s, plant(s, "omega-deg-per-s")), unit_options={"w_obs": "rpm"})
     assert first_group(d) == ["omega-deg-per-s"] and d.groups()[0][0].residual.share_within == 1.0
+
+
+def test_diagnose_omega_in_rad_per_s_declared_deg_per_s_is_the_reverse_slip(rng, tmp_path):
+    """The mirror of omega-deg-per-s: the engine's rad/s numbers, declared deg/s, read as π/180
+    of the true ω. Before, omega-deg-per-s was not scored under deg/s and nothing explained them."""
+    s = scene(rng)
+    rad = plant(s, "exact").astype(np.float32).astype(np.float64)  # the numbers as a float32 engine logs them
+    d = diagnosed(tmp_path, scene_table(s, rad), unit_options={"w_obs": "deg/s"})
+    assert first_group(d) == ["omega-deg-per-s"] and d.groups()[0][0].residual.share_within == 1.0
+    assert d.groups()[1][0].residual.share_within < 0.5
+    best = d.groups()[0][0]
+    assert best.summary == "ω logged in rad/s but declared deg/s (--unit w_obs=deg/s)"
+    # declared in rad/s, as by default, the hypothesis is the forward slip again
+    d = diagnosed(tmp_path, scene_table(s, rad))
+    assert first_group(d) == ["exact"] and next(x for x in d.scores if x.hypothesis == "omega-deg-per-s").summary == (
+        "ω logged in degrees per second"
+    )
 
 
 def test_diagnose_quat_list_read_as_xyzw_leaves_out_quat_xyzw(rng, tmp_path):
@@ -375,9 +392,30 @@ def test_diagnose_ties_what_the_data_cannot_tell_apart(rng, tmp_path, make, name
     assert all(set(r["tied_with"]) == tied - {r["hypothesis"]} for r in got if r["rank"] == 1)
     text = run_hconv("diagnose", str(tmp_path / "obs.parquet")).stdout.decode()
     names = ", ".join(n for n in diagnose.NAMES if n in tied)
-    assert f"# tied for best, explaining the same rows with the same ω (within 0.001): {names}" in text
+    assert f"# tied for best, explaining the same rows with the same ω (to the data's precision): {names}" in text
     assert "# best:" not in text
     assert sorted(line.split("\t")[0] for line in text.splitlines() if "\t" in line)[: len(tied)] == ["1"] * len(tied)
+
+
+@pytest.mark.parametrize("float32", [False, True], ids=["float64", "float32"])
+def test_diagnose_ties_need_the_same_omega_not_both_within_tol(rng, tmp_path, float32):
+    """A newcomer's --tol 2 tied exact matches with hypotheses 10 % off, as both were within tol;
+    a tie is the same ω to the data's precision: a few ulps for float64 ω_obs, float32's rounding
+    for an engine in float32."""
+    s = diagonal_tensors(rng)
+    w_obs = plant(s, "exact")
+    if float32:
+        w_obs = w_obs.astype(np.float32).astype(np.float64)
+    tied = {"exact", "flipped-products", "ordering-sympy", "diagonal"}
+    assert equivalent(s, w_obs, tol=1e-6) == tied  # the test's own reckoning, as above
+    pq.write_table(scene_table(s, w_obs), tmp_path / "obs.parquet")
+    d = diagnose.diagnose_file(str(tmp_path / "obs.parquet"), tol=2.0)
+    groups = d.groups()
+    assert {x.hypothesis for x in groups[0]} == tied
+    # transposed-rotation, quat-xyzw, ignored-rotation ... explain every row at tol 2, each its own ω
+    assert [len(g) for g in groups[1:4]] == [1, 1, 1] and all(g[0].residual.share_within == 1.0 for g in groups[1:4])
+    for g in groups:  # tied, the same ω: the same residuals (document and its principal form, here)
+        assert np.allclose([x.residual.median for x in g], g[0].residual.median, rtol=1e-6, equal_nan=True)
 
 
 # --- MuJoCo itself: a free body's qvel[3:6] is its body-frame ω
@@ -463,6 +501,30 @@ def test_diagnose_scene_options_from_the_command_line(rng, tmp_path):
     )
     proc = run_hconv("diagnose", str(tmp_path / "obs.parquet"), "--about", "free")
     assert proc.returncode == 0, proc.stderr.decode()
+
+
+def test_diagnose_degenerate_options_from_the_command_line(rng, tmp_path):
+    """Thin rods, whose engine drops the axis of the (near-)zero moment: convert took --degenerate
+    and --degenerate-rtol, diagnose did not, so exact could not explain such a log."""
+    s = scene(rng)
+    moments = rng.uniform(0.5, 2.0, (N, 2))
+    I = np.zeros((N, 3, 3))
+    I[:, 0, 0], I[:, 1, 1] = moments[:, 0], moments[:, 1]
+    I[:, 2, 2] = 1e-10 * moments.sum(axis=1)  # a rod along body z, nearly: not singular in float64
+    R = s["R"]
+    H_B = np.einsum("nji,nj->ni", R, s["H"])
+    w_B = np.zeros((N, 3))
+    w_B[:, :2] = H_B[:, :2] / moments  # the pseudo-inverse: nothing about the rod's own axis
+    w_obs = np.einsum("nij,nj->ni", R, w_B)
+    pq.write_table(scene_table({**s, "I": I}, w_obs), tmp_path / "rods.parquet")
+    proc = run_hconv(
+        "diagnose", str(tmp_path / "rods.parquet"), "--degenerate", "pinv", "--degenerate-rtol", "1e-6", "--json"
+    )
+    assert proc.returncode == 0, proc.stderr.decode()
+    got = json.loads(proc.stdout)
+    assert got[0]["hypothesis"] == "exact" and got[0]["share_explained"] == 1.0
+    plain = json.loads(run_hconv("diagnose", str(tmp_path / "rods.parquet"), "--json").stdout)
+    assert next(r for r in plain if r["hypothesis"] == "exact")["share_explained"] == 0.0
 
 
 def test_diagnose_of_no_rows_calls_nothing_best(tmp_path):

@@ -602,6 +602,7 @@ def _convert_dataset(src: str, dst: str, kwargs: dict[str, Any], endpoint_url: s
 @friendly
 @job_options(
     *SCENE,
+    *DEGENERATE,  # as convert: an engine's rods and point masses are diagnosed as it treated them
     *COLUMNS,
     observed=True,
     help={"omega_frame": "the frame of wx_obs, wy_obs, wz_obs; default: the frame of H (another needs q)"},

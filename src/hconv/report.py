@@ -453,7 +453,7 @@ def diagnosis_tables(d: Diagnosis, console: Console | None = None) -> None:
         note(console, Text.assemble(label, (best.hypothesis, "bold"), f": {best.summary}"))
     elif groups:  # the data cannot tell these apart: name them all, none above the others
         names = ", ".join(s.hypothesis for s in groups[0])
-        note(console, f"tied for best, explaining the same rows with the same ω (within {d.tol:g}): {names}")
+        note(console, f"tied for best, explaining the same rows with the same ω (to the data's precision): {names}")
         for s in groups[0]:
             note(console, Text.assemble("  ", (s.hypothesis, "bold"), f": {s.summary}"))
     for g in groups[1:]:

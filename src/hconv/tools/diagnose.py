@@ -29,7 +29,8 @@ pivot                  H about a fixed pivot: I shifted from the centre of mass 
 orbital-momentum       H about the origin, orbital term and all: ω = I⁻¹(H - r × m·v) (needs m, r,
                        v); with ``--about free`` declared, r × m·v left in H and taken for spin
 diagonal               ω_i = H_i / I_ii, products ignored
-omega-deg-per-s        ω_obs in degrees per second: 180/π times ω in the unit declared for w_obs
+omega-deg-per-s        ω_obs in degrees per second: 180/π times ω in the unit declared for w_obs;
+                       with w_obs declared in deg/s, ω_obs in rad/s: ω in the declared unit
 document               the seed's Version 1 (needs r; a number in m²/s)
 document-principal     the seed's Version 2 (needs r; a number in m²/s)
 =====================  ===========================================================================
@@ -39,9 +40,13 @@ as ``exact`` or meaningless (every one that turns by q, when H and ω are both d
 body frame; ``omega-body-frame`` when ω is declared in the body frame; those that permute or flip
 products, for a diagonal form), is left out and listed with the reason.
 
-Two hypotheses *tie* when they explain the same rows with the same ω (within ``tol`` of each
-other on each of those rows): the data cannot tell them apart (a diagonal tensor, a rotation by
-180°, the identity), so they share a rank and neither is called the better.
+Two hypotheses *tie* when they explain the same rows with the same ω as far as the data can tell:
+on each of those rows their ω differ by no more than the row's best residual (how closely any
+hypothesis meets ω_obs: the data's own precision, such as an engine's float32), or
+:data:`TIE_ULPS` float64 ulps where a hypothesis meets ω_obs exactly. Then the data cannot tell
+them apart (a diagonal tensor, a rotation by 180°, the identity), so they share a rank and neither
+is called the better. Both within ``tol`` is not enough: a large ``tol`` would tie an exact match
+with a hypothesis 10 % off.
 
 hconv's own order (xx, yy, zz, xy, xz, yz) is also MuJoCo's ``fullinertia`` order, so a MuJoCo
 ordering is ``exact`` here.
@@ -59,7 +64,7 @@ import numpy as np
 
 from hconv.errors import UsageError, option
 from hconv.kernels.metrics import angle_deg, relative_error
-from hconv.solve import bodies, forms
+from hconv.solve import bodies, forms, methods
 from hconv.solve.options import Conventions
 from hconv.tables.job import Job, check_job
 from hconv.tools.stats import Summary
@@ -73,6 +78,9 @@ ORDERINGS = {
 DEFAULT_TOL = 1e-3
 WORST_ROWS = 10
 DEG_PER_RAD = 180.0 / np.pi
+#: Two ω that differ by at most this many float64 ulps (relative) are the same answer reached by
+#: different arithmetic (a division instead of a solve, say), whatever ω_obs is.
+TIE_ULPS = 8
 
 
 def reorder(I6: np.ndarray, order: tuple) -> np.ndarray:
@@ -127,11 +135,13 @@ class Hypothesis:
     summary: str
     moot: Moot = _scored
     #: the summary when the user declared the convention this hypothesis stands for, so that it
-    #: is the reverse mistake (pivot and orbital-momentum: the point of H)
+    #: is the reverse mistake (pivot and orbital-momentum: the point of H; omega-deg-per-s: w_obs
+    #: in deg/s), and whether the scene declares it
     reverse: str = ""
+    declared: Callable[[Scene], bool] = lambda scene: False
 
-    def describe(self, conv: Conventions) -> str:
-        return self.reverse if self.reverse and conv.about == _POINT.get(self.name) else self.summary
+    def describe(self, scene: Scene) -> str:
+        return self.reverse if self.reverse and self.declared(scene) else self.summary
 
 
 def _solve(sets: dict, scene: Scene, method: str = "exact", form: str | None = None, **conv: Any) -> np.ndarray:
@@ -175,10 +185,6 @@ def _ordering(order: tuple) -> Predict:
     return predict
 
 
-#: The point of H each point hypothesis stands for (Conventions.about).
-_POINT = {"pivot": "pivot", "orbital-momentum": "free"}
-
-
 def _about(point: str) -> Predict:
     """H about ``point``; or, when the user declared that point, H about the tensor's own point."""
 
@@ -189,15 +195,25 @@ def _about(point: str) -> Predict:
 
 
 def _method(name: str) -> Predict:
+    # a shortcut divides or projects as it stands: --degenerate is the exact family's, not its
+    plain = {} if methods.get(name).exact else {"degenerate": "error", "degenerate_rtol": None}
+
     def predict(sets: dict, scene: Scene) -> np.ndarray:
-        return _solve(sets, scene, name)
+        return _solve(sets, scene, name, **plain)
 
     return predict
 
 
+def _in_degrees(scene: Scene) -> bool:
+    """w_obs is declared in deg/s (every column's factor to rad/s is π/180)."""
+    return all(abs(f * DEG_PER_RAD - 1) < 1e-12 for f in scene.w_obs_factors)
+
+
 def _degrees(sets: dict, scene: Scene) -> np.ndarray:
-    # the numbers are degrees per second, read in the declared unit (rad/s unless --unit says)
-    return _solve(sets, scene) * (DEG_PER_RAD * np.asarray(scene.w_obs_factors, dtype=np.float64))[:, None]
+    # the numbers are degrees per second, read in the declared unit (rad/s unless --unit says);
+    # declared deg/s, the reverse slip: the numbers are rad/s, read as deg/s
+    per_rad = 1.0 if _in_degrees(scene) else DEG_PER_RAD
+    return _solve(sets, scene) * (per_rad * np.asarray(scene.w_obs_factors, dtype=np.float64))[:, None]
 
 
 def _q_unused(scene: Scene) -> str:
@@ -227,12 +243,6 @@ def _moot_products(scene: Scene) -> str:
 def _moot_diagonal(scene: Scene) -> str:
     # a pivot shift gives even a diagonal form products, which the diagonal method then ignores
     return _moot_products(scene) if scene.conv.about != "pivot" else ""
-
-
-def _moot_degrees(scene: Scene) -> str:
-    if all(abs(f * DEG_PER_RAD - 1) < 1e-12 for f in scene.w_obs_factors):
-        return "w_obs is declared in deg/s"
-    return ""
 
 
 HYPOTHESES = (
@@ -272,6 +282,7 @@ HYPOTHESES = (
         _about("pivot"),
         "H about a fixed pivot: I shifted from the centre of mass to it",
         reverse="I about the pivot already: not shifted from the centre of mass",
+        declared=lambda scene: scene.conv.about == "pivot",
     ),
     Hypothesis(
         "orbital-momentum",
@@ -279,9 +290,17 @@ HYPOTHESES = (
         _about("free"),
         "H about the origin, orbital term r × m·v included (--about free), taken for spin",
         reverse="the orbital term r × m·v left in H and taken for spin",
+        declared=lambda scene: scene.conv.about == "free",
     ),
     Hypothesis("diagonal", (), _method("diagonal"), "ω_i = H_i / I_ii, products ignored", _moot_diagonal),
-    Hypothesis("omega-deg-per-s", (), _degrees, "ω logged in degrees per second", _moot_degrees),
+    Hypothesis(
+        "omega-deg-per-s",
+        (),
+        _degrees,
+        "ω logged in degrees per second",
+        reverse="ω logged in rad/s but declared deg/s (--unit w_obs=deg/s)",
+        declared=_in_degrees,
+    ),
     Hypothesis("document", ("r",), _method("document"), "the seed's Version 1 (m²/s)"),
     Hypothesis("document-principal", ("r",), _method("document-principal"), "the seed's Version 2 (m²/s)"),
 )
@@ -308,7 +327,7 @@ class Diagnosis:
     unexplained: int = 0  #: rows no hypothesis explains
     examples: list = field(default_factory=list)  #: (row, best hypothesis, its residual) for some of those
     #: pairs of hypotheses (frozensets of two names) that explain the same rows, at least one, with
-    #: ω within ``tol`` of each other on each of them
+    #: the same ω on each of them as far as the data tell (see the module docstring)
     ties: set = field(default_factory=set)
 
     def groups(self) -> list[list[Score]]:
@@ -363,7 +382,7 @@ class Diagnoser:
             why = f"needs {', '.join(lacking)}" if lacking else h.moot(self.scene)
             s = Score(
                 h.name,
-                h.describe(self.scene.conv),
+                h.describe(self.scene),
                 Summary(tol),
                 Summary(0.0),
                 applicable=not why,
@@ -394,16 +413,18 @@ class Diagnoser:
             better = res < best
             best = np.where(better, res, best)
             best_name[better] = h.name
-        self._count_apart(got)
+        self._count_apart(got, best)
         fail = ~(best <= self.tol)
         self.unexplained += int(fail.sum())
         for k in np.flatnonzero(fail)[: max(0, WORST_ROWS - len(self.examples))]:
             self.examples.append((self.rows + int(k), best_name[k] or "none", float(best[k])))
         self.rows += n
 
-    def _count_apart(self, got: dict) -> None:
+    def _count_apart(self, got: dict, best: np.ndarray) -> None:
         """Count, per pair, the rows one explains and the other does not, and the rows both
-        explain with ω more than ``tol`` apart (relative to the second's)."""
+        explain with ω further apart (relative to the second's) than the data can see: the row's
+        best residual ``best`` ``(N,)``, or TIE_ULPS ulps."""
+        near = np.maximum(best, TIE_ULPS * np.finfo(np.float64).eps)
         for a, b in itertools.combinations(got, 2):
             (wa, ea), (wb, eb) = got[a], got[b]
             if not (ea.any() or eb.any()):
@@ -411,7 +432,7 @@ class Diagnoser:
             both = ea & eb
             apart = int((ea != eb).sum())
             if both.any():
-                apart += int((~(relative_error(wa[:, both], wb[:, both]) <= self.tol)).sum())
+                apart += int((~(relative_error(wa[:, both], wb[:, both]) <= near[both])).sum())
             self._apart[a, b] += apart
 
     def result(self) -> Diagnosis:
