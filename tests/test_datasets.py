@@ -96,7 +96,24 @@ def test_convert_dataset_directory_keeps_hive_folders_and_each_file_is_its_singl
     assert "converting 4 files" in err and "# hconv convert · 4 files" in err
     assert "says the dataset is complete" in err
     worst = m["worst_residual"]
-    assert f"worst residual {worst['value']:.3g} ({worst['file']}, data row {worst['row']})" in err
+    assert f"worst residual {worst['value']:.3g} (data/{worst['input']}, data row {worst['row']})" in err
+
+
+def test_convert_dataset_worst_residual_names_the_input_file(tmp_path, capsys, monkeypatch):
+    """The summary named the output, which a newcomer could not open beside the row they meant
+    to check (here another format); it names the input as IN spells it, the manifest both."""
+    monkeypatch.chdir(tmp_path)
+    _dataset(tmp_path / "data")
+    code, err = _hconv("convert", "data/date=*/part-0.parquet", "out", "--to", "csv", capsys=capsys)
+    assert code == 0, err
+    worst = _manifest(tmp_path / "out")["worst_residual"]
+    assert worst["input"] in ("date=2026-01-01/part-0.parquet", "date=2026-01-02/part-0.parquet")
+    assert worst["file"] == worst["input"].replace(".parquet", ".csv")
+    shown = f"worst residual {worst['value']:.3g} (data/{worst['input']}, data row {worst['row']})"
+    assert shown in " ".join(err.replace("#", "").split()), err
+    # the row is the input's: its residual, converted alone, is the worst
+    rows = pacsv.read_csv(tmp_path / "out" / worst["file"]).column("residual").to_pylist()
+    assert rows[worst["row"] - 1] == worst["value"] == max(rows)
 
 
 def test_convert_dataset_glob_takes_the_files_it_matches(tmp_path, capsys, monkeypatch):

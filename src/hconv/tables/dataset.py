@@ -138,7 +138,9 @@ class DatasetResult:
     pending: list[str]  #: inputs neither converted nor failed (an interrupted run)
     total: int  #: input files
     tally: Tally  #: the whole dataset's rows per status and worst residual; seconds: this run's
-    worst_file: str | None  #: the output holding the worst residual
+    #: the input file holding the worst residual, as IN names it (``data/part-0.csv``): the file
+    #: the user looks at for the row, which the output (perhaps in another format) only echoes
+    worst_file: str | None
     rows_converted: int  #: rows converted by this run
     seconds: float
 
@@ -522,7 +524,7 @@ def _written_before(plan: Plan) -> set[str]:
 
 def _manifest(plan: Plan, records: dict[str, FileRecord], failed: dict[str, HconvError], written: set[str]) -> dict:
     files = [records[f.rel] for f in plan.inputs if f.rel in records]
-    tally, worst_file = _sum(plan.job, files)
+    tally, worst = _sum(plan.job, files)
     return {
         "kind": MANIFEST_KIND,
         "version": MANIFEST_VERSION,
@@ -534,8 +536,8 @@ def _manifest(plan: Plan, records: dict[str, FileRecord], failed: dict[str, Hcon
         "rows": tally.rows,
         "statuses": tally.counts(),
         "worst_residual": None
-        if worst_file is None
-        else {"value": tally.worst_residual, "file": worst_file, "row": tally.worst_row},
+        if worst is None
+        else {"value": tally.worst_residual, "file": worst.output, "input": worst.input, "row": tally.worst_row},
         "files": [r.to_json() for r in files],
         "failed": [{"input": rel, "error": str(exc)} for rel, exc in failed.items()],
         "pending": [f.rel for f in plan.inputs if f.rel not in records and f.rel not in failed],
@@ -568,25 +570,25 @@ def _version() -> str:
     return __version__
 
 
-def _sum(job: Job, files: list[FileRecord]) -> tuple[Tally, str | None]:
-    """The whole dataset's tally from its files' records, and the output with the worst residual."""
+def _sum(job: Job, files: list[FileRecord]) -> tuple[Tally, FileRecord | None]:
+    """The whole dataset's tally from its files' records, and the file with the worst residual."""
     tally = Tally(methods.get(job.method).name, job.unit)
     index = {s: k for k, s in enumerate(status.STATUSES)}
-    worst_file = None
+    worst = None
     for r in files:
         for s, n in r.statuses.items():
             tally.per_status[index[s]] += n
         for e, n in r.engines.items():
             tally.engines[e] = tally.engines.get(e, 0) + n
         if r.worst_residual is not None and not r.worst_residual <= tally.worst_residual:
-            tally.worst_residual, tally.worst_row, worst_file = r.worst_residual, r.worst_row, r.output
+            tally.worst_residual, tally.worst_row, worst = r.worst_residual, r.worst_row, r
         tally.rows += r.rows
-    return tally, worst_file
+    return tally, worst
 
 
 def _result(plan: Plan, records: dict, failed: dict, converted: list[str], t0: float) -> DatasetResult:
     files = [records[f.rel] for f in plan.inputs if f.rel in records]
-    tally, worst_file = _sum(plan.job, files)
+    tally, worst = _sum(plan.job, files)
     seconds = time.perf_counter() - t0
     tally.seconds = seconds
     return DatasetResult(
@@ -599,7 +601,7 @@ def _result(plan: Plan, records: dict, failed: dict, converted: list[str], t0: f
         pending=[f.rel for f in plan.inputs if f.rel not in records and f.rel not in failed],
         total=len(plan.inputs),
         tally=tally,
-        worst_file=worst_file,
+        worst_file=None if worst is None else plan.src.place.name(worst.input),
         rows_converted=sum(records[rel].rows for rel in converted),
         seconds=seconds,
     )
