@@ -462,8 +462,16 @@ def test_one_cancellation_says_what_it_means_and_the_fix(capsys):
 @pytest.mark.parametrize(
     "given, needs, wanted",
     [
-        ([], "needs r, the centre of mass relative to the origin of H; the mass m; and v,", "--r rx,ry,rz --m MASS --v vx,vy,vz"),
-        (["--m", "1"], "needs r, the centre of mass relative to the origin of H; and v,", "pass --r rx,ry,rz --v vx,vy,vz"),
+        (
+            [],
+            "needs r, the centre of mass relative to the origin of H; the mass m; and v,",
+            "--r rx,ry,rz --m MASS --v vx,vy,vz",
+        ),
+        (
+            ["--m", "1"],
+            "needs r, the centre of mass relative to the origin of H; and v,",
+            "pass --r rx,ry,rz --v vx,vy,vz",
+        ),
         (["--m", "1", "--r", "1,0,0"], "needs v, the velocity", "pass --v vx,vy,vz"),
     ],
 )

@@ -667,7 +667,9 @@ def test_read_mjcf_include_missing_names_the_including_file_and_line(tmp_path):
     to guess."""
     (tmp_path / "parts").mkdir()
     (tmp_path / "m.xml").write_text("<mujoco><worldbody><include file='parts/arm.xml'/></worldbody></mujoco>")
-    (tmp_path / "parts" / "arm.xml").write_text("<mujoco>\n<body name='arm'/>\n<include file='parts/gone.xml'/></mujoco>")
+    (tmp_path / "parts" / "arm.xml").write_text(
+        "<mujoco>\n<body name='arm'/>\n<include file='parts/gone.xml'/></mujoco>"
+    )
     with pytest.raises(InputError) as e:
         models.read_model(tmp_path / "m.xml")
     msg = str(e.value)
@@ -686,7 +688,10 @@ def test_read_mjcf_include_missing_names_the_including_file_and_line(tmp_path):
             "<mujoco><worldbody>{b}<geom type='sphere' size='1'>\n<body name='lost'/></geom></worldbody></mujoco>",
             "line 2, <body> 'lost' is inside <geom> (",
         ),
-        ("<mujoco><worldbody>{b}</worldbody><body name='lost'><body/></body></mujoco>", "a fragment made for <include>?"),
+        (
+            "<mujoco><worldbody>{b}</worldbody><body name='lost'><body/></body></mujoco>",
+            "a fragment made for <include>?",
+        ),
     ],
 )
 def test_read_mjcf_body_outside_the_body_tree_is_a_note(tmp_path, text, says):

@@ -567,7 +567,11 @@ def _misplaced_bodies(root: Node, listed: set[int]) -> list[str]:
                     "includes it"
                 )
             else:
-                at = "" if (parent.file, parent.line) == (node.file, node.line) else f" ({parent.file}, line {parent.line})"
+                at = (
+                    ""
+                    if (parent.file, parent.line) == (node.file, node.line)
+                    else f" ({parent.file}, line {parent.line})"
+                )
                 why = (
                     f"is inside <{parent.tag}>{at}, where MuJoCo reads no body (it refuses the model), so "
                     "hconv does not list it; move it into <worldbody> or a <body>"
