@@ -153,17 +153,17 @@ def test_read_sdf_pose_in_radians_degrees_and_quaternions(tmp_path):
     I = cylinder(1.0, 0.1, 0.05)
     six = "".join(f"<{k}>{num(v)}</{k}>" for k, v in zip(("ixx", "iyy", "izz"), np.diag(I)))
 
-    def link(name, pose):
+    def sdf_link(name, pose):
         return f"<link name='{name}'><inertial>{pose}<mass>1</mass><inertia>{six}</inertia></inertial></link>"
 
     u, th = np.array([[0.2, -0.3, 0.9]]) / np.linalg.norm([0.2, -0.3, 0.9]), np.array([0.7])
     qw, qx, qy, qz = quats(u, th)[0]
     text = (
         "<sdf version='1.9'><model name='m'>"
-        + link("rad", "<pose>1 2 3 0.1 0.2 0.3</pose>")
-        + link("deg", "<pose degrees='true'>0 0 0 10 20 30</pose>")
-        + link("quat", f"<pose rotation_format='quat_xyzw'>0 0 0 {nums([qx, qy, qz, qw])}</pose>")
-        + link("none", "")
+        + sdf_link("rad", "<pose>1 2 3 0.1 0.2 0.3</pose>")
+        + sdf_link("deg", "<pose degrees='true'>0 0 0 10 20 30</pose>")
+        + sdf_link("quat", f"<pose rotation_format='quat_xyzw'>0 0 0 {nums([qx, qy, qz, qw])}</pose>")
+        + sdf_link("none", "")
         + "</model></sdf>"
     )
     got = by_name(model(tmp_path, "p.sdf", text))
@@ -178,26 +178,31 @@ def test_read_sdf_pose_in_radians_degrees_and_quaternions(tmp_path):
         assert_tensor(got[name].I_C_B, R @ I @ R.T)
 
 
+#: A 2 kg box, 0.1 × 0.2 × 0.3 m, about its centre: the SDF relative_to tests' inertia.
+SDF_BOX = box(2.0, 0.1, 0.2, 0.3)
+
+
+def sdf_link(name, pose, inertial_pose):
+    """An SDF link holding SDF_BOX, with the link's ``pose`` and the inertial's ``inertial_pose``."""
+    inertia = "".join(f"<{k}>{num(v)}</{k}>" for k, v in zip(("ixx", "iyy", "izz"), np.diag(SDF_BOX)))
+    return (
+        f"<link name='{name}'>{pose}<inertial>{inertial_pose}<mass>2</mass>"
+        f"<inertia>{inertia}</inertia></inertial></link>"
+    )
+
+
 def test_read_sdf_relative_to_follows_frames_links_and_joints(tmp_path):
-    I = box(2.0, 0.1, 0.2, 0.3)
-    inertia = "".join(f"<{k}>{num(v)}</{k}>" for k, v in zip(("ixx", "iyy", "izz"), np.diag(I)))
-
-    def link(name, pose, inertial_pose):
-        return (
-            f"<link name='{name}'>{pose}<inertial>{inertial_pose}<mass>2</mass>"
-            f"<inertia>{inertia}</inertia></inertial></link>"
-        )
-
+    I = SDF_BOX
     text = (
         "<sdf version='1.9'><model name='m'>"
-        + link("base", "<pose>0 0 1 0 0 0.5</pose>", "")
-        + link("a", "<pose relative_to='base'>1 0 0 0 0 0</pose>", "<pose relative_to='hub'>0 0 0.1 0 0 0</pose>")
+        + sdf_link("base", "<pose>0 0 1 0 0 0.5</pose>", "")
+        + sdf_link("a", "<pose relative_to='base'>1 0 0 0 0 0</pose>", "<pose relative_to='hub'>0 0 0.1 0 0 0</pose>")
         + "<frame name='hub' attached_to='a'><pose relative_to='a'>0.2 0 0 0.4 0 0</pose></frame>"
-        + link("b", "<pose>0 0 0 0 0 0</pose>", "<pose relative_to='base'>0 0 0 0 0 0</pose>")
-        + link("c", "", "<pose relative_to='j'>0 0 0 0 0 0</pose>")
+        + sdf_link("b", "<pose>0 0 0 0 0 0</pose>", "<pose relative_to='base'>0 0 0 0 0 0</pose>")
+        + sdf_link("c", "", "<pose relative_to='j'>0 0 0 0 0 0</pose>")
         + "<joint name='j' type='revolute'><parent>base</parent><child>c</child>"
         + "<pose>0 0.3 0 0 0.6 0</pose></joint>"
-        + link("d", "", "<pose relative_to='d'>0 0 0 0.7 0 0</pose>")
+        + sdf_link("d", "", "<pose relative_to='d'>0 0 0 0.7 0 0</pose>")
         + "</model></sdf>"
     )
     got = by_name(model(tmp_path, "f.sdf", text))
@@ -217,22 +222,14 @@ def test_read_sdf_relative_to_follows_frames_links_and_joints(tmp_path):
 def test_read_sdf_relative_to_a_nested_models_frame_is_placed(tmp_path):
     """inner::l and inner::f name frames of the nested model inner (SDF's scoping); before, any
     name with :: was unresolved_frame."""
-    I = box(2.0, 0.1, 0.2, 0.3)
-    inertia = "".join(f"<{k}>{num(v)}</{k}>" for k, v in zip(("ixx", "iyy", "izz"), np.diag(I)))
-
-    def link(name, pose, inertial_pose):
-        return (
-            f"<link name='{name}'>{pose}<inertial>{inertial_pose}<mass>2</mass>"
-            f"<inertia>{inertia}</inertia></inertial></link>"
-        )
-
+    I = SDF_BOX
     half_pi = num(math.pi / 2)
     text = (
         "<sdf version='1.9'><model name='m'>"
-        + link("a", "<pose>0 0 1 0 0 0</pose>", "<pose relative_to='inner::l'>0.5 0 0 0.3 0 0</pose>")
-        + link("b", "<pose>0 0 1 0 0 0</pose>", "<pose relative_to='inner::f'>0 0 0 0 0 0</pose>")
+        + sdf_link("a", "<pose>0 0 1 0 0 0</pose>", "<pose relative_to='inner::l'>0.5 0 0 0.3 0 0</pose>")
+        + sdf_link("b", "<pose>0 0 1 0 0 0</pose>", "<pose relative_to='inner::f'>0 0 0 0 0 0</pose>")
         + f"<model name='inner'><pose>1 0 0 0 0 {half_pi}</pose>"
-        + link("l", "<pose>0 2 0 0 0 0</pose>", "")
+        + sdf_link("l", "<pose>0 2 0 0 0 0</pose>", "")
         + "<frame name='f' attached_to='l'><pose relative_to='l'>0 0 0.2 0 0 0</pose></frame>"
         + "</model></model></sdf>"
     )
