@@ -18,23 +18,15 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
-import socket
 import subprocess
 import sys
 import tempfile
 import time
-import urllib.request
 from pathlib import Path
 
-from datasets import S3_ENV, run, write_dataset
+from datasets import S3_ENV, free_port, moto_server, run, write_dataset
 
 SRC = str(Path(__file__).resolve().parents[1] / "src")
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 class Cluster:
@@ -106,7 +98,8 @@ def compare(work: Path, src: str, dst: str, rows: int, env: dict | None = None, 
             _, reported = run([src, out(), "--cluster", cluster.address, "--threads", "1"], env)
             line(f"--cluster tcp:// ({workers} worker{'s' if workers > 1 else ''})", rows, reported, base, workers)
             if tasks and workers == 2:
-                print(f"  Dask's own cost per task (10,000 no-op tasks): {cluster.per_task_seconds(10_000) * 1e6:.0f} µs")
+                per_task = cluster.per_task_seconds(10_000)
+                print(f"  Dask's own cost per task (10,000 no-op tasks): {per_task * 1e6:.0f} µs")
         finally:
             cluster.close()
 
@@ -150,28 +143,11 @@ def main() -> None:
 
 
 def s3(work: Path, rows: int, files: int) -> None:
-    import importlib.util
-
-    if importlib.util.find_spec("moto") is None:
-        print("s3: skipped (pip install -e '.[test-s3]')")
-        return
     import pyarrow.fs as pafs
 
-    port = free_port()
-    server = subprocess.Popen(
-        [sys.executable, "-m", "moto.server", "-H", "127.0.0.1", "-p", str(port)],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
-    url = f"http://127.0.0.1:{port}"
-    try:
-        for _ in range(300):
-            try:
-                urllib.request.urlopen(url + "/", timeout=1).close()
-                break
-            except OSError:
-                time.sleep(0.1)
-        os.environ.update(S3_ENV)
+    with moto_server() as url:
+        if url is None:
+            return
         fs = pafs.S3FileSystem(endpoint_override=url, allow_bucket_creation=True)
         fs.create_dir("bench")
         write_dataset(work / "s3-data", rows, files)
@@ -180,9 +156,6 @@ def s3(work: Path, rows: int, files: int) -> None:
         )
         print(f"moto S3 server (one Python process on this machine), s3:// in and out, {rows:,} rows in {files} files")
         compare(work, "s3://bench/raw/", "s3://bench/conv", rows, env=dict(S3_ENV, AWS_ENDPOINT_URL=url))
-    finally:
-        server.terminate()
-        server.wait(timeout=10)
 
 
 if __name__ == "__main__":

@@ -81,6 +81,17 @@ def _start_worker(address: str, tmp: Path, name: str) -> subprocess.Popen:
     )
 
 
+def _driver(scheduler: str, cwd: Path) -> subprocess.Popen:
+    """``hconv convert data out --cluster SCHEDULER`` started in ``cwd``, seeing Ctrl-C as from a
+    terminal; one batch thread per task, so that a file takes long enough to be caught mid-way."""
+    return subprocess.Popen(
+        [sys.executable, "-m", "hconv", "convert", "data", "out", "--cluster", scheduler, "--threads", "1"],
+        cwd=cwd,
+        stderr=subprocess.PIPE,
+        preexec_fn=terminal_signals,
+    )
+
+
 def _wait_for_workers(address: str, n: int) -> None:
     with distributed.Client(address, timeout=20, set_as_default=False) as client:
         client.wait_for_workers(n, timeout=30)
@@ -157,11 +168,7 @@ def test_convert_cluster_worker_killed_midfile_loses_nothing_and_leaves_no_tempo
         data = tmp_path / "data"
         _write_dataset(data, files=6, rows=50_000)
         out = tmp_path / "out"
-        driver = subprocess.Popen(
-            [sys.executable, "-m", "hconv", "convert", "data", "out", "--cluster", scheduler, "--threads", "1"],
-            cwd=tmp_path,
-            stderr=subprocess.PIPE,
-        )
+        driver = _driver(scheduler, tmp_path)
         # kill the victim while it writes an output: its temporary file names its pid
         mark, deadline, killed = f".{victim.pid}-", time.time() + 60, False
         while not killed and driver.poll() is None and time.time() < deadline:
@@ -202,12 +209,7 @@ def test_convert_cluster_interrupt_writes_the_manifest_and_leaves_no_temporary(s
     data = tmp_path / "data"
     _write_dataset(data, files=8, rows=40_000)
     out = tmp_path / "out"
-    driver = subprocess.Popen(
-        [sys.executable, "-m", "hconv", "convert", "data", "out", "--cluster", scheduler, "--threads", "1"],
-        cwd=tmp_path,
-        stderr=subprocess.PIPE,
-        preexec_fn=terminal_signals,
-    )
+    driver = _driver(scheduler, tmp_path)
     deadline = time.time() + 60
     while not (out.exists() and any(out.rglob("*.parquet"))) and time.time() < deadline:
         time.sleep(0.005)
@@ -332,3 +334,13 @@ def test_remove_run_temporaries_takes_only_that_runs_files(tmp_path):
     assert tableio.remove_run_temporaries(str(tmp_path), "abc123") == []  # not recursive
     assert tableio.remove_run_temporaries(str(tmp_path), "abc123", recursive=True) == [str(ours)]
     assert other_run.exists() and no_run.exists() and not ours.exists()
+
+
+def test_convert_dataset_on_a_client_leaves_it_open(scheduler, tmp_path):
+    data = tmp_path / "data"
+    _write_dataset(data, files=2, rows=300)
+    with distributed.Client(scheduler, set_as_default=False) as client:
+        result = hconv.convert_dataset(data, tmp_path / "out", cluster=client)
+        assert result.ran_on == f"the Dask scheduler at {scheduler}, 2 workers" and result.complete
+        assert client.status == "running"  # the caller's client: used, not closed
+    _same_as_one_process(tmp_path / "out", data, tmp_path)
