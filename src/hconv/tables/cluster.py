@@ -158,7 +158,7 @@ class Session:
             raise UsageError(
                 f"{self.where} has no worker after {timeout:g} s; start one (dask worker ADDRESS)"
             ) from None
-        found = self.client.run(_hconv_version, on_error="return")
+        found = self.client.run(_prepare_worker, on_error="return")
         wrong = {w: v for w, v in found.items() if v != __version__}
         if wrong:
             worker, v = sorted(wrong.items())[0]
@@ -238,9 +238,13 @@ def _cli() -> bool:
     return option("threads") == "--threads"
 
 
-def _hconv_version() -> str:
+def _prepare_worker() -> str:
+    """On a worker: its allocator tuned as the hconv command's is (without it, block temporaries
+    are faulted in anew for every block: hconv.kernels.allocator); its hconv version."""
     from hconv import __version__
+    from hconv.kernels import allocator
 
+    allocator.tune()
     return __version__
 
 
