@@ -185,15 +185,18 @@ class Session:
             key = f"hconv-{self.run_id}-{k}"
             by_key[key] = task
             self.futures.append(self.client.submit(_convert_on_worker, task, *args, key=key, pure=False))
-        done = distributed.as_completed(self.futures, loop=self.client.loop)
+        handled = set()
         try:
-            for future in done:
+            for future in distributed.as_completed(self.futures, loop=self.client.loop):
                 task = by_key[future.key]
-                yield task, self._outcome(future, task, keep)
+                outcome = self._outcome(future, task, keep)
+                handled.add(future.key)
+                yield task, outcome
         except KeyboardInterrupt:
             stop.set()
+            # every task not handled yet, including those done but still queued in as_completed
+            waiting = [f for f in self.futures if f.key not in handled]
             with contextlib.suppress(Exception):  # a worker stops, finishes, or is lost: all fine now
-                waiting = list(done.futures)
                 for future in distributed.as_completed(waiting, timeout=STOP_WAIT_SECONDS, loop=self.client.loop):
                     self._outcome(future, by_key[future.key], keep)
             raise
