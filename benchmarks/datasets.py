@@ -13,6 +13,7 @@ and 1, over the 399 files more. docs/measurements.md keeps the figures.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import re
 import shutil
@@ -23,6 +24,7 @@ import sys
 import tempfile
 import time
 import urllib.request
+from collections.abc import Iterator
 from pathlib import Path
 
 import pyarrow as pa
@@ -86,17 +88,22 @@ def local(work: Path, rows: int, repeats: int) -> None:
     print(f"  per-file overhead: {per_file * 1e3:.1f} ms ((400 files - 1 file) / 399)")
 
 
-def s3(work: Path, rows: int, repeats: int) -> None:
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@contextlib.contextmanager
+def moto_server() -> Iterator[str | None]:
+    """The URL of a local moto S3 server, its credentials in the environment; None without moto."""
     import importlib.util
 
     if importlib.util.find_spec("moto") is None:
         print("s3: skipped (pip install -e '.[test-s3]')")
+        yield None
         return
-    import pyarrow.fs as pafs
-
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
+    port = free_port()
     server = subprocess.Popen(
         [sys.executable, "-m", "moto.server", "-H", "127.0.0.1", "-p", str(port)],
         stdout=subprocess.DEVNULL,
@@ -111,6 +118,18 @@ def s3(work: Path, rows: int, repeats: int) -> None:
             except OSError:
                 time.sleep(0.1)
         os.environ.update(S3_ENV)
+        yield url
+    finally:
+        server.terminate()
+        server.wait(timeout=10)
+
+
+def s3(work: Path, rows: int, repeats: int) -> None:
+    import pyarrow.fs as pafs
+
+    with moto_server() as url:
+        if url is None:
+            return
         fs = pafs.S3FileSystem(endpoint_override=url, allow_bucket_creation=True)
         fs.create_dir("bench")
         data = work / "s3-data"
@@ -132,9 +151,6 @@ def s3(work: Path, rows: int, repeats: int) -> None:
                 f"  {name:>14}: wall {wall:6.2f} s, reported {reported:6.2f} s, {rows / reported:12,.0f} rows/s, "
                 f"{reported / base:.2f}x local"
             )
-    finally:
-        server.terminate()
-        server.wait(timeout=10)
 
 
 def main() -> None:

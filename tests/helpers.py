@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import signal
+import socket
 import subprocess
 import sys
 
@@ -16,6 +17,21 @@ from hconv.kernels.metrics import relative_error
 from hconv.tools.scene import rotate_tensors
 
 EPS = np.finfo(np.float64).eps
+
+#: Credentials for the local S3-compatible server of the tests (conftest.py's ``s3`` fixture).
+S3_ENV = {
+    "AWS_ACCESS_KEY_ID": "testing",
+    "AWS_SECRET_ACCESS_KEY": "testing",
+    "AWS_DEFAULT_REGION": "us-east-1",
+    "AWS_EC2_METADATA_DISABLED": "true",  # never ask an instance-metadata address for credentials
+}
+
+
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 free now, for a server a test starts."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
 
 
 def mp_solve(I: np.ndarray, H: np.ndarray) -> np.ndarray:

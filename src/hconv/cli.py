@@ -22,7 +22,7 @@ import typer
 from typer.core import TyperCommand
 
 from hconv import errors, interrupts
-from hconv.errors import INTERRUPTED, HconvError, StrictError, UsageError
+from hconv.errors import INTERRUPTED, HconvError, StrictError, UsageError, option
 from hconv.kernels import allocator
 from hconv.solve import forms, options
 from hconv.solve.engines import ENGINES
@@ -550,6 +550,26 @@ def convert_cmd(
         help="an S3-compatible server for s3:// URIs (MinIO, Ceph, ...); "
         "default: AWS_ENDPOINT_URL_S3 or AWS_ENDPOINT_URL",
     ),
+    cluster: str | None = typer.Option(
+        None,
+        "--cluster",
+        metavar="local|tcp://HOST:PORT",
+        help="convert a dataset's files on Dask (pip install 'hconv[dask]'), one task per file: "
+        "local starts worker processes here; tcp://HOST:PORT uses a running scheduler, whose "
+        "workers must see IN and OUT (object storage, or a shared directory). --threads is then "
+        "each worker's",
+    ),
+    workers: int | None = typer.Option(
+        None,
+        "--workers",
+        help="with --cluster local: worker processes, each converting one file at a time; default: the cores available",
+    ),
+    cluster_timeout: float = typer.Option(
+        10.0,
+        "--cluster-timeout",
+        metavar="SECONDS",
+        help="how long a scheduler (and its first worker) may take to answer",
+    ),
 ) -> None:
     """Convert every row of a CSV or Parquet table, or of each file of a dataset; OUT gets the input
     columns, ω and diagnostics."""
@@ -559,11 +579,18 @@ def convert_cmd(
     kwargs: dict[str, Any] = dict(
         job=job, src_format=_value(from_), dst_format=_value(to), force=force, strict=strict, threads=threads
     )
+    if cluster is not None or workers is not None:
+        kwargs.update(cluster=cluster, workers=workers, cluster_timeout=cluster_timeout)
     if dataset.is_dataset(src, dst):
         _convert_dataset(src, dst, kwargs, endpoint_url, quiet)
         return
     if endpoint_url is not None:
         raise UsageError("--endpoint-url is for s3:// URIs; IN and OUT are local")
+    if cluster is not None or workers is not None:
+        raise UsageError(
+            f"{option('cluster')} converts a dataset's files; {src} is one file, converted here "
+            f"(give its directory, or a glob, to use {option('cluster')})"
+        )
     if sys.stderr.isatty() and dst != "-" and not quiet:
         with report.ProgressBar(f"converting {os.path.basename(src)}") as bar:  # the path crowded out the bar
             tally = pipeline.convert_file(src, dst, progress=bar, **kwargs)

@@ -228,6 +228,8 @@ def dataset_summary(result: DatasetResult, console: Console | None = None) -> No
     parts += [f"{len(result.pending):,} not reached"] if result.pending else []
     state = "complete" if result.complete else "not complete"
     note(console, f"files: {', '.join(parts)}; {result.manifest} says the dataset is {state}")
+    if result.ran_on:
+        note(console, f"converted on {result.ran_on}")
     rate = f", {result.rows_converted / result.seconds:,.0f} rows/s" if result.seconds > 0 and done else ""
     note(console, f"time {result.seconds:.3f} s ({result.rows_converted:,} rows converted{rate})")
 

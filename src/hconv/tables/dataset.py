@@ -30,7 +30,7 @@ import datetime
 import json
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -143,6 +143,7 @@ class DatasetResult:
     worst_file: str | None
     rows_converted: int  #: rows converted by this run
     seconds: float
+    ran_on: str | None = None  #: the Dask cluster the files were converted on, if any
 
     @property
     def complete(self) -> bool:
@@ -307,8 +308,13 @@ def convert_one(
     strict: bool = False,
     threads: int | None = None,
     done: Callable[[FileRecord], None] | None = None,
+    progress: Callable[[int, int | None], None] | None = None,
+    run: str | None = None,
 ) -> FileRecord:
     """Convert one input file into its output; raises HconvError subclasses naming the file.
+    ``progress`` is :func:`convert_file`'s; ``run`` tags the temporary files' names
+    (:func:`hconv.tables.storage.stage`). Paths are absolute, so that it runs from any working
+    directory, such as a cluster worker's.
 
     The file is converted into a temporary file (beside the output, or a local one for object
     storage), then committed: renamed into place, or uploaded. The commit and ``done(record)``
@@ -322,17 +328,17 @@ def convert_one(
     with contextlib.ExitStack() as cleanup:
         # Each temporary file is made and its removal registered with interrupts held, so that a
         # Ctrl-C cannot fall between the two; the long work that fills it can be interrupted.
-        local_in = name
+        local_in = src.path(rel)
         if not src.local:
             with interrupts.held():
-                local_in = storage.stage(kind="fetch")
+                local_in = storage.stage(kind="fetch", run=run)
                 cleanup.callback(_remove, local_in)
             etag = storage.fetch(src, rel, local_in)
-        target = dst.name(task.output)
+        target = dst.path(task.output)
         if dst.local:
             _make_folders(os.path.dirname(target), cleanup)
         with interrupts.held():
-            staged = storage.stage(target if dst.local else None)
+            staged = storage.stage(target if dst.local else None, run=run)
             cleanup.callback(_remove, staged)
         tally = convert_file(
             local_in,
@@ -343,6 +349,7 @@ def convert_one(
             job=job,
             strict=strict,
             threads=threads,
+            progress=progress,
             name=name,
         )
         worst = tally.worst_residual
@@ -362,7 +369,7 @@ def convert_one(
         )
         with interrupts.held():
             if dst.local:
-                _commit(staged, target, task.overwrite)
+                _commit(staged, target, task.overwrite, dst.name(task.output))
             else:
                 storage.put(staged, dst, task.output)
             record.seconds = time.perf_counter() - t0
@@ -371,14 +378,15 @@ def convert_one(
     return record
 
 
-def _commit(staged: str, target: str, overwrite: bool) -> None:
-    """Rename a finished output into place; refuse one that appeared since the plan was made."""
+def _commit(staged: str, target: str, overwrite: bool, shown: str) -> None:
+    """Rename a finished output into place; refuse one that appeared since the plan was made.
+    ``shown``: the output as messages name it."""
     if not overwrite and os.path.lexists(target):
-        raise OutputError(f"{target}: appeared while hconv was converting its input; move it away and run again")
+        raise OutputError(f"{shown}: appeared while hconv was converting its input; move it away and run again")
     try:
         os.replace(staged, target)
     except OSError as exc:
-        raise OutputError(f"{target}: could not be written ({exc.strerror or exc}); nothing was written") from None
+        raise OutputError(f"{shown}: could not be written ({exc.strerror or exc}); nothing was written") from None
 
 
 def _make_folders(folder: str, cleanup: contextlib.ExitStack) -> None:
@@ -435,6 +443,9 @@ def convert_dataset(
     endpoint_url: str | None = None,
     progress: Callable[[int, int], None] | None = None,
     log: Callable[[str], None] | None = None,
+    cluster: object = None,
+    workers: int | None = None,
+    cluster_timeout: float = 10.0,
 ) -> DatasetResult:
     """Convert every file of the dataset ``src`` (a directory, a glob or a URI) into ``dst`` (a
     directory or prefix), each at its relative path, and write the manifest last; see the module.
@@ -443,13 +454,20 @@ def convert_dataset(
     file again, and overwrite outputs the manifest does not list (nothing is ever deleted);
     ``endpoint_url``: an S3-compatible server (default: AWS_ENDPOINT_URL_S3, AWS_ENDPOINT_URL);
     ``progress(done, total)`` after each file to convert; ``log(line)`` for what the run decided
-    and for each failing file (``error: ...``). Raises :class:`DatasetError` after the run if a
-    file failed, KeyboardInterrupt (with what was kept) if interrupted, and HconvError subclasses
-    if the dataset cannot be read or written at all.
+    and for each failing file (``error: ...``); ``cluster``: convert the files on a Dask cluster
+    (:mod:`hconv.tables.cluster`, the ``hconv[dask]`` extra): ``"local"`` (``workers`` processes,
+    default one per core), a scheduler's address (``"tcp://HOST:PORT"``, given ``cluster_timeout``
+    seconds to answer) or a ``distributed.Client``; ``threads`` is then each worker's. Raises
+    :class:`DatasetError` after the run if a file failed, KeyboardInterrupt (with what was kept)
+    if interrupted, and HconvError subclasses if the dataset cannot be read or written at all.
     """
     t0 = time.perf_counter()
     check_job(job)
     check_threads(threads)  # before anything is written: a bad option fails the run, not each file
+    if cluster is not None or workers is not None:
+        from hconv.tables import cluster as dask_cluster  # dask, only when asked for
+
+        dask_cluster.check(cluster, workers, cluster_timeout)
     src_path, dst_path = os.fspath(src), os.fspath(dst)
     job = job or Job(method, precision, diagnostics)
     say = log or (lambda line: None)
@@ -474,37 +492,46 @@ def convert_dataset(
     # replaced, and claims the paths this run will write, so that a run killed outright leaves
     # outputs the next run knows as hconv's own.
     written = _written_before(plan) | {t.output for t in plan.todo}
-    if plan.todo:
-        _write_manifest(plan, records, failed, written, t0)
-    last = time.monotonic()
 
     def keep(rec: FileRecord) -> None:
         records[rec.input] = rec
         converted.append(rec.input)
 
-    try:
-        for k, task in enumerate(plan.todo):
-            try:
-                convert_one(task, plan.src.place, plan.dst, job, strict=strict, threads=threads, done=keep)
-            except HconvError as exc:
-                failed[task.input.rel] = exc
-                say(f"error: {exc}")
-            if progress is not None:
-                progress(k + 1, len(plan.todo))
-            if time.monotonic() - last > CHECKPOINT_SECONDS:
-                _write_manifest(plan, records, failed, written, t0)
-                last = time.monotonic()
-    except KeyboardInterrupt:
-        _write_manifest(plan, records, failed, written, t0)
-        kept = len(records)
-        raise KeyboardInterrupt(
-            f"interrupted; {kept} of {len(plan.inputs)} files are converted and listed in "
-            f"{plan.dst.name(MANIFEST)} (complete: false), and no other file was written; "
-            "run the same command again to convert the rest"
-        ) from None
+    ran_on = None
+    with contextlib.ExitStack() as stack:
+        if cluster is not None and plan.todo:
+            # connected (and the workers' hconv checked) before anything is written
+            session = stack.enter_context(dask_cluster.connect(cluster, workers, cluster_timeout, threads))
+            ran_on = session.describe()
+            say(f"running on {ran_on}")
+            outcomes = session.run(plan, keep, strict=strict)
+        else:
+            outcomes = _in_process(plan, keep, strict=strict, threads=threads)
+        if plan.todo:
+            _write_manifest(plan, records, failed, written, t0)
+        last = time.monotonic()
+        try:
+            for k, (task, error) in enumerate(outcomes):
+                if error is not None:
+                    failed[task.input.rel] = error
+                    say(f"error: {error}")
+                if progress is not None:
+                    progress(k + 1, len(plan.todo))
+                if time.monotonic() - last > CHECKPOINT_SECONDS:
+                    _write_manifest(plan, records, failed, written, t0)
+                    last = time.monotonic()
+        except KeyboardInterrupt:
+            _write_manifest(plan, records, failed, written, t0)
+            kept = len(records)
+            raise KeyboardInterrupt(
+                f"interrupted; {kept} of {len(plan.inputs)} files are converted and listed in "
+                f"{plan.dst.name(MANIFEST)} (complete: false), and no other file was written; "
+                "run the same command again to convert the rest"
+            ) from None
     if plan.todo or plan.refused or _manifest_stale(plan, records, failed):
         _write_manifest(plan, records, failed, written, t0)
     result = _result(plan, records, failed, converted, t0)
+    result.ran_on = ran_on
     if failed:
         codes = [exc.exit_code for exc in failed.values()]
         raise DatasetError(
@@ -514,6 +541,20 @@ def convert_dataset(
             result,
         )
     return result
+
+
+def _in_process(
+    plan: Plan, keep: Callable[[FileRecord], None], *, strict: bool, threads: int | None
+) -> Iterator[tuple[Task, HconvError | None]]:
+    """Convert the plan's files one after another in this process: (task, its error or None) for
+    each, its record handed to ``keep`` as its output is committed."""
+    for task in plan.todo:
+        try:
+            convert_one(task, plan.src.place, plan.dst, plan.job, strict=strict, threads=threads, done=keep)
+        except HconvError as exc:
+            yield task, exc
+        else:
+            yield task, None
 
 
 def _written_before(plan: Plan) -> set[str]:

@@ -319,14 +319,17 @@ def fetch(where: Place, rel: str, path: str) -> str | None:
     return etag.decode() if isinstance(etag, bytes) else etag
 
 
-def stage(beside: str | None = None, kind: str = "stage") -> str:
+def stage(beside: str | None = None, kind: str = "stage", run: str | None = None) -> str:
     """An empty temporary file: to convert into before the output is committed, beside the local
     output ``beside`` (renamed over it) or in the temporary directory (for :func:`put`); or, with
-    ``kind="fetch"``, to :func:`fetch` an input into. The caller removes it."""
+    ``kind="fetch"``, to :func:`fetch` an input into. ``run``: the tag of a run on a cluster, in
+    the name, so that the run can remove what its killed workers left
+    (:func:`hconv.tables.tableio.remove_run_temporaries`). The caller removes it."""
     if beside is None:
-        fd, path = tableio.temporary_file(f"hconv-{kind}-")
+        fd, path = tableio.temporary_file(tableio.run_prefix(f"hconv-{kind}-", run))
     else:
-        fd, path = tableio.temporary_file(f".{os.path.basename(beside)}.", os.path.dirname(beside) or ".")
+        prefix = tableio.run_prefix(f".{os.path.basename(beside)}.", run)
+        fd, path = tableio.temporary_file(prefix, os.path.dirname(beside) or ".")
     os.close(fd)
     return path
 

@@ -15,6 +15,7 @@ output gives them back exactly as they went in; into Parquet, the pipeline gives
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import difflib
 import io
@@ -312,9 +313,10 @@ def open_input(path: str, fmt: str, job: Job, name: str | None = None) -> Input:
 TEMP_SUFFIX = ".hconv-tmp"
 # .OUT.<token>-XXXXXXXX.hconv-tmp beside the output; hconv-stdin-/hconv-stdout-<token>-XXXXXXXX.hconv-tmp
 # in the temporary directory, and hconv-fetch-/hconv-stage- for a dataset's files on object storage
-# (hconv.tables.storage). <token> is pid-start-tag (_maker).
+# (hconv.tables.storage). <token> is pid-start-tag (_maker). A run on a cluster puts its run's tag,
+# run-<hex>., before the token (:func:`run_prefix`), so that it can remove what a killed worker left.
 _TEMP_NAME = re.compile(
-    r"^(?:\..+\.|hconv-(?:stdin|stdout|fetch|stage)-)(\d+)-(\d+)-([0-9a-f]{8})-[a-z0-9_]+\.hconv-tmp$"
+    r"^(?:\..+\.|hconv-(?:stdin|stdout|fetch|stage)-(?:run-[0-9a-f]+\.)?)(\d+)-(\d+)-([0-9a-f]{8})-[a-z0-9_]+\.hconv-tmp$"
 )
 
 
@@ -390,6 +392,35 @@ def remove_stale_temporaries(directory: str) -> list[str]:
         print(f"hconv: removed stale temporary file {path} left by a run that was killed (pid {pid})", file=sys.stderr)
         removed.append(path)
     return removed
+
+
+def run_prefix(prefix: str, run: str | None) -> str:
+    """``prefix`` for a temporary file of the run ``run`` (a tag of hex digits), if any."""
+    return f"{prefix}run-{run}." if run else prefix
+
+
+def remove_run_temporaries(directory: str, run: str, recursive: bool = False) -> list[str]:
+    """Remove the temporary files of the run ``run`` in ``directory`` (and below it, if
+    ``recursive``), whoever made them: those of a worker killed mid-file, which no other process
+    removes while the worker's host cannot tell that it has gone; returns their paths. Call it
+    only when no process of that run is still writing."""
+    tag = f"run-{run}."
+    removed = []
+    for folder, _dirs, names in os.walk(directory) if recursive else [(directory, [], _names(directory))]:
+        for name in names:
+            if name.endswith(TEMP_SUFFIX) and tag in name and _TEMP_NAME.match(name):
+                path = os.path.join(folder, name)
+                with contextlib.suppress(FileNotFoundError):
+                    os.unlink(path)
+                    removed.append(path)
+    return removed
+
+
+def _names(directory: str) -> list[str]:
+    try:
+        return os.listdir(directory)
+    except OSError:
+        return []
 
 
 def _mkstemp(prefix: str, directory: str | None = None) -> tuple[int, str]:

@@ -1,0 +1,298 @@
+"""A dataset's files converted on a Dask cluster: one task per file, each running
+:func:`hconv.tables.dataset.convert_one` on a worker, while the driver (the process that called
+:func:`~hconv.tables.dataset.convert_dataset`) collects the records and writes the manifest, as a
+run in one process does. Dask (``distributed``, the ``hconv[dask]`` extra) is imported only here,
+and only when a run asks for a cluster.
+
+Where the files are
+-------------------
+A worker reads the input and writes the output itself, so both must be where every worker sees
+them at the same path: object storage (the file system, with its endpoint, travels with each
+task; credentials come from each worker's environment), or a directory every worker mounts at
+the same path. Paths are absolute: a worker's working directory does not matter.
+
+What a task may do twice, and what a killed worker leaves
+---------------------------------------------------------
+Dask runs a task again when the worker running it dies. A task writes nothing but its own output,
+through a temporary file committed whole, so a second run writes the same bytes again: it may
+replace an output at its own path (one the first run committed before it died), which the
+manifest has claimed as hconv's own before any task started. A killed worker cannot remove its
+temporary file, and its host may be another machine, where :func:`hconv.tables.tableio.remove_stale_temporaries`
+cannot tell that it died; so every temporary file of a run carries the run's tag in its name, and
+the driver removes that run's leftovers in OUT, and each worker in its temporary directory, once
+no task runs (:meth:`Session.close`).
+
+Stopping
+--------
+On Ctrl-C the driver sets a Dask :class:`~distributed.Event` that every task checks between
+batches (at most every :data:`STOP_CHECK_SECONDS`): a task not yet started returns at once, one
+running removes its temporary file and stops. The driver waits for them (at most
+:data:`STOP_WAIT_SECONDS`), records the files committed meanwhile, writes the manifest, and
+removes the run's temporary files.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import importlib.util
+import re
+import tempfile
+import time
+import uuid
+from collections.abc import Callable, Iterator
+from typing import Any
+
+from hconv import errors
+from hconv.errors import HconvError, OutputError, UsageError, option
+from hconv.tables import tableio
+from hconv.tables.dataset import FileRecord, Plan, Task, convert_one
+from hconv.tables.pipeline import available_cores, default_threads
+from hconv.tables.storage import Place, first_line
+
+EXTRA = "pip install 'hconv[dask]'"
+#: --cluster's values besides "local": the address of a running Dask scheduler.
+_ADDRESS = re.compile(r"^(tcp|tls)://[^\s/:]+:\d+/?$")
+#: How often a running task asks whether the run was stopped: each asking is a round trip to the
+#: scheduler, so not every batch.
+STOP_CHECK_SECONDS = 0.5
+#: How long a stopped run waits for its running tasks to stop or finish (each stops at its next
+#: batch) before it gives up on them.
+STOP_WAIT_SECONDS = 30.0
+
+
+def dask_installed() -> bool:
+    return importlib.util.find_spec("distributed") is not None
+
+
+def check(cluster: object, workers: object, timeout: object) -> None:
+    """UsageError unless the cluster options make sense and Dask is installed; imports nothing."""
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise UsageError(f"{option('workers')} must be a whole number, 1 or more, got {workers!r}")
+    if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or not timeout > 0:
+        raise UsageError(f"{option('cluster_timeout')} must be a number of seconds above 0, got {timeout!r}")
+    if workers is not None and cluster is None:
+        raise UsageError(f"{option('workers')} sets how many workers {option('cluster', 'local')} starts; add that")
+    if workers is not None and cluster != "local":
+        raise UsageError(
+            f"{option('workers')} is for {option('cluster', 'local')}; a running scheduler has the workers "
+            "started for it (dask worker ADDRESS starts one more)"
+        )
+    if isinstance(cluster, str):
+        if cluster != "local" and not _ADDRESS.match(cluster):
+            raise UsageError(
+                f"{option('cluster')} must be local or a Dask scheduler's address such as tcp://HOST:8786, "
+                f"got {cluster!r}"
+            )
+    elif cluster is None or not hasattr(cluster, "submit"):
+        raise UsageError(f"{option('cluster')} must be 'local', a scheduler's address or a distributed.Client")
+    if not dask_installed():
+        raise UsageError(f"{option('cluster')} needs Dask: {EXTRA}")
+
+
+@contextlib.contextmanager
+def connect(cluster: object, workers: int | None, timeout: float, threads: int | None) -> Iterator[Session]:
+    """A session on the cluster ``cluster`` (see :func:`check`), its workers' hconv checked;
+    closed (and the run's temporary files removed) on the way out. ``threads``: batches each
+    task converts at once (default: a worker's cores shared among the tasks it runs at once)."""
+    import distributed
+
+    own: list[Any] = []  # what this session started, and so closes
+    client: Any
+    if isinstance(cluster, str) and cluster == "local":
+        cores = available_cores()
+        n = workers or cores
+        # one file at a time per worker; its batches on the cores left to it
+        threads = threads or max(1, cores // n)
+        local = distributed.LocalCluster(
+            n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=40
+        )
+        own.append(local)
+        client = distributed.Client(local, set_as_default=False)
+        own.insert(0, client)
+        where = "a local Dask cluster"
+    elif isinstance(cluster, str):
+        try:
+            client = distributed.Client(cluster, timeout=timeout, set_as_default=False)
+        except (OSError, TimeoutError) as exc:
+            why = "" if "timed out" in str(exc).lower() else f" ({first_line(exc)})"
+            raise UsageError(
+                f"{option('cluster', cluster)}: no Dask scheduler answered within {timeout:g} s{why}; "
+                f"start one there (dask scheduler), give its address, or raise {option('cluster_timeout')}"
+            ) from None
+        own.append(client)
+        where = f"the Dask scheduler at {cluster}"
+    else:
+        client = cluster
+        where = f"the Dask scheduler at {client.scheduler.address}"
+    session = Session(client, where, threads)
+    try:
+        session.check_workers(timeout)
+        yield session
+    finally:
+        session.close(own)
+
+
+class Session:
+    """One run's use of a cluster: its tasks, its stop event and its temporary files' tag."""
+
+    def __init__(self, client: Any, where: str, threads: int | None):
+        self.client = client
+        self.where = where
+        self.threads = threads
+        self.run_id = uuid.uuid4().hex[:12]
+        self.workers = 0
+        self.dst: Place | None = None
+        self.futures: list[Any] = []
+
+    def describe(self) -> str:
+        return f"{self.where}, {self.workers} worker" + ("s" if self.workers != 1 else "")
+
+    def check_workers(self, timeout: float) -> None:
+        """UsageError unless the cluster has a worker within ``timeout`` and each runs this hconv."""
+        from hconv import __version__
+
+        try:
+            self.client.wait_for_workers(1, timeout=timeout)
+        except (OSError, TimeoutError):
+            raise UsageError(
+                f"{self.where} has no worker after {timeout:g} s; start one (dask worker ADDRESS)"
+            ) from None
+        found = self.client.run(_prepare_worker, on_error="return")
+        wrong = {w: v for w, v in found.items() if v != __version__}
+        if wrong:
+            worker, v = sorted(wrong.items())[0]
+            has = f"runs hconv {v}" if isinstance(v, str) else f"cannot run hconv ({first_line(v)})"
+            raise UsageError(
+                f"{self.where}: worker {worker} {has} (this is hconv {__version__})"
+                f"{f' and {len(wrong) - 1} others too' if len(wrong) > 1 else ''}; "
+                f"install hconv {__version__} with its dask extra on every worker"
+            )
+        self.workers = len(found)
+
+    def run(
+        self, plan: Plan, keep: Callable[[FileRecord], None], *, strict: bool
+    ) -> Iterator[tuple[Task, HconvError | None]]:
+        """Submit one task per file to convert; (task, its error or None) as each completes, its
+        record handed to ``keep`` first. KeyboardInterrupt stops the tasks (see the module)."""
+        import distributed
+
+        self.dst = plan.dst
+        stop = distributed.Event(f"hconv-stop-{self.run_id}", client=self.client)
+        args = (plan.src.place, plan.dst, plan.job, strict, self.threads, self.run_id, stop.name, _cli())
+        by_key = {}
+        for k, task in enumerate(plan.todo):
+            key = f"hconv-{self.run_id}-{k}"
+            by_key[key] = task
+            self.futures.append(self.client.submit(_convert_on_worker, task, *args, key=key, pure=False))
+        handled = set()
+        try:
+            for future in distributed.as_completed(self.futures, loop=self.client.loop):
+                task = by_key[future.key]
+                outcome = self._outcome(future, task, keep)
+                handled.add(future.key)
+                yield task, outcome
+        except KeyboardInterrupt:
+            stop.set()
+            # every task not handled yet, including those done but still queued in as_completed
+            waiting = [f for f in self.futures if f.key not in handled]
+            with contextlib.suppress(Exception):  # a worker stops, finishes, or is lost: all fine now
+                for future in distributed.as_completed(waiting, timeout=STOP_WAIT_SECONDS, loop=self.client.loop):
+                    self._outcome(future, by_key[future.key], keep)
+            raise
+
+    @staticmethod
+    def _outcome(future: Any, task: Task, keep: Callable[[FileRecord], None]) -> HconvError | None:
+        try:
+            got = future.result()
+        except HconvError as exc:
+            return exc
+        except Exception as exc:  # noqa: BLE001 - Dask's own failures: a worker lost too often (KilledWorker)
+            if type(exc).__name__ != "KilledWorker":
+                raise
+            return OutputError(
+                f"{task.input.rel}: not converted: the workers running it died, {first_line(exc)}; "
+                "it may need more memory than a worker has"
+            )
+        if isinstance(got, FileRecord):
+            keep(got)
+            return None
+        return got  # an HconvError, or None: stopped before it was done
+
+    def close(self, own: list[Any]) -> None:
+        """Cancel what still waits, close what this session started, and remove the run's
+        temporary files: in OUT (local), and in each worker's temporary directory."""
+        if self.futures:
+            with contextlib.suppress(Exception):
+                self.client.cancel(self.futures)
+        with contextlib.suppress(Exception):  # a worker gone, or a scheduler lost: nothing to sweep there
+            self.client.run(_remove_run_temporaries, self.run_id, on_error="return")
+        for thing in own:
+            with contextlib.suppress(Exception):
+                thing.close()
+        # after the close, so that no task of a local cluster still writes
+        _remove_run_temporaries(self.run_id)
+        if self.dst is not None and self.dst.local:
+            tableio.remove_run_temporaries(self.dst.root, self.run_id, recursive=True)
+
+
+def _cli() -> bool:
+    """Whether messages are spelled for the command line, so that a worker's are too."""
+    return option("threads") == "--threads"
+
+
+def _prepare_worker() -> str:
+    """On a worker: its allocator tuned as the hconv command's is (without it, block temporaries
+    are faulted in anew for every block: hconv.kernels.allocator); its hconv version."""
+    from hconv import __version__
+    from hconv.kernels import allocator
+
+    allocator.tune()
+    return __version__
+
+
+def _remove_run_temporaries(run_id: str) -> list[str]:
+    return tableio.remove_run_temporaries(tempfile.gettempdir(), run_id)
+
+
+class _StopRequestedError(Exception):
+    """The run was stopped: raised between batches, so that the conversion cleans up."""
+
+
+def _convert_on_worker(
+    task: Task,
+    src: Place,
+    dst: Place,
+    job: Any,
+    strict: bool,
+    threads: int | None,
+    run_id: str,
+    stop_name: str,
+    cli: bool,
+) -> FileRecord | HconvError | None:
+    """One file, on a worker: its record, its error (returned, not raised, so that Dask keeps no
+    traceback for a file hconv names), or None if the run was stopped first."""
+    import distributed
+
+    stop = distributed.Event(stop_name)
+    asked = [time.monotonic()]
+
+    def check(done: int, total: int | None) -> None:
+        if time.monotonic() - asked[0] >= STOP_CHECK_SECONDS:
+            asked[0] = time.monotonic()
+            if stop.is_set():
+                raise _StopRequestedError
+
+    if stop.is_set():
+        return None
+    if threads is None:  # the worker's cores, shared among the tasks it runs at once
+        threads = max(1, default_threads() // max(1, distributed.get_worker().state.nthreads))
+    # the task may be a second run of one whose worker died after committing: see the module
+    task = dataclasses.replace(task, overwrite=True)
+    with errors.command_line() if cli else contextlib.nullcontext():
+        try:
+            return convert_one(task, src, dst, job, strict=strict, threads=threads, progress=check, run=run_id)
+        except HconvError as exc:
+            return exc
+        except _StopRequestedError:
+            return None

@@ -1,0 +1,346 @@
+"""``hconv convert IN OUT --cluster ...``: a dataset's files converted on Dask. The tests start a
+real scheduler and two workers as processes (one set for the module), run the real command in a
+subprocess, and compare every output with the one-process ``hconv convert`` of the same dataset,
+bit for bit; one test kills a worker mid-file, one interrupts the driver. They skip without Dask
+(``pip install -e '.[dask]'``)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pyarrow as pa
+import pyarrow.csv as pacsv
+import pyarrow.parquet as pq
+import pytest
+from helpers import S3_ENV, free_port, run_hconv, run_inprocess, terminal_signals
+
+import hconv
+from hconv.errors import UsageError
+from hconv.tables import tableio
+from hconv.tables.dataset import MANIFEST
+from hconv.tools.scene import make_scene
+
+distributed = pytest.importorskip("distributed")
+
+SRC = str(Path(__file__).resolve().parents[1] / "src")
+
+
+def _write_dataset(root: Path, files: int, rows: int) -> None:
+    """``files`` Parquet files in two hive partitions, a CSV, and files a dataset leaves out."""
+    table = pa.table(make_scene(files * rows, seed=3, cond_max=1e6))
+    for k in range(files):
+        path = root / f"day={k % 2}" / f"part-{k:03d}.parquet"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        pq.write_table(table.slice(k * rows, rows), path)
+    pacsv.write_csv(table.slice(0, rows), root / "day=0" / "extra.csv")
+    (root / "_SUCCESS").write_bytes(b"")
+
+
+def _files(root: Path) -> dict[str, bytes]:
+    return {p.relative_to(root).as_posix(): p.read_bytes() for p in root.rglob("*") if p.is_file()}
+
+
+def _same_as_one_process(out: Path, data: Path, tmp: Path) -> dict:
+    """Assert that every output in ``out`` is the one-process run's, bit for bit, and that no
+    temporary file is left; returns the manifest."""
+    ref = tmp / f"ref-{os.urandom(3).hex()}"
+    proc = run_hconv("convert", str(data), str(ref), "--quiet")
+    assert proc.returncode == 0, proc.stderr.decode()
+    got, want = _files(out), _files(ref)
+    assert [p for p in got if p.endswith(tableio.TEMP_SUFFIX)] == []
+    assert set(got) == set(want)
+    for rel in want:
+        if rel != MANIFEST:
+            assert got[rel] == want[rel], rel
+    m = json.loads(got[MANIFEST])
+    assert m["complete"] is True and m["failed"] == [] and m["pending"] == []
+    # what the outputs hold; the input's time and ETag are where it was read from, seconds vary
+    same = ("input", "output", "output_size", "rows", "statuses", "worst_residual", "worst_row", "engines")
+    for a, b in zip(m["files"], json.loads(want[MANIFEST])["files"]):
+        assert {k: a[k] for k in same} == {k: b[k] for k in same}
+    return m
+
+
+def _start_worker(address: str, tmp: Path, name: str) -> subprocess.Popen:
+    """A Dask worker process (no nanny: a SIGKILL ends it for good), one task at a time, with the
+    worktree's hconv and the S3 server's credentials."""
+    env = dict(os.environ, PYTHONPATH=SRC, **S3_ENV)
+    log = open(tmp / f"{name}.log", "wb")  # noqa: SIM115 - the process writes it until the fixture ends
+    return subprocess.Popen(
+        [sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads", "1", "--no-nanny"]
+        + ["--no-dashboard", "--name", name, "--local-directory", str(tmp / name)],
+        stdout=log,
+        stderr=log,
+        env=env,
+    )
+
+
+def _driver(scheduler: str, cwd: Path) -> subprocess.Popen:
+    """``hconv convert data out --cluster SCHEDULER`` started in ``cwd``, seeing Ctrl-C as from a
+    terminal; one batch thread per task, so that a file takes long enough to be caught mid-way."""
+    return subprocess.Popen(
+        [sys.executable, "-m", "hconv", "convert", "data", "out", "--cluster", scheduler, "--threads", "1"],
+        cwd=cwd,
+        stderr=subprocess.PIPE,
+        preexec_fn=terminal_signals,
+    )
+
+
+def _wait_for_workers(address: str, n: int) -> None:
+    with distributed.Client(address, timeout=20, set_as_default=False) as client:
+        client.wait_for_workers(n, timeout=30)
+
+
+def _stop(procs: list[subprocess.Popen]) -> None:
+    for p in procs:
+        if p.poll() is None:
+            p.terminate()
+    for p in procs:
+        try:
+            p.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait()
+
+
+@pytest.fixture(scope="module")
+def scheduler(tmp_path_factory):
+    """The address of a Dask scheduler with two workers, each its own process, for this module."""
+    tmp = tmp_path_factory.mktemp("dask")
+    address = f"tcp://127.0.0.1:{free_port()}"
+    log = open(tmp / "scheduler.log", "wb")  # noqa: SIM115
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1"]
+            + ["--port", address.rsplit(":", 1)[1], "--no-dashboard"],
+            stdout=log,
+            stderr=log,
+            env=dict(os.environ, PYTHONPATH=SRC),
+        )
+    ]
+    try:
+        procs += [_start_worker(address, tmp, f"w{k}") for k in range(2)]
+        _wait_for_workers(address, 2)
+        yield address
+    finally:
+        _stop(procs[::-1])
+
+
+def test_convert_cluster_tcp_is_bit_for_bit_the_one_process_run(scheduler, tmp_path):
+    data = tmp_path / "data"
+    _write_dataset(data, files=5, rows=2000)
+    proc = run_hconv("convert", "data", "out", "--cluster", scheduler, cwd=tmp_path)
+    err = proc.stderr.decode()
+    assert proc.returncode == 0, err
+    m = _same_as_one_process(tmp_path / "out", data, tmp_path)
+    assert m["inputs"] == 6 and m["hconv"] == hconv.__version__
+    assert f"converted on the Dask scheduler at {scheduler}, 2 workers" in err
+    assert "# files: 6 converted, 0 already up to date; out/_hconv_manifest.json says the dataset is complete" in err
+    again = run_hconv("convert", "data", "out", "--cluster", scheduler, cwd=tmp_path)
+    assert again.returncode == 0 and "all 6 files already converted and up to date" in again.stderr.decode()
+    assert "converted on" not in again.stderr.decode()  # nothing to convert: no cluster is asked
+
+
+def test_convert_cluster_failing_file_is_named_and_the_others_finish(scheduler, tmp_path):
+    data = tmp_path / "data"
+    _write_dataset(data, files=3, rows=500)
+    (data / "day=1" / "broken.parquet").write_bytes(b"not parquet at all")
+    proc = run_hconv("convert", "data", "out", "--cluster", scheduler, cwd=tmp_path)
+    err = proc.stderr.decode()
+    assert proc.returncode == 3, err
+    assert "hconv: error: data/day=1/broken.parquet: " in err and "Traceback" not in err
+    m = json.loads((tmp_path / "out" / MANIFEST).read_text())
+    assert m["complete"] is False and [f["input"] for f in m["failed"]] == ["day=1/broken.parquet"]
+    assert len(m["files"]) == 4
+    assert not [p for p in (tmp_path / "out").rglob("*") if p.name.endswith(tableio.TEMP_SUFFIX)]
+
+
+def test_convert_cluster_worker_killed_midfile_loses_nothing_and_leaves_no_temporary(scheduler, tmp_path):
+    victim = _start_worker(scheduler, tmp_path, "victim")
+    try:
+        _wait_for_workers(scheduler, 3)
+        data = tmp_path / "data"
+        _write_dataset(data, files=6, rows=50_000)
+        out = tmp_path / "out"
+        driver = _driver(scheduler, tmp_path)
+        # kill the victim while it writes an output: its temporary file names its pid
+        mark, deadline, killed = f".{victim.pid}-", time.time() + 60, False
+        while not killed and driver.poll() is None and time.time() < deadline:
+            killed = any(mark in p.name for p in out.rglob("*" + tableio.TEMP_SUFFIX)) if out.exists() else False
+            time.sleep(0.005)
+        assert killed, "the victim converted no file while the run lasted"
+        victim.kill()
+        _, err = driver.communicate(timeout=120)
+        assert driver.returncode == 0, err.decode()
+    finally:
+        _stop([victim])
+    m = _same_as_one_process(out, data, tmp_path)
+    assert m["inputs"] == 7
+
+
+def test_convert_cluster_s3_in_and_out_through_a_scheduler(scheduler, s3, tmp_path):
+    import pyarrow.fs as pafs
+
+    url, fs, bucket = s3
+    data = tmp_path / "data"
+    _write_dataset(data, files=3, rows=1000)
+    pafs.copy_files(str(data), f"{bucket}/raw", source_filesystem=pafs.LocalFileSystem(), destination_filesystem=fs)
+    args = (f"s3://{bucket}/raw/", f"s3://{bucket}/conv/", "--endpoint-url", url, "--cluster", scheduler)
+    proc = run_hconv("convert", *args, cwd=tmp_path)
+    err = proc.stderr.decode()
+    assert proc.returncode == 0, err
+    assert f"s3://{bucket}/conv/{MANIFEST} says the dataset is complete" in err
+    out = tmp_path / "out"
+    for info in fs.get_file_info(pafs.FileSelector(f"{bucket}/conv", recursive=True)):
+        if info.type == pafs.FileType.File:
+            (out / info.path.split("/conv/", 1)[1]).parent.mkdir(parents=True, exist_ok=True)
+            (out / info.path.split("/conv/", 1)[1]).write_bytes(fs.open_input_stream(info.path).read())
+    m = _same_as_one_process(out, data, tmp_path)
+    assert m["source"] == f"s3://{bucket}/raw"
+
+
+def test_convert_cluster_interrupt_writes_the_manifest_and_leaves_no_temporary(scheduler, tmp_path):
+    data = tmp_path / "data"
+    _write_dataset(data, files=8, rows=40_000)
+    out = tmp_path / "out"
+    driver = _driver(scheduler, tmp_path)
+    deadline = time.time() + 60
+    while not (out.exists() and any(out.rglob("*.parquet"))) and time.time() < deadline:
+        time.sleep(0.005)
+    driver.send_signal(signal.SIGINT)
+    _, err = driver.communicate(timeout=60)
+    lines = err.decode().strip().splitlines()
+    assert driver.returncode == 130, err.decode()
+    assert lines[-1].startswith("hconv: error: interrupted; ") and "Traceback" not in err.decode()
+    m = json.loads((out / MANIFEST).read_text())
+    assert m["complete"] is False and 1 <= len(m["files"]) < 9
+    listed = {f["output"] for f in m["files"]}
+    time.sleep(1.5)  # a task the driver lost track of would still be writing
+    written = {p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file()} - {MANIFEST}
+    assert written == listed  # every output there is listed; no temporary file
+    proc = run_hconv("convert", "data", "out", "--cluster", scheduler, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr.decode()
+    _same_as_one_process(out, data, tmp_path)
+
+
+def test_convert_cluster_local_starts_its_workers(tmp_path):
+    data = tmp_path / "data"
+    _write_dataset(data, files=2, rows=500)
+    proc = run_hconv("convert", "data", "out", "--cluster", "local", "--workers", "2", cwd=tmp_path)
+    err = proc.stderr.decode()
+    assert proc.returncode == 0, err
+    assert "converted on a local Dask cluster, 2 workers" in err
+    _same_as_one_process(tmp_path / "out", data, tmp_path)
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (
+            ("--cluster", "dask.example.com:8786"),
+            "--cluster must be local or a Dask scheduler's address such as tcp://HOST:8786, "
+            "got 'dask.example.com:8786'",
+        ),
+        (("--workers", "2"), "--workers sets how many workers --cluster local starts; add that"),
+        (("--cluster", "local", "--workers", "0"), "--workers must be a whole number, 1 or more, got 0"),
+        (
+            ("--cluster", "tcp://127.0.0.1:9", "--workers", "2"),
+            "--workers is for --cluster local; a running scheduler has the workers started for it "
+            "(dask worker ADDRESS starts one more)",
+        ),
+        (
+            ("--cluster", "local", "--cluster-timeout", "0"),
+            "--cluster-timeout must be a number of seconds above 0, got 0.0",
+        ),
+    ],
+)
+def test_convert_cluster_bad_options_fail_in_one_line(args, message, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    _write_dataset(tmp_path / "data", files=1, rows=10)
+    code, _, err = run_inprocess("convert", "data", "out", *args, capsys=capsys)
+    assert (code, err) == (2, f"hconv: error: {message}\n")
+    assert not (tmp_path / "out").exists()
+
+
+def test_convert_cluster_without_dask_names_the_extra(tmp_path, capsys, monkeypatch):
+    from hconv.tables import cluster
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(cluster, "dask_installed", lambda: False)
+    _write_dataset(tmp_path / "data", files=1, rows=10)
+    code, _, err = run_inprocess("convert", "data", "out", "--cluster", "local", capsys=capsys)
+    assert (code, err) == (2, "hconv: error: --cluster needs Dask: pip install 'hconv[dask]'\n")
+
+
+def test_convert_cluster_unreachable_scheduler_names_it_within_the_timeout(tmp_path):
+    _write_dataset(tmp_path / "data", files=1, rows=10)
+    address = f"tcp://127.0.0.1:{free_port()}"  # nothing listens there
+    t0 = time.perf_counter()
+    proc = run_hconv("convert", "data", "out", "--cluster", address, "--cluster-timeout", "1", cwd=tmp_path)
+    seconds = time.perf_counter() - t0
+    err = proc.stderr.decode().splitlines()
+    assert proc.returncode == 2 and err[-1] == (
+        f"hconv: error: --cluster {address}: no Dask scheduler answered within 1 s; start one there "
+        "(dask scheduler), give its address, or raise --cluster-timeout"
+    )
+    assert seconds < 8
+    assert not (tmp_path / "out").exists()
+
+
+class _FakeClient:
+    """What check_workers asks of a client: the workers, and each one's answer to a function."""
+
+    def __init__(self, answers: dict):
+        self.answers = answers
+
+    def wait_for_workers(self, n: int, timeout: float) -> None:
+        pass
+
+    def run(self, fn, on_error: str) -> dict:
+        return self.answers
+
+
+def test_check_workers_refuses_workers_of_another_hconv():
+    from hconv.tables import cluster
+
+    session = cluster.Session(_FakeClient({"tcp://10.0.0.2:4000": "0.0.1"}), "the Dask scheduler at tcp://x:1", None)
+    with pytest.raises(UsageError) as info:
+        session.check_workers(1.0)
+    assert str(info.value) == (
+        "the Dask scheduler at tcp://x:1: worker tcp://10.0.0.2:4000 runs hconv 0.0.1 "
+        f"(this is hconv {hconv.__version__}); install hconv {hconv.__version__} with its dask extra on every worker"
+    )
+    session = cluster.Session(_FakeClient({"tcp://w:1": ModuleNotFoundError("No module named 'hconv'")}), "s", None)
+    with pytest.raises(UsageError, match=r"worker tcp://w:1 cannot run hconv \(No module named 'hconv'\)"):
+        session.check_workers(1.0)
+    session = cluster.Session(_FakeClient({"tcp://w:1": hconv.__version__}), "s", None)
+    session.check_workers(1.0)
+    assert session.describe() == "s, 1 worker"
+
+
+def test_remove_run_temporaries_takes_only_that_runs_files(tmp_path):
+    (tmp_path / "d=1").mkdir()
+    ours = tmp_path / "d=1" / ".part.parquet.run-abc123.99999-0-0000abcd-x1.hconv-tmp"
+    other_run = tmp_path / ".part.parquet.run-def456.99999-0-0000abcd-x1.hconv-tmp"
+    no_run = tmp_path / ".part.parquet.99999-0-0000abcd-x1.hconv-tmp"
+    for p in (ours, other_run, no_run):
+        p.write_bytes(b"")
+    assert tableio.remove_run_temporaries(str(tmp_path), "abc123") == []  # not recursive
+    assert tableio.remove_run_temporaries(str(tmp_path), "abc123", recursive=True) == [str(ours)]
+    assert other_run.exists() and no_run.exists() and not ours.exists()
+
+
+def test_convert_dataset_on_a_client_leaves_it_open(scheduler, tmp_path):
+    data = tmp_path / "data"
+    _write_dataset(data, files=2, rows=300)
+    with distributed.Client(scheduler, set_as_default=False) as client:
+        result = hconv.convert_dataset(data, tmp_path / "out", cluster=client)
+        assert result.ran_on == f"the Dask scheduler at {scheduler}, 2 workers" and result.complete
+        assert client.status == "running"  # the caller's client: used, not closed
+    _same_as_one_process(tmp_path / "out", data, tmp_path)
