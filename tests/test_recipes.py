@@ -16,6 +16,7 @@ from __future__ import annotations
 import importlib
 import os
 import re
+import shlex
 import shutil
 import subprocess
 import sys
@@ -78,10 +79,17 @@ def _read(path: Path) -> pa.Table:
     return pa.concat_tables([pq.read_table(f) for f in files])
 
 
-def _run(recipe: str, *args: Path) -> str:
-    """Run docs/recipes/RECIPE as a user does; its stderr and stdout."""
+def _run(recipe: str, dataset: Path, cwd: Path) -> str:
+    """Run the command docs/recipes/RECIPE's docstring shows, word for word, as a user does from a
+    clone's root with the dataset in data/ (here ``cwd``, with ``docs`` and ``data`` linked in);
+    its stderr and stdout. Its output lands in ``cwd``."""
+    command = re.search(rf"^ +python (docs/recipes/{re.escape(recipe)} .*)$", (RECIPES / recipe).read_text(), re.M)
+    assert command, f"{recipe}: its docstring shows no 'python docs/recipes/{recipe} ...' command"
+    for name, target in (("docs", ROOT / "docs"), ("data", dataset)):
+        if not (cwd / name).exists():
+            (cwd / name).symlink_to(target, target_is_directory=True)
     proc = subprocess.run(
-        [sys.executable, str(RECIPES / recipe), *map(str, args)], capture_output=True, timeout=600, text=True
+        [sys.executable, *shlex.split(command.group(1))], capture_output=True, cwd=cwd, timeout=600, text=True
     )
     assert proc.returncode == 0, f"{recipe} failed:\n{proc.stdout}\n{proc.stderr}"
     return proc.stdout + proc.stderr
@@ -134,7 +142,7 @@ def _sorted(table: pa.Table) -> pa.Table:
 
 def test_duckdb_recipe_writes_what_hconv_convert_writes(dataset, reference, tmp_path):
     _engine("duckdb")
-    _run("duckdb_hconv.py", dataset / "*.parquet", tmp_path / "omega.parquet")
+    _run("duckdb_hconv.py", dataset, tmp_path)
     got = _read(tmp_path / "omega.parquet")
     assert_same_rows(got, reference)
     assert got.schema.equals(reference.schema, check_metadata=True)
@@ -143,7 +151,7 @@ def test_duckdb_recipe_writes_what_hconv_convert_writes(dataset, reference, tmp_
 
 def test_polars_recipe_writes_what_hconv_convert_writes(dataset, reference, tmp_path):
     _engine("polars")
-    _run("polars_hconv.py", dataset / "*.parquet", tmp_path / "omega.parquet")
+    _run("polars_hconv.py", dataset, tmp_path)
     got = _read(tmp_path / "omega.parquet")
     assert_same_rows(got, reference)
     assert_same_units(tmp_path / "omega.parquet", reference)
@@ -153,7 +161,7 @@ def test_polars_recipe_writes_what_hconv_convert_writes(dataset, reference, tmp_
 
 def test_dask_recipe_writes_what_hconv_convert_writes_in_files_that_sort(dataset, reference, tmp_path):
     _engine("dask.dataframe")
-    _run("dask_hconv.py", dataset, tmp_path / "omega")
+    _run("dask_hconv.py", dataset, tmp_path)
     names = sorted(p.name for p in (tmp_path / "omega").glob("*.parquet"))
     assert names == [f"part-{k:05d}.parquet" for k in range(FILES)]
     got = _read(tmp_path / "omega")
@@ -166,7 +174,7 @@ def test_dask_recipe_writes_what_hconv_convert_writes_in_files_that_sort(dataset
 @pytest.mark.engines_slow
 def test_ray_data_recipe_writes_hconv_converts_rows(dataset, reference, tmp_path):
     _engine("ray.data")
-    _run("ray_data_hconv.py", dataset, tmp_path / "omega")
+    _run("ray_data_hconv.py", dataset, tmp_path)
     got = _read(tmp_path / "omega")
     # Ray does not promise the order (the recipe says so): the same rows, in any order
     assert_same_rows(_sorted(got), _sorted(reference))
@@ -177,7 +185,7 @@ def test_ray_data_recipe_writes_hconv_converts_rows(dataset, reference, tmp_path
 @pytest.mark.engines_slow
 def test_ray_tasks_recipe_writes_what_hconv_convert_writes_file_by_file(dataset, reference, tmp_path):
     _engine("ray")
-    out = _run("ray_tasks_hconv.py", dataset, tmp_path / "omega")
+    out = _run("ray_tasks_hconv.py", dataset, tmp_path)
     assert f"{reference.num_rows} rows in {FILES} files" in out
     assert sorted(p.name for p in (tmp_path / "omega").iterdir()) == sorted(p.name for p in dataset.iterdir())
     got = _read(tmp_path / "omega")
@@ -189,7 +197,7 @@ def test_ray_tasks_recipe_writes_what_hconv_convert_writes_file_by_file(dataset,
 @pytest.mark.engines_slow
 def test_spark_recipe_writes_hconv_converts_rows_in_order_with_the_units_in_sparks_schema(dataset, reference, tmp_path):
     _engine("pyspark.sql")
-    _run("spark_hconv.py", dataset, tmp_path / "omega")
+    _run("spark_hconv.py", dataset, tmp_path)
     got = _read(tmp_path / "omega")
     assert_same_rows(got, reference)
     assert got.schema.field("status").type == pa.string()
@@ -217,3 +225,26 @@ def test_recipes_doc_quotes_every_recipe_file_word_for_word():
 
 def test_readme_links_the_recipes():
     assert "(docs/recipes.md)" in (ROOT / "README.md").read_text(encoding="utf-8")
+
+
+def test_recipes_doc_try_block_runs_word_for_word_from_a_clones_root(tmp_path):
+    _engine("duckdb")
+    block = re.search(r"^```sh\n(.*?)^```", DOC.read_text(encoding="utf-8"), re.S | re.M)
+    assert block, "docs/recipes.md shows no sh block to try the recipes with"
+    lines = block.group(1).splitlines()
+    assert lines[0] == "pip install -e '.[recipes]'"  # done: the tests run in that environment
+    (tmp_path / "docs").symlink_to(ROOT / "docs", target_is_directory=True)
+    # the environment's python and hconv first on PATH, as in an activated virtual environment
+    path = f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}"
+    for line in lines[1:]:
+        proc = subprocess.run(
+            ["bash", "-ec", line],
+            cwd=tmp_path,
+            capture_output=True,
+            text=True,
+            timeout=300,
+            env={**os.environ, "PATH": path},
+        )
+        assert proc.returncode == 0, f"{line}\n{proc.stdout}\n{proc.stderr}"
+    got = pq.read_table(tmp_path / "omega.parquet")
+    assert got.num_rows == 6000 and hconv.units_of(tmp_path / "omega.parquet")["wx"] == "rad/s"
