@@ -252,3 +252,53 @@ def test_hconvs_writer_takes_its_settings_from_parquet_write_options(tmp_path, m
     convert_file(str(EXAMPLES / "scene.parquet"), str(tmp_path / "out.parquet"))
     assert len(asked) == 1 and asked[0].names[-3:] == ["residual", "cond", "status"]
     assert {(c, d) for _, c, d in _chunk_settings(tmp_path / "out.parquet")} == {("GZIP", False)}
+
+
+def _with_unit(table: pa.Table, column: str, unit: str) -> pa.Table:
+    k = table.schema.get_field_index(column)
+    return table.cast(table.schema.set(k, table.schema.field(k).with_metadata({"unit": unit})))
+
+
+def test_units_of_a_schema_is_every_stored_unit_in_column_order():
+    schema = _with_unit(_with_unit(_table(), "Iyy", "g*cm**2"), "Hx", "g*cm**2/s").schema
+    assert list(hconv.units_of(schema).items()) == [("Hx", "g*cm**2/s"), ("Iyy", "g*cm**2")]
+    out = hconv.output_schema(schema)
+    assert hconv.units_of(out)["wx"] == "rad/s" and hconv.units_of(out)["Ixx"] == "kg*m**2"
+
+
+def test_units_of_files_reads_every_footer_of_a_file_directory_or_glob(tmp_path):
+    (tmp_path / "d=1").mkdir()
+    pq.write_table(_with_unit(_table(), "Ixx", "g*cm**2"), tmp_path / "d=1" / "a.parquet")
+    pq.write_table(_with_unit(_table(), "Hx", "g*cm**2/s"), tmp_path / "b.parquet")
+    (tmp_path / "_SUCCESS").write_text("")  # an engine's marker, and a CSV, have no footer to read
+    (tmp_path / "c.csv").write_text("Hx\n1\n")
+    both = {"Hx": "g*cm**2/s", "Ixx": "g*cm**2"}
+    assert hconv.units_of(tmp_path) == hconv.units_of(str(tmp_path / "**" / "*.parquet")) == both
+    assert hconv.units_of(tmp_path / "b.parquet") == {"Hx": "g*cm**2/s"}
+
+
+def test_units_of_files_refuses_a_column_stored_in_two_units_naming_both_files(tmp_path):
+    pq.write_table(_with_unit(_table(), "Ixx", "g*cm**2"), tmp_path / "a.parquet")
+    pq.write_table(_with_unit(_table(), "Ixx", "kg*m**2"), tmp_path / "b.parquet")
+    want = f"{tmp_path}/b.parquet: column 'Ixx' is in kg*m**2, but in g*cm**2 in {tmp_path}/a.parquet; convert"
+    with pytest.raises(InputError, match=re.escape(want)):
+        hconv.units_of(tmp_path)
+
+
+def test_units_of_refuses_what_it_cannot_read(tmp_path):
+    with pytest.raises(UsageError, match="units_of takes a pyarrow Schema or the path of Parquet files, got Table"):
+        hconv.units_of(_table())
+    with pytest.raises(InputError, match="does not exist; check the path"):
+        hconv.units_of(tmp_path / "none")
+    (tmp_path / "bad.parquet").write_bytes(b"not parquet")
+    with pytest.raises(InputError, match=re.escape(f"{tmp_path}/bad.parquet: cannot read its Parquet footer (")):
+        hconv.units_of(tmp_path)
+
+
+def test_convert_table_with_units_of_gives_what_the_dropped_metadata_gave(tmp_path):
+    stored = _with_unit(_table(), "Ixx", "g*cm**2")
+    pq.write_table(stored, tmp_path / "a.parquet")
+    bare = pa.table(stored.columns, names=stored.column_names)  # what an engine that drops metadata hands on
+    job = hconv.Job(field_units=hconv.units_of(tmp_path))
+    assert hconv.convert_table(bare, job=job).equals(hconv.convert_table(stored))
+    assert not hconv.convert_table(bare).equals(hconv.convert_table(stored))

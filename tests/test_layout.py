@@ -4,6 +4,7 @@ length one batch fixes for the whole file."""
 from __future__ import annotations
 
 import dataclasses
+import json
 import re
 
 import numpy as np
@@ -178,3 +179,53 @@ def test_plan_quat_order_with_named_quaternion_columns_is_refused():
     with pytest.raises(UsageError, match=r"quat_order='xyzw' orders a list column q, but this input names"):
         layout.plan(schema, Job(quat_order="xyzw"), "x.csv")
     assert layout.plan(schema, Job(), "x.csv").groups["q"].columns == ("qw", "qx", "qy", "qz")
+
+
+def _spark_schema(fields: list, units: dict) -> pa.Schema:
+    """A schema as pyarrow reads a Parquet file Spark wrote: bare fields, and Spark's own schema,
+    field metadata included, in the file's metadata."""
+    spark = {"type": "struct", "fields": [{"name": n, "metadata": {"unit": u}} for n, u in units.items()]}
+    return pa.schema(fields, metadata={layout.SPARK_SCHEMA_KEY: json.dumps(spark).encode()})
+
+
+def test_stored_units_reads_field_metadata_then_sparks_schema_in_column_order():
+    fields = [
+        pa.field("Ixx", pa.float64()),
+        pa.field("Hx", pa.float64(), metadata={"unit": "g*cm**2/s"}),
+        pa.field("id", pa.int64()),
+    ]
+    assert layout.stored_units(pa.schema(fields)) == {"Hx": "g*cm**2/s"}
+    # Spark's unit where the field has none; the field's own where it has one
+    spark = _spark_schema(fields, {"Hx": "kg*m**2/s", "Ixx": "g*cm**2"})
+    assert list(layout.stored_units(spark).items()) == [("Ixx", "g*cm**2"), ("Hx", "g*cm**2/s")]
+
+
+def test_stored_units_of_file_metadata_that_is_not_sparks_schema_is_none():
+    for junk in (b"not json", b"[1, 2]", b'{"fields": [{"metadata": {"unit": "m"}}]}', b'{"fields": 3}'):
+        schema = pa.schema([pa.field("Hx", pa.float64())], metadata={layout.SPARK_SCHEMA_KEY: junk})
+        assert layout.stored_units(schema) == {}
+
+
+def test_plan_reads_sparks_units_as_field_metadata():
+    names = ("Hx", "Hy", "Hz", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz")
+    schema = _spark_schema([pa.field(c, pa.float64()) for c in names], {"Ixx": "g*cm**2"})
+    got = layout.plan(schema, Job(), "spark.parquet").groups["I"]
+    assert got.units[0] == "g*cm**2" and got.factors[0] == pytest.approx(1e-7)
+    assert got.factors[1:] == (1.0,) * 5
+
+
+def test_plan_field_units_stand_in_for_dropped_metadata_after_unit_options_and_the_fields_own():
+    names = ("Hx", "Hy", "Hz", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz")
+    fields = [pa.field(c, pa.float64(), metadata={"unit": "kg*m**2"} if c == "Iyy" else None) for c in names]
+    dropped = {"Ixx": "g*cm**2", "Iyy": "g*cm**2", "Izz": "g*cm**2", "id": "1", "elsewhere": "m"}
+    job = Job(field_units=dropped, unit_options={"Izz": "kg*m**2"})
+    I = layout.plan(pa.schema(fields), job, "engine").groups["I"]
+    # Ixx from field_units; Iyy's own metadata and Izz's --unit win; columns not read are left alone
+    assert I.units[:3] == ("g*cm**2", "kg*m**2", "kg*m**2")
+    assert I.factors[:3] == pytest.approx((1e-7, 1.0, 1.0))
+
+
+def test_plan_field_units_refuses_a_unit_of_the_wrong_kind_naming_the_keyword():
+    names = ("Hx", "Hy", "Hz", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz")
+    with pytest.raises(UsageError, match=re.escape("field_units={'Ixx': 'm/s'}")):
+        layout.plan(pa.schema([(c, pa.float64()) for c in names]), Job(field_units={"Ixx": "m/s"}), "engine")

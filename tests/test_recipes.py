@@ -3,15 +3,20 @@ and each, run as a user runs it on the real engine, writes what ``hconv convert`
 same files: the same rows in the same order, every value to the bit, the statuses, and ω's unit.
 
 Each test skips when its engine is not installed (``pip install -e '.[recipes]'``; Spark also
-needs Java). The dataset is twelve files from ``hconv generate``, so that a directory of output
+needs Java); CI installs every engine, so none skips there. The Ray and Spark tests, 5 to 25 s
+each, are marked ``engines_slow``: ``pytest -m "not engines_slow"`` leaves them out locally.
+The dataset is twelve files from ``hconv generate``, so that a directory of output
 files whose names do not sort (part.10 before part.2) shows, with rows flagged singular (ω NaN)
-and ill_conditioned among the ok ones.
+and ill_conditioned among the ok ones, and with the inertia stored in g·cm² (field metadata
+``unit``), so that a recipe whose engine drops that metadata and reads it in SI is caught.
 """
 
 from __future__ import annotations
 
-import json
+import importlib
+import os
 import re
+import shlex
 import shutil
 import subprocess
 import sys
@@ -23,6 +28,7 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 import pytest
 
+import hconv
 from hconv.tables.pipeline import convert_file
 from hconv.tools.generate import generate_file
 
@@ -30,15 +36,23 @@ ROOT = Path(__file__).resolve().parents[1]
 RECIPES = ROOT / "docs" / "recipes"
 DOC = ROOT / "docs" / "recipes.md"
 FILES = 12
+INERTIA = ("Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz")
 
 
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory) -> Path:
-    """Twelve Parquet files of 2,000 to 4,750 rows, named so that they sort."""
+    """Twelve Parquet files of 2,000 to 4,750 rows, named so that they sort, the inertia in g·cm²."""
     folder = tmp_path_factory.mktemp("recipes") / "in"
     folder.mkdir()
     for k in range(FILES):
-        generate_file(str(folder / f"part-{k:02d}.parquet"), 2000 + 250 * k, seed=k, cond_max=1e17)
+        path = folder / f"part-{k:02d}.parquet"
+        generate_file(str(path), 2000 + 250 * k, seed=k, cond_max=1e17)
+        table = pq.read_table(path)
+        for c in INERTIA:
+            i = table.schema.get_field_index(c)
+            g_cm2 = pc.multiply(table.column(c), 1e7)
+            table = table.set_column(i, pa.field(c, pa.float64(), metadata={"unit": "g*cm**2"}), g_cm2)
+        pq.write_table(table, path)
     return folder
 
 
@@ -54,6 +68,7 @@ def reference(dataset) -> pa.Table:
     # rows of every kind: ok, ill_conditioned, and singular with ω NaN
     assert {"ok", "ill_conditioned", "singular"} <= set(_plain(table.column("status")).to_pylist())
     assert np.isnan(table.column("wx").to_numpy()).any()
+    assert hconv.units_of(table.schema)["Ixx"] == "g*cm**2"
     return table
 
 
@@ -64,10 +79,17 @@ def _read(path: Path) -> pa.Table:
     return pa.concat_tables([pq.read_table(f) for f in files])
 
 
-def _run(recipe: str, *args: Path) -> str:
-    """Run docs/recipes/RECIPE as a user does; its stderr and stdout."""
+def _run(recipe: str, dataset: Path, cwd: Path) -> str:
+    """Run the command docs/recipes/RECIPE's docstring shows, word for word, as a user does from a
+    clone's root with the dataset in data/ (here ``cwd``, with ``docs`` and ``data`` linked in);
+    its stderr and stdout. Its output lands in ``cwd``."""
+    command = re.search(rf"^ +python (docs/recipes/{re.escape(recipe)} .*)$", (RECIPES / recipe).read_text(), re.M)
+    assert command, f"{recipe}: its docstring shows no 'python docs/recipes/{recipe} ...' command"
+    for name, target in (("docs", ROOT / "docs"), ("data", dataset)):
+        if not (cwd / name).exists():
+            (cwd / name).symlink_to(target, target_is_directory=True)
     proc = subprocess.run(
-        [sys.executable, str(RECIPES / recipe), *map(str, args)], capture_output=True, timeout=600, text=True
+        [sys.executable, *shlex.split(command.group(1))], capture_output=True, cwd=cwd, timeout=600, text=True
     )
     assert proc.returncode == 0, f"{recipe} failed:\n{proc.stdout}\n{proc.stderr}"
     return proc.stdout + proc.stderr
@@ -93,8 +115,25 @@ def assert_same_rows(got: pa.Table, want: pa.Table) -> None:
             assert a.cast(b.type).equals(b), name
 
 
-def _units(schema: pa.Schema) -> dict:
-    return {f.name: (f.metadata or {}).get(b"unit", b"").decode() for f in schema if f.name in ("wx", "wy", "wz")}
+def _engine(module: str) -> None:
+    """Skip without the engine, except where every engine must run: .ci/run installs them all and
+    sets HCONV_ALL_ENGINES, so that a missing one fails there rather than skip unseen."""
+    java = module != "pyspark.sql" or shutil.which("java") is not None
+    if os.environ.get("HCONV_ALL_ENGINES"):
+        importlib.import_module(module)
+        assert java, "Spark needs Java, which .ci/run installs: did its apt-get fail?"
+        return
+    pytest.importorskip(module)
+    if not java:
+        pytest.skip("Spark needs Java (apt-get install openjdk-17-jre-headless)")
+
+
+def assert_same_units(out: Path, want: pa.Table) -> None:
+    """Every column's unit as ``hconv convert`` stores it, ω's and the inertia's in g·cm² among them,
+    read back from OUT as a reader would (hconv.units_of, which also reads Spark's schema)."""
+    got = hconv.units_of(out)
+    assert got == hconv.units_of(want.schema)
+    assert [got[c] for c in ("wx", "wy", "wz", "Ixx")] == ["rad/s"] * 3 + ["g*cm**2"]
 
 
 def _sorted(table: pa.Table) -> pa.Table:
@@ -102,66 +141,68 @@ def _sorted(table: pa.Table) -> pa.Table:
 
 
 def test_duckdb_recipe_writes_what_hconv_convert_writes(dataset, reference, tmp_path):
-    pytest.importorskip("duckdb")
-    _run("duckdb_hconv.py", dataset / "*.parquet", tmp_path / "omega.parquet")
+    _engine("duckdb")
+    _run("duckdb_hconv.py", dataset, tmp_path)
     got = _read(tmp_path / "omega.parquet")
     assert_same_rows(got, reference)
     assert got.schema.equals(reference.schema, check_metadata=True)
+    assert_same_units(tmp_path / "omega.parquet", reference)
 
 
 def test_polars_recipe_writes_what_hconv_convert_writes(dataset, reference, tmp_path):
-    pytest.importorskip("polars")
-    _run("polars_hconv.py", dataset / "*.parquet", tmp_path / "omega.parquet")
+    _engine("polars")
+    _run("polars_hconv.py", dataset, tmp_path)
     got = _read(tmp_path / "omega.parquet")
     assert_same_rows(got, reference)
-    assert _units(got.schema) == _units(reference.schema) == dict.fromkeys(("wx", "wy", "wz"), "rad/s")
+    assert_same_units(tmp_path / "omega.parquet", reference)
     assert got.schema.field("status").type == reference.schema.field("status").type
     assert got.schema.field("body").type == pa.large_string()  # Polars' text
 
 
 def test_dask_recipe_writes_what_hconv_convert_writes_in_files_that_sort(dataset, reference, tmp_path):
-    pytest.importorskip("dask.dataframe")
-    _run("dask_hconv.py", dataset, tmp_path / "omega")
+    _engine("dask.dataframe")
+    _run("dask_hconv.py", dataset, tmp_path)
     names = sorted(p.name for p in (tmp_path / "omega").glob("*.parquet"))
     assert names == [f"part-{k:05d}.parquet" for k in range(FILES)]
     got = _read(tmp_path / "omega")
     assert_same_rows(got, reference)
-    assert _units(got.schema) == _units(reference.schema)
+    assert_same_units(tmp_path / "omega", reference)
     assert got.schema.field("status").type == reference.schema.field("status").type
     assert got.schema.field("Ixx").metadata == reference.schema.field("Ixx").metadata
 
 
+@pytest.mark.engines_slow
 def test_ray_data_recipe_writes_hconv_converts_rows(dataset, reference, tmp_path):
-    pytest.importorskip("ray.data")
-    _run("ray_data_hconv.py", dataset, tmp_path / "omega")
+    _engine("ray.data")
+    _run("ray_data_hconv.py", dataset, tmp_path)
     got = _read(tmp_path / "omega")
     # Ray does not promise the order (the recipe says so): the same rows, in any order
     assert_same_rows(_sorted(got), _sorted(reference))
     assert got.schema.equals(reference.schema, check_metadata=True)
+    assert_same_units(tmp_path / "omega", reference)
 
 
+@pytest.mark.engines_slow
 def test_ray_tasks_recipe_writes_what_hconv_convert_writes_file_by_file(dataset, reference, tmp_path):
-    pytest.importorskip("ray")
-    out = _run("ray_tasks_hconv.py", dataset, tmp_path / "omega")
+    _engine("ray")
+    out = _run("ray_tasks_hconv.py", dataset, tmp_path)
     assert f"{reference.num_rows} rows in {FILES} files" in out
     assert sorted(p.name for p in (tmp_path / "omega").iterdir()) == sorted(p.name for p in dataset.iterdir())
     got = _read(tmp_path / "omega")
     assert_same_rows(got, reference)
     assert got.schema.equals(reference.schema, check_metadata=True)
+    assert_same_units(tmp_path / "omega", reference)
 
 
-def test_spark_recipe_writes_hconv_converts_rows_in_order_with_the_unit_in_sparks_schema(dataset, reference, tmp_path):
-    pytest.importorskip("pyspark.sql")
-    if shutil.which("java") is None:
-        pytest.skip("Spark needs Java (apt-get install openjdk-17-jre-headless)")
-    _run("spark_hconv.py", dataset, tmp_path / "omega")
+@pytest.mark.engines_slow
+def test_spark_recipe_writes_hconv_converts_rows_in_order_with_the_units_in_sparks_schema(dataset, reference, tmp_path):
+    _engine("pyspark.sql")
+    _run("spark_hconv.py", dataset, tmp_path)
     got = _read(tmp_path / "omega")
     assert_same_rows(got, reference)
     assert got.schema.field("status").type == pa.string()
-    first = sorted((tmp_path / "omega").glob("*.parquet"))[0]
-    spark = json.loads(pq.read_metadata(first).metadata[b"org.apache.spark.sql.parquet.row.metadata"])
-    units = {f["name"]: f["metadata"].get("unit", "") for f in spark["fields"] if f["name"] in ("wx", "wy", "wz")}
-    assert units == _units(reference.schema)
+    assert not got.schema.field("wx").metadata  # pyarrow reads Spark's files bare ...
+    assert_same_units(tmp_path / "omega", reference)  # ... the units are in Spark's schema
 
 
 # ---- the doc quotes the files it shows ----
@@ -184,3 +225,26 @@ def test_recipes_doc_quotes_every_recipe_file_word_for_word():
 
 def test_readme_links_the_recipes():
     assert "(docs/recipes.md)" in (ROOT / "README.md").read_text(encoding="utf-8")
+
+
+def test_recipes_doc_try_block_runs_word_for_word_from_a_clones_root(tmp_path):
+    _engine("duckdb")
+    block = re.search(r"^```sh\n(.*?)^```", DOC.read_text(encoding="utf-8"), re.S | re.M)
+    assert block, "docs/recipes.md shows no sh block to try the recipes with"
+    lines = block.group(1).splitlines()
+    assert lines[0] == "pip install -e '.[recipes]'"  # done: the tests run in that environment
+    (tmp_path / "docs").symlink_to(ROOT / "docs", target_is_directory=True)
+    # the environment's python and hconv first on PATH, as in an activated virtual environment
+    path = f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}"
+    for line in lines[1:]:
+        proc = subprocess.run(
+            ["bash", "-ec", line],
+            cwd=tmp_path,
+            capture_output=True,
+            text=True,
+            timeout=300,
+            env={**os.environ, "PATH": path},
+        )
+        assert proc.returncode == 0, f"{line}\n{proc.stdout}\n{proc.stderr}"
+    got = pq.read_table(tmp_path / "omega.parquet")
+    assert got.num_rows == 6000 and hconv.units_of(tmp_path / "omega.parquet")["wx"] == "rad/s"

@@ -13,9 +13,10 @@ import pyarrow as pa
 import hconv
 
 src, dst = sys.argv[1], sys.argv[2]
-# pandas drops the files' Arrow field metadata: give here, in unit_options, any unit the
-# files carry there, or hconv reads those columns in SI.
-job = hconv.Job(method="exact")  # conventions, units and column names, as for hconv convert
+# pandas drops the files' field metadata, where their units are: units_of reads them from the
+# files' footers, so that hconv reads each column in its own unit, not in SI.
+units = hconv.units_of(src)
+job = hconv.Job(method="exact", field_units=units)  # conventions, units and column names, as for hconv convert
 
 
 def omega(part: pd.DataFrame) -> pd.DataFrame:

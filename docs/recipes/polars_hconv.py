@@ -12,9 +12,10 @@ import pyarrow.parquet as pq
 import hconv
 
 src, dst = sys.argv[1], sys.argv[2]
-# Polars drops the files' Arrow field metadata: give here, in unit_options, any unit the
-# files carry there, or hconv reads those columns in SI.
-job = hconv.Job(method="exact")  # conventions, units and column names, as for hconv convert
+# Polars drops the files' field metadata, where their units are: units_of reads them from the
+# files' footers, so that hconv reads each column in its own unit, not in SI.
+units = hconv.units_of(src)
+job = hconv.Job(method="exact", field_units=units)  # conventions, units and column names, as for hconv convert
 
 frames = pl.scan_parquet(src)  # any LazyFrame: what runs in Polars runs before hconv
 schema_in = pl.DataFrame(schema=frames.collect_schema()).to_arrow().schema

@@ -1,8 +1,9 @@
 """Spark: hconv converts each partition as Arrow batches (mapInArrow), and Spark writes Parquet.
 
 Spark takes no dictionary type, so status goes as text; it keeps no Arrow field metadata, so ω's
-unit goes into Spark's own schema (which Spark stores in the files it writes); and it reads the
-files in an order of its own, so the rows are sorted back by file name and row first.
+unit goes into Spark's own schema, which Spark stores in the files it writes (pyarrow reads them
+without it; hconv.units_of(omega/) and hconv read it); and it reads the files in an order of its
+own, so the rows are sorted back by file name and row first.
 
     python docs/recipes/spark_hconv.py data/ omega/
 """
@@ -18,9 +19,10 @@ from pyspark.sql.types import StructField, StructType
 import hconv
 
 src, dst = sys.argv[1], sys.argv[2]
-# Spark drops the files' Arrow field metadata: give here, in unit_options, any unit the
-# files carry there, or hconv reads those columns in SI.
-job = hconv.Job(method="exact")  # conventions, units and column names, as for hconv convert
+# Spark drops the files' field metadata, where their units are: units_of reads them from the
+# files' footers, so that hconv reads each column in its own unit, not in SI.
+units = hconv.units_of(src)
+job = hconv.Job(method="exact", field_units=units)  # conventions, units and column names, as for hconv convert
 os.environ.setdefault("PYSPARK_PYTHON", sys.executable)  # the workers' Python: the one with hconv
 
 

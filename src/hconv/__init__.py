@@ -5,7 +5,8 @@ RecordBatches (pyarrow is imported only when that is called), with a :class:`Job
 conventions, units and column names; ``hconv.convert_dataset`` on a directory, glob or prefix of
 files, local or on object storage. For engines that own the data (DuckDB, Polars, Dask, Ray,
 Spark): ``hconv.output_schema`` gives ``convert_table``'s result schema without converting, and
-``hconv.parquet_write_options`` hconv's own Parquet writer settings (docs/recipes.md).
+``hconv.parquet_write_options`` hconv's own Parquet writer settings, and ``hconv.units_of`` the
+units a schema or Parquet files store, for engines that drop them (docs/recipes.md).
 Conventions: :mod:`hconv.kernels.inertia`; the package's layers: docs/architecture.md.
 """
 
@@ -29,6 +30,7 @@ __all__ = [
     "convert_table",
     "output_schema",
     "parquet_write_options",
+    "units_of",
     "convert_dataset",
     "Job",
     "Conventions",
@@ -41,7 +43,7 @@ __all__ = [
 
 
 def __getattr__(name: str) -> object:  # keeps `import hconv` free of pyarrow
-    if name in ("convert_table", "output_schema"):
+    if name in ("convert_table", "output_schema", "units_of"):
         from hconv.tables import arrow
 
         return getattr(arrow, name)

@@ -9,18 +9,23 @@ it was read in as field metadata ``unit``.
 
 :func:`output_schema` gives that result's schema from the input's alone, for engines that must
 declare it before they run (Dask, Spark, Ray); :func:`convert_batch` builds every result on the
-same function, so the two cannot drift apart.
+same function, so the two cannot drift apart. :func:`units_of` reads the units a schema or a set
+of Parquet files stores, for an engine that drops field metadata on its way to hconv (DuckDB,
+Polars, pandas, Spark) and for a reader of what such an engine wrote.
 """
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pyarrow as pa
+import pyarrow.parquet as pq
 
 from hconv import __version__
-from hconv.errors import UsageError
+from hconv.errors import InputError, UsageError
 from hconv.solve import bodies, methods, status, units
-from hconv.tables import layout
+from hconv.tables import layout, storage
 from hconv.tables.job import Job, check_job
 from hconv.tables.sets import QUANTITY
 
@@ -120,6 +125,46 @@ def output_schema(
         raise UsageError(f"output_schema takes a pyarrow Schema, got {type(input_schema).__name__}{hint}")
     job = _job("output_schema", method, precision, diagnostics, job)
     return result_schema(input_schema, job, layout.plan(input_schema, job, source))
+
+
+def units_of(source: pa.Schema | str | os.PathLike, *, endpoint_url: str | None = None) -> dict[str, str]:
+    """Each column's unit, ``{column: unit}`` in column order, as ``source`` stores it: a pyarrow
+    Schema, or Parquet files (one file, a directory, a glob or a URI, as ``hconv convert`` takes
+    them; ``endpoint_url`` as there). A column's unit is its field metadata ``unit`` (what hconv
+    and pyarrow write), else the one in the field metadata of Spark's schema (what Spark writes,
+    which pyarrow reads without); a column with neither is left out.
+
+    For an engine that drops field metadata before hconv sees the data, ``Job(field_units=
+    units_of(files))`` gives hconv the units the files carry; for a reader, the units of what
+    such an engine wrote. Of many files, only the footers are read, and a column stored in two
+    units is an InputError naming both files: an engine that drops the metadata would mix them.
+    """
+    if isinstance(source, pa.Schema):
+        return layout.stored_units(source)
+    if not isinstance(source, (str, os.PathLike)):
+        raise UsageError(f"units_of takes a pyarrow Schema or the path of Parquet files, got {type(source).__name__}")
+    spec = os.fspath(source)
+    src = storage.source(spec, endpoint_url)
+    found: dict[str, tuple[str, str]] = {}  # column -> (unit, the file that gave it)
+    names: list[str] = []
+    for f in src.files(None):
+        if storage.format_by_name(f.rel) != "parquet":
+            continue
+        name = src.place.name(f.rel)
+        try:
+            schema = pq.read_schema(src.place.path(f.rel), filesystem=src.place.fs)
+        except (OSError, pa.ArrowException) as exc:
+            raise InputError(f"{name}: cannot read its Parquet footer ({storage.first_line(exc)})") from None
+        for column, unit in layout.stored_units(schema).items():
+            if column not in found:
+                found[column] = (unit, name)
+                names.append(column)
+            elif found[column][0] != unit:
+                raise InputError(
+                    f"{name}: column {column!r} is in {unit}, but in {found[column][0]} in {found[column][1]}; "
+                    "convert such files separately, each with its own units"
+                )
+    return {c: found[c][0] for c in names}
 
 
 def _job(caller: str, method: str | None, precision: int | None, diagnostics: bool | None, job: Job | None) -> Job:

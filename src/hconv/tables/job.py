@@ -71,6 +71,10 @@ class Job:
     (``hconv diagnose``): the ``w_obs`` columns are required, and hconv's output columns may be
     present in the input. ``keep_text`` (``--keep-text``): from CSV into Parquet, the columns
     hconv does not use stay text instead of getting types (:mod:`hconv.tables.csvtypes`).
+    ``field_units`` (Python only): each column's unit as its field metadata would give it, for data
+    whose engine dropped that metadata on the way (``hconv.units_of(files)``, docs/recipes.md); a
+    column's own metadata and ``unit_options`` come first, and a column hconv does not read is
+    left alone, as its metadata would be.
     """
 
     method: str = "exact"
@@ -84,10 +88,12 @@ class Job:
     observed: bool = False
     engine: str = "auto"  #: auto, numpy, numba or python (hconv.solve.engines)
     keep_text: bool = False  #: CSV to Parquet: the other columns stay text, as in the CSV
+    field_units: tuple = ()  #: (column, unit) pairs, as field metadata would give them
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "mapping", _pairs("mapping", self.mapping))
         object.__setattr__(self, "unit_options", _pairs("unit_options", self.unit_options))
+        object.__setattr__(self, "field_units", _pairs("field_units", self.field_units))
         _check_mapping(self.mapping)
         _check_units_once(self.unit_options)
         for key, unit in self.unit_options:

@@ -14,6 +14,7 @@ is fixed by :meth:`Layout.resolve` from the first batch, before any batch is con
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable, Sized
 from dataclasses import dataclass, replace
 
@@ -35,6 +36,9 @@ UNIT_COLUMN = "w_unit"
 #: Every name hconv writes: an input that has one is refused, naming it, so that no output holds
 #: a name twice (or one column of the input and another of hconv under one name).
 RESERVED = OUTPUT_COLUMNS + NULL_COLUMNS + (UNIT_COLUMN,)
+#: The file metadata key under which Spark stores its schema, field metadata included, in the
+#: Parquet files it writes. Spark writes no Arrow schema, so pyarrow reads its fields bare.
+SPARK_SCHEMA_KEY = b"org.apache.spark.sql.parquet.row.metadata"
 
 
 @dataclass(frozen=True)
@@ -273,7 +277,8 @@ def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
             f"quaternion columns {', '.join(q.columns)}; drop {option('quat_order')}, or point "
             f"{option('mapping')} at the columns that hold w, x, y and z"
         )
-    groups = {k: _with_units(g, schema, job.unit_options, mapping) for k, g in groups.items()}
+    stored = stored_units(schema)
+    groups = {k: _with_units(g, stored, job, mapping) for k, g in groups.items()}
     _check_unit_keys(job.unit_options, groups, present)
     return Layout(groups, form, source, job.quat_order)
 
@@ -381,22 +386,45 @@ def _inertia_group(
     return name, Group("I", tuple(src(c) for c in form.columns), False, form.count)
 
 
-def _with_units(g: Group, schema: pa.Schema, options: tuple, mapping: dict) -> Group:
-    """``g`` with the unit of each of its values, from --unit, else field metadata, else SI."""
+def stored_units(schema: pa.Schema) -> dict[str, str]:
+    """Each column's unit as ``schema`` stores it, in the schema's column order: its field
+    metadata ``unit``, else the unit Spark's schema (file metadata :data:`SPARK_SCHEMA_KEY`) gives
+    it. Columns without one are left out."""
+    found = {}
+    try:
+        spark = json.loads((schema.metadata or {}).get(SPARK_SCHEMA_KEY, b"{}"))
+        for f in spark.get("fields", []):
+            unit = (f.get("metadata") or {}).get("unit")
+            if isinstance(unit, str) and unit:
+                found[f["name"]] = unit
+    except (ValueError, AttributeError, TypeError, KeyError):  # not the schema Spark writes: no units from it
+        pass
+    for f in schema:
+        meta = f.metadata or {}
+        if meta.get(b"unit"):
+            found[f.name] = meta[b"unit"].decode(errors="replace")
+    return {c: found[c] for c in schema.names if c in found}
+
+
+def _with_units(g: Group, stored: dict, job: Job, mapping: dict) -> Group:
+    """``g`` with the unit of each of its values: from --unit, else the schema's own (field
+    metadata), else the Job's ``field_units`` (metadata an engine dropped), else SI."""
     back = {v: k for k, v in mapping.items()}  # column -> hconv name
-    given = dict(options)
+    given = dict(job.unit_options)
+    dropped = dict(job.field_units)
     us, fs = [], []
     quantity = QUANTITY[g.name]
     for c in g.columns:
         hname = back.get(c, c)
-        meta = schema.field(c).metadata or {}
         unit, where = None, None
         for key in (c, hname, g.name):
             if key in given:
                 unit, where = given[key], entry("unit_options", key, given[key])
                 break
-        if unit is None and b"unit" in meta:
-            unit, where = meta[b"unit"].decode(errors="replace"), f"column {c!r} (its unit metadata)"
+        if unit is None and c in stored:
+            unit, where = stored[c], f"column {c!r} (its unit metadata)"
+        elif unit is None and c in dropped:
+            unit, where = dropped[c], entry("field_units", c, dropped[c])
         us.append(unit or "")
         fs.append(1.0 if unit is None else units.factor(quantity, unit, where))
     return Group(g.name, g.columns, g.is_list, g.size, tuple(us), tuple(fs))
