@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import subprocess
 import sys
@@ -11,7 +10,7 @@ import urllib.request
 
 import numpy as np
 import pytest
-from helpers import S3_ENV, free_port
+from helpers import S3_ENV, free_port, need
 
 
 @pytest.fixture
@@ -23,8 +22,8 @@ def rng():
 def s3_server(tmp_path_factory):
     """The URL of a local S3-compatible server (moto's server mode, the ``test-s3`` extra) on
     127.0.0.1, running as its own process for a test module; skips without moto."""
-    if importlib.util.find_spec("moto") is None or importlib.util.find_spec("flask") is None:
-        pytest.skip("needs moto's server mode: pip install -e '.[test-s3]'")
+    need("moto.server")  # the test-s3 extra: moto's S3 backend and flask for its server mode
+    need("flask")
     port = free_port()
     log = tmp_path_factory.mktemp("moto") / "server.log"
     with open(log, "wb") as f:

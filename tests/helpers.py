@@ -3,6 +3,7 @@ apart from hconv's own code, table shorthands, and the real CLI."""
 
 from __future__ import annotations
 
+import importlib
 import os
 import signal
 import socket
@@ -12,6 +13,7 @@ import sys
 import mpmath
 import numpy as np
 import pyarrow as pa
+import pytest
 
 from hconv.kernels.metrics import relative_error
 from hconv.tools.scene import rotate_tensors
@@ -25,6 +27,15 @@ S3_ENV = {
     "AWS_DEFAULT_REGION": "us-east-1",
     "AWS_EC2_METADATA_DISABLED": "true",  # never ask an instance-metadata address for credentials
 }
+
+
+def need(module: str) -> object:
+    """The optional module ``module`` (an extra's), imported; the test skips without it, except
+    where every extra must be there: .ci/run installs them all and sets HCONV_ALL_ENGINES, so that
+    a missing one fails there rather than skip unseen."""
+    if os.environ.get("HCONV_ALL_ENGINES"):
+        return importlib.import_module(module)
+    return pytest.importorskip(module)
 
 
 def free_port() -> int:

@@ -18,7 +18,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 import pytest
-from helpers import S3_ENV, free_port, run_hconv, run_inprocess, terminal_signals
+from helpers import S3_ENV, free_port, need, run_hconv, run_inprocess, terminal_signals
 
 import hconv
 from hconv.errors import UsageError
@@ -26,7 +26,7 @@ from hconv.tables import tableio
 from hconv.tables.dataset import MANIFEST
 from hconv.tools.scene import make_scene
 
-distributed = pytest.importorskip("distributed")
+distributed = need("distributed")
 
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 

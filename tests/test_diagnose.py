@@ -13,7 +13,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
-from helpers import axis_angle, physical_bodies, quats, rodrigues, run_hconv, six, vec
+from helpers import axis_angle, need, physical_bodies, quats, rodrigues, run_hconv, six, vec
 
 from hconv.solve.options import Conventions
 from hconv.tables.job import Job
@@ -427,7 +427,7 @@ FULLINERTIA = (0.30, 0.22, 0.12, 0.03, -0.02, 0.05)  # xx, yy, zz, xy, xz, yz: M
 def mujoco_log(episodes=4, samples=40):
     """A tumbling free body simulated by MuJoCo: per sample, qpos[3:7], the world-frame H about
     the centre of mass (subtree_angmom), the body-frame M·qvel[3:6] and qvel[3:6]."""
-    mujoco = pytest.importorskip("mujoco")
+    mujoco = need("mujoco")
     xml = (
         "<mujoco><option gravity='0 0 0' timestep='0.002'/><worldbody><body name='b' pos='0.3 -0.2 1'>"
         f"<freejoint/><inertial pos='0 0 0' mass='2' fullinertia='{' '.join(map(str, FULLINERTIA))}'/>"

@@ -19,7 +19,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 import pytest
-from helpers import axis_angle, mp_solve, quats, rodrigues, run_hconv
+from helpers import axis_angle, mp_solve, need, quats, rodrigues, run_hconv
 from rich.console import Console
 
 from hconv import modelview
@@ -922,7 +922,7 @@ def rodrigues_from_quat(q):
 
 @pytest.mark.parametrize("angle, seq", [("degree", "xyz"), ("radian", "XYZ"), ("degree", "zYx"), ("radian", "yzy")])
 def test_mujoco_agrees_on_mass_centre_tensor_and_principal_moments(tmp_path, angle, seq):
-    mujoco = pytest.importorskip("mujoco")
+    mujoco = need("mujoco")
     rng = np.random.default_rng(42)
     scale = 180 / math.pi if angle == "degree" else 1.0
     f = nums
@@ -966,7 +966,7 @@ def test_mujoco_agrees_on_mass_centre_tensor_and_principal_moments(tmp_path, ang
 
 
 def test_mujoco_agrees_on_the_shipped_example():
-    mujoco = pytest.importorskip("mujoco")
+    mujoco = need("mujoco")
     ours = [b for b in models.read_model(EXAMPLES / "pendulum.xml").bodies]
     theirs = mujoco_bodies(mujoco, EXAMPLES / "pendulum.xml")
     for k, b in enumerate(ours, 1):
@@ -992,7 +992,7 @@ def test_mujoco_agrees_on_the_shipped_example():
     ],
 )
 def test_mujoco_refuses_at_load_what_hconv_flags_but_not_a_placeholder(tmp_path, inertial, ours):
-    mujoco = pytest.importorskip("mujoco")
+    mujoco = need("mujoco")
     path = tmp_path / "m.xml"
     path.write_text(mjcf(f"<body name='b'><freejoint/><geom size='0.1'/><inertial pos='0 0 0' {inertial}/></body>"))
     assert models.read_model(path).bodies[0].status == ours

@@ -13,7 +13,6 @@ and ill_conditioned among the ok ones, and with the inertia stored in g·cm² (f
 
 from __future__ import annotations
 
-import importlib
 import os
 import re
 import shlex
@@ -27,6 +26,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 import pytest
+from helpers import need
 
 import hconv
 from hconv.tables.pipeline import convert_file
@@ -116,15 +116,12 @@ def assert_same_rows(got: pa.Table, want: pa.Table) -> None:
 
 
 def _engine(module: str) -> None:
-    """Skip without the engine, except where every engine must run: .ci/run installs them all and
-    sets HCONV_ALL_ENGINES, so that a missing one fails there rather than skip unseen."""
-    java = module != "pyspark.sql" or shutil.which("java") is not None
-    if os.environ.get("HCONV_ALL_ENGINES"):
-        importlib.import_module(module)
-        assert java, "Spark needs Java, which .ci/run installs: did its apt-get fail?"
-        return
-    pytest.importorskip(module)
-    if not java:
+    """The engine, or a skip without it (a failure in CI: :func:`helpers.need`); Spark also needs Java."""
+    need(module)
+    if module == "pyspark.sql" and shutil.which("java") is None:
+        assert not os.environ.get("HCONV_ALL_ENGINES"), (
+            "Spark needs Java, which .ci/run installs: did its apt-get fail?"
+        )
         pytest.skip("Spark needs Java (apt-get install openjdk-17-jre-headless)")
 
 
