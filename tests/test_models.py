@@ -479,6 +479,17 @@ def test_check_reason_names_the_other_statuses_that_apply(tmp_path):
     assert s == "negative_mass" and "also not_physical: I3 = 0.3 exceeds" in why
 
 
+def test_check_massless_with_a_negative_moment_is_not_called_a_rod(tmp_path):
+    """Before: m = 0 with only iyz said "also singular: ... a line mass, like an ideal rod", though
+    its moments -0.001, 0, 0.001 make it indefinite, which no rod is."""
+    I = np.zeros((3, 3))
+    I[1, 2] = I[2, 1] = 1e-3
+    s, why = status_of(tmp_path, 0.0, I)
+    assert s == "massless_with_inertia"
+    assert "also not_positive_definite: principal moment I1 = -0.001 kg·m² < 0" in why
+    assert "line mass" not in why and "singular" not in why
+
+
 def test_check_no_inertial_in_every_format(tmp_path):
     assert by_name(model(tmp_path, "a.urdf", urdf('<link name="l"/>')))["l"].status == "no_inertial"
     assert by_name(model(tmp_path, "a.sdf", "<sdf><model name='m'><link name='l'/></model></sdf>"))["l"].status == (

@@ -711,7 +711,15 @@ def _check(raws: list[_Raw]) -> list[Body]:
     with np.errstate(invalid="ignore"):
         zero = have & np.all(I_C_B.reshape(n, 9) == 0, axis=1)
         top = np.abs(S).max(axis=0)
-        singular = have & (np.abs(S).min(axis=0) <= status.singular_rtol(np.float64) * top) & ~(zero & (m == 0))
+        # A moment below zero beyond the singular threshold makes the tensor indefinite, whatever
+        # else is zero: (-1, 0, 1) is no rod, and its reason must say so, not "a line mass".
+        negative = have & (S[0] < -status.singular_rtol(np.float64) * top)
+        singular = (
+            have
+            & ~negative
+            & (np.abs(S).min(axis=0) <= status.singular_rtol(np.float64) * top)
+            & ~(zero & (m == 0))
+        )
         flags = {
             "negative_mass": have & (m < 0),
             "massless_with_inertia": have & (m == 0) & ~zero,
