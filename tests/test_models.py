@@ -618,6 +618,21 @@ def test_read_untrusted_input_is_one_line_naming_file_and_fix(tmp_path, name, te
     assert says in msg and "\n" not in msg and msg.startswith(str(path))
 
 
+def test_read_xacro_include_says_run_xacro_first(tmp_path):
+    """Before: "<xacro:include> uses XInclude, which hconv does not follow; paste the included
+    content in", where every other xacro element says to run xacro."""
+    path = tmp_path / "arm.urdf.xacro"
+    path.write_text(
+        '<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro">\n'
+        '<xacro:include filename="parts.xacro"/>\n<link name="a"/>\n</robot>\n'
+    )
+    with pytest.raises(InputError) as e:
+        models.read_model(path)
+    msg = str(e.value)
+    assert msg.startswith(f"{path}, line 2, <xacro:include> is xacro") and "run xacro first" in msg
+    assert "XInclude" not in msg
+
+
 def test_read_forgives_what_tinyxml_forgives_and_keeps_line_numbers(tmp_path):
     """Files of a widely used model collection: blank lines before the XML declaration, a NUL
     after the root, and xacro's namespace left on an expanded URDF."""
