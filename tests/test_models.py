@@ -865,6 +865,24 @@ def test_cli_bodies_writes_files_atomically_and_refuses_to_overwrite(tmp_path):
     assert proc.returncode == 4 and b"is the input file" in proc.stderr
 
 
+@pytest.mark.parametrize(
+    "args, says",
+    [
+        (("--form", "weird"), "hconv: error: --form must be one of sym6, principal, got 'weird'\n"),
+        (
+            ("--to", "csv"),
+            "hconv: error: --to is for OUT, which is not given; give OUT (- for stdout), or drop it to list the bodies\n",
+        ),
+        (("--form", "principal", "--force"), "hconv: error: --form and --force are for OUT, which is not given;"),
+    ],
+)
+def test_cli_bodies_without_out_checks_options_as_with_it(args, says):
+    """Before: without OUT, --form weird and --to csv were ignored, exit 0 and the table."""
+    proc = run_hconv("bodies", str(EXAMPLES / "arm.urdf"), *args)
+    assert proc.returncode == 2 and proc.stdout == b""
+    assert proc.stderr.decode().startswith(says) and proc.stderr.count(b"\n") == 1
+
+
 def test_cli_bodies_strict_exits_5_when_a_body_is_not_ok(tmp_path):
     proc = run_hconv("bodies", str(EXAMPLES / "arm.urdf"), "--strict")
     assert proc.returncode == 5 and b"4 of 7 bodies are not ok" in proc.stderr and b"forearm_link" in proc.stdout

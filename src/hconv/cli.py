@@ -674,11 +674,11 @@ def bodies_cmd(
     dst: str | None = typer.Argument(
         None, metavar="[OUT]", help="write a row per body to .csv or .parquet (- for stdout); without it, a table"
     ),
-    form: str = typer.Option(
-        "sym6",
+    form: str | None = typer.Option(
+        None,
         "--form",
-        help="the inertia in OUT: sym6 (Ixx, Iyy, Izz, Ixy, Ixz, Iyz in the body frame) or principal "
-        "(I1, I2, I3 and qw, qx, qy, qz: principal axes to body frame)",
+        help="the inertia in OUT: sym6 (Ixx, Iyy, Izz, Ixy, Ixz, Iyz in the body frame; the default) or "
+        "principal (I1, I2, I3 and qw, qx, qy, qz: principal axes to body frame)",
     ),
     to: Fmt | None = typer.Option(None, "--to", help="output format; needed when OUT is -"),
     force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
@@ -689,6 +689,20 @@ def bodies_cmd(
     from hconv import modelview
     from hconv.tools import models
 
+    # Options are checked before the model is read, and the same way with or without OUT: an
+    # option that only shapes OUT is refused without it, as --endpoint-url is without a URI,
+    # since ignoring it would let the user believe it did something.
+    if form is not None:
+        options.check_choice("form", form, models.OUTPUT_FORMS)
+    if dst is None:
+        given = [name for name, value in (("--form", form), ("--to", to), ("--force", force)) if value]
+        if given:
+            raise UsageError(
+                f"{' and '.join(given)} {'is' if len(given) == 1 else 'are'} for OUT, which is not given; "
+                "give OUT (- for stdout), or drop "
+                + ("it" if len(given) == 1 else "them")
+                + " to list the bodies"
+            )
     m = models.read_model(model)
     bad = [b for b in m.bodies if b.status != "ok"]
     if strict and not m.bodies:  # a model with nothing to check passes no check
@@ -699,7 +713,7 @@ def bodies_cmd(
     if dst is None:
         modelview.show(m)
     elif not (strict and bad):  # as convert --strict: no output when a row is not ok
-        models.write_bodies(m, dst, form=form, dst_format=_value(to), force=force)
+        models.write_bodies(m, dst, form=form or "sym6", dst_format=_value(to), force=force)
         if not quiet:
             print(f"hconv bodies: {model} ({m.format}) to {dst}: {modelview.summary_line(m)}", file=sys.stderr)
             for note in m.notes:
