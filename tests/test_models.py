@@ -490,6 +490,15 @@ def test_check_massless_with_a_negative_moment_is_not_called_a_rod(tmp_path):
     assert "line mass" not in why and "singular" not in why
 
 
+def test_read_urdf_duplicate_link_names_are_a_note(tmp_path):
+    """Before: the two links named "a" were listed twice with no word."""
+    I = np.diag([0.1, 0.2, 0.25])
+    m = model(tmp_path, "dup.urdf", urdf(urdf_link("a", 1.0, I), urdf_link("b", 1.0, I), urdf_link("a", 2.0, I)))
+    assert [b.name for b in m.bodies] == ["a", "b", "a"]
+    assert len(m.notes) == 1
+    assert "link 'a' is given 2 times (lines 3, 5); URDF requires unique link names" in m.notes[0]
+
+
 def test_check_no_inertial_in_every_format(tmp_path):
     assert by_name(model(tmp_path, "a.urdf", urdf('<link name="l"/>')))["l"].status == "no_inertial"
     assert by_name(model(tmp_path, "a.sdf", "<sdf><model name='m'><link name='l'/></model></sdf>"))["l"].status == (

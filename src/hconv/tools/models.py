@@ -280,8 +280,10 @@ def _urdf(root: Node, path: Path, shown: str) -> tuple[list[_Raw], list[str]]:
             "run xacro first (xacro model.urdf.xacro > model.urdf) and give hconv the URDF",
         )
     raws = []
+    lines: dict[str, list[int]] = {}  # link name -> the lines it is given at
     for link in root.findall("link"):
         name = _name(link, "link")
+        lines.setdefault(name, []).append(link.line)
         inertial = link.find("inertial")
         if inertial is None:
             raws.append(
@@ -319,7 +321,14 @@ def _urdf(root: Node, path: Path, shown: str) -> tuple[list[_Raw], list[str]]:
                 _tensor(*six.values()),
             )
         )
-    return raws, []
+    # Both are listed, as the file gives them, but a parser that keys links by name keeps one
+    notes = [
+        f"{shown}: link {name!r} is given {len(at)} times (lines {', '.join(map(str, at))}); URDF requires "
+        "unique link names, and urdfdom refuses the model: rename or remove all but one"
+        for name, at in lines.items()
+        if len(at) > 1
+    ]
+    return raws, notes
 
 
 # --- SDF -----------------------------------------------------------------------------------
