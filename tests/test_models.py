@@ -828,6 +828,16 @@ def test_show_fits_80_columns_without_cutting_a_name_or_a_number():
                 assert ("-" if x != x else f"{x:.4g}") in rows[b.name].split()
 
 
+def test_show_reasons_and_notes_wrap_without_trailing_spaces():
+    """Before: each wrapped reason and note line ended in the space rich wrapped at."""
+    m = models.read_model(EXAMPLES / "arm.urdf")
+    buf = io.StringIO()
+    modelview.show(m, Console(file=buf, width=60, force_terminal=True, color_system=None))
+    lines = buf.getvalue().splitlines()
+    assert any("sign slip" in ln for ln in lines)
+    assert [ln for ln in lines if ln != ln.rstrip()] == []
+
+
 def test_show_lists_bodies_whose_names_do_not_fit(tmp_path):
     long = "a_link_whose_name_is_far_too_long_for_a_table_row_at_eighty_columns_wide"
     m = model(tmp_path, "l.urdf", urdf(urdf_link(long, 1.0, np.diag([0.1, 0.1, 0.3]))))

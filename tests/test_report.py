@@ -211,3 +211,13 @@ def test_diagnosis_tables_explain_a_hypothesis_with_no_omega_on_any_row(tmp_path
     console = terminal(80)
     report.diagnosis_tables(d, console)
     assert any(ln.startswith("-: ordering-urdf gives no ω on any row") for ln in shown(console))
+
+
+def test_note_wraps_on_a_terminal_without_trailing_spaces():
+    """Before: rich kept the space it wrapped at on the end of each line."""
+    console = terminal(40)
+    report.note(console, "every row is explained by at least one hypothesis, and then some more words")
+    lines = shown(console)
+    assert len(lines) > 1 and all(ln == ln.rstrip() and len(ln) <= 40 for ln in lines)
+    assert " ".join(lines) == "every row is explained by at least one hypothesis, and then some more words"
+

@@ -63,7 +63,10 @@ def _line(console: Console, text: str) -> None:
 def note(console: Console, text: Cell) -> None:
     """A line that is not a table row: wrapped at spaces on a terminal, one ``#`` line elsewhere."""
     if console.is_terminal:
-        console.print(text if isinstance(text, Text) else Text(text))
+        # rich keeps the space it wrapped at on the end of each line: wrap here and drop it
+        for line in (text if isinstance(text, Text) else Text(text)).wrap(console, console.width):
+            line.rstrip()
+            console.print(line)
     else:
         _line(console, "# " + _one_line(_text(text)))
 
