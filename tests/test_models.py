@@ -890,7 +890,8 @@ def test_cli_bodies_writes_files_atomically_and_refuses_to_overwrite(tmp_path):
         (("--form", "weird"), "hconv: error: --form must be one of sym6, principal, got 'weird'\n"),
         (
             ("--to", "csv"),
-            "hconv: error: --to is for OUT, which is not given; give OUT (- for stdout), or drop it to list the bodies\n",
+            "hconv: error: --to is for OUT, which is not given; give OUT (- for stdout), or drop it to list the "
+            "bodies\n",
         ),
         (("--form", "principal", "--force"), "hconv: error: --form and --force are for OUT, which is not given;"),
     ],

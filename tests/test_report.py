@@ -220,4 +220,3 @@ def test_note_wraps_on_a_terminal_without_trailing_spaces():
     lines = shown(console)
     assert len(lines) > 1 and all(ln == ln.rstrip() and len(ln) <= 40 for ln in lines)
     assert " ".join(lines) == "every row is explained by at least one hypothesis, and then some more words"
-

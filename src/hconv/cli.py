@@ -493,7 +493,9 @@ def _needs_text(reasons: list[str]) -> str:
 
 def _cancellation_hint(state: str, residual: float) -> str:
     """For stderr: what losing digits to H - r × m·v means for this row, and the fix."""
-    head = "hconv: cancellation" + ("" if state == "cancellation" else f" (the status shows {state}, which comes first)")
+    head = "hconv: cancellation" + (
+        "" if state == "cancellation" else f" (the status shows {state}, which comes first)"
+    )
     if residual >= 1:
         # The bound is first order: once it reaches |ω| no digit is left, and it bounds nothing
         # (a trial row was off by 48 |ω| with a residual of 10.6).
@@ -732,9 +734,7 @@ def bodies_cmd(
         if given:
             raise UsageError(
                 f"{' and '.join(given)} {'is' if len(given) == 1 else 'are'} for OUT, which is not given; "
-                "give OUT (- for stdout), or drop "
-                + ("it" if len(given) == 1 else "them")
-                + " to list the bodies"
+                "give OUT (- for stdout), or drop " + ("it" if len(given) == 1 else "them") + " to list the bodies"
             )
     m = models.read_model(model)
     bad = [b for b in m.bodies if b.status != "ok"]

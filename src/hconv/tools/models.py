@@ -724,10 +724,7 @@ def _check(raws: list[_Raw]) -> list[Body]:
         # else is zero: (-1, 0, 1) is no rod, and its reason must say so, not "a line mass".
         negative = have & (S[0] < -status.singular_rtol(np.float64) * top)
         singular = (
-            have
-            & ~negative
-            & (np.abs(S).min(axis=0) <= status.singular_rtol(np.float64) * top)
-            & ~(zero & (m == 0))
+            have & ~negative & (np.abs(S).min(axis=0) <= status.singular_rtol(np.float64) * top) & ~(zero & (m == 0))
         )
         flags = {
             "negative_mass": have & (m < 0),
