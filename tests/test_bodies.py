@@ -401,6 +401,30 @@ def test_convert_pivot_far_pivot_flags_exactly_rows_beyond_the_bound(rotated):
     assert (err / (cond * EPS))[cond > 1e4].max() <= k / 2
 
 
+def test_solve_free_cancelled_holds_the_bound_under_a_status_that_comes_first():
+    """A row has one status: a 1 kg satellite with I = 1000 kg·m² is unit_suspect, which comes
+    before cancellation, so the flag keeps what the bound says for hconv one to tell."""
+    from hconv.solve import bodies
+
+    def solve(Hz: float, m: float, about: str = "free"):
+        sets = {
+            "H": np.array([[1.0], [2.0], [Hz]]),
+            "I": np.array([[1000.0]]),
+            "m": np.array([[m]]),
+            "r": np.array([[7e6], [0.0], [0.0]]),
+            "v": np.array([[0.0], [7500.0], [0.0]]),
+        }
+        return bodies.solve(sets, "scalar", conv=Conventions(about=about))
+
+    res = solve(52500000003.0, 1.0)  # r × m·v = 5.25e10: 5 digits of 16 left
+    assert res.status[0] == "unit_suspect" and res.cancelled[0] and res.residual[0] > ILL_CONDITIONED_TOL
+    res = solve(52500000000003.0, 1.0)  # 5.25e13 - 5.25e10: nothing cancels
+    assert res.status[0] == "unit_suspect" and not res.cancelled[0]
+    res = solve(52500000000003.0, 1000.0)
+    assert res.status[0] == "cancellation" and res.cancelled[0]
+    assert solve(3.0, 1.0, "same").cancelled is None  # no point change, nothing to flag
+
+
 SATELLITE = ["--I", "1000", "--m", "1000", "--r", "7e6,0,0", "--v", "0,7500,0", "--about", "free"]
 
 

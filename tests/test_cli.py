@@ -453,10 +453,47 @@ def test_one_cancellation_says_what_it_means_and_the_fix(capsys):
     code, out, err = run_inprocess("one", *SATELLITE, "--about", "free", capsys=capsys)
     assert code == 0 and "status   = cancellation" in out
     assert "residual = 0.00623  (|w - I⁻¹H_C| / |I⁻¹H_C| + cond(I)·ε_C, H_C = H - r × m·v)" in out
-    assert len(err.splitlines()) == 1 and err.startswith("hconv: cancellation: H - r × m·v cancels most of H's")
-    assert "off by up to 0.0062 of |ω|" in err and err.rstrip().endswith("with --about same")
+    said = " ".join(err.split())
+    assert said.startswith("hconv: cancellation: H - r × m·v cancels most of H's")
+    assert "off by up to 0.0062 of |ω|" in said and said.endswith("with --about same")
     code, out, err_json = run_inprocess("one", *SATELLITE, "--about", "free", "--json", capsys=capsys)
     assert json.loads(out)["status"] == "cancellation" and err_json == err
+
+
+def test_one_cancellation_hint_wraps_at_80_columns_without_trailing_spaces(capsys):
+    """Before: a single 199-character line."""
+    code, out, err = run_inprocess("one", *SATELLITE, "--about", "free", capsys=capsys)
+    lines = err.splitlines()
+    assert code == 0 and len(lines) > 1 and all(len(ln) <= 80 and ln == ln.rstrip() for ln in lines)
+    assert all(ln.startswith("  ") for ln in lines[1:])  # one hint, its later lines indented
+    assert "H - r × m·v" in err and "--about same" in err  # a formula and an option never split
+
+
+def test_one_cancellation_under_another_status_is_still_told(capsys):
+    """Before: with m = 1, I = 1000 the row is unit_suspect (first in the order of statuses) and
+    lost digits to H - r × m·v by the same bound, but nothing said so."""
+    args = ["--H", "1,2,52500000003", "--I", "1000", "--m", "1", "--r", "7e6,0,0", "--v", "0,7500,0"]
+    code, out, err = run_inprocess("one", *args, "--about", "free", capsys=capsys)
+    assert code == 0 and "status   = unit_suspect" in out
+    said = " ".join(err.split())
+    assert said.startswith("hconv: cancellation (the status shows unit_suspect, which comes first): H - r × m·v")
+    assert "off by up to 6.2e-06 of |ω|" in said
+    # the same numbers one digit further from the origin lose none: no hint
+    args[1] = "1,2,52500000000003"
+    code, out, err = run_inprocess("one", *args, "--about", "free", capsys=capsys)
+    assert "status   = unit_suspect" in out and err == ""
+
+
+def test_one_cancellation_total_says_omega_is_unknown(capsys):
+    """Before: a residual of 23 was offered as "off by up to 23 of |ω|", a bound it is not once it
+    reaches 1 (a trial row was off by 48 |ω| with a residual of 10.6)."""
+    args = [*SATELLITE]
+    args[1] = "0.001,0,52500000000000"
+    code, out, err = run_inprocess("one", *args, "--about", "free", capsys=capsys)
+    assert "status   = cancellation" in out and "residual = 23.3" in out
+    said = " ".join(err.split())
+    assert "so ω is unknown: not one digit of it holds, and the residual (23) is no bound on its error" in said
+    assert "off by up to" not in said
 
 
 @pytest.mark.parametrize(

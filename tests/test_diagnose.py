@@ -329,6 +329,18 @@ def test_diagnose_quat_list_read_as_xyzw_leaves_out_quat_xyzw(rng, tmp_path):
     assert first_group(d) == ["quat-xyzw"] and d.groups()[0][0].residual.share_within == 1.0
 
 
+def test_diagnose_quat_xyzw_names_where_q_is(rng, tmp_path):
+    """Before: with a list column q, quat-xyzw still said "in the qw, qx, qy, qz columns"."""
+    s = scene(rng)
+    t = scene_table(s, plant(s, "quat-xyzw"))
+    summary = next(x for x in diagnosed(tmp_path, t).scores if x.hypothesis == "quat-xyzw").summary
+    assert summary.endswith("in the qw, qx, qy, qz columns")
+    t = t.drop_columns(["qw", "qx", "qy", "qz"])
+    t = t.append_column("q", pa.FixedSizeListArray.from_arrays(pa.array(s["q"].ravel()), 4))
+    summary = next(x for x in diagnosed(tmp_path, t).scores if x.hypothesis == "quat-xyzw").summary
+    assert summary.endswith("in the list column q (read as w, x, y, z)") and "qw" not in summary
+
+
 # --- ties: where the data cannot tell hypotheses apart, they share the first rank
 
 

@@ -479,6 +479,26 @@ def test_check_reason_names_the_other_statuses_that_apply(tmp_path):
     assert s == "negative_mass" and "also not_physical: I3 = 0.3 exceeds" in why
 
 
+def test_check_massless_with_a_negative_moment_is_not_called_a_rod(tmp_path):
+    """Before: m = 0 with only iyz said "also singular: ... a line mass, like an ideal rod", though
+    its moments -0.001, 0, 0.001 make it indefinite, which no rod is."""
+    I = np.zeros((3, 3))
+    I[1, 2] = I[2, 1] = 1e-3
+    s, why = status_of(tmp_path, 0.0, I)
+    assert s == "massless_with_inertia"
+    assert "also not_positive_definite: principal moment I1 = -0.001 kg·m² < 0" in why
+    assert "line mass" not in why and "singular" not in why
+
+
+def test_read_urdf_duplicate_link_names_are_a_note(tmp_path):
+    """Before: the two links named "a" were listed twice with no word."""
+    I = np.diag([0.1, 0.2, 0.25])
+    m = model(tmp_path, "dup.urdf", urdf(urdf_link("a", 1.0, I), urdf_link("b", 1.0, I), urdf_link("a", 2.0, I)))
+    assert [b.name for b in m.bodies] == ["a", "b", "a"]
+    assert len(m.notes) == 1
+    assert "link 'a' is given 2 times (lines 3, 5); URDF requires unique link names" in m.notes[0]
+
+
 def test_check_no_inertial_in_every_format(tmp_path):
     assert by_name(model(tmp_path, "a.urdf", urdf('<link name="l"/>')))["l"].status == "no_inertial"
     assert by_name(model(tmp_path, "a.sdf", "<sdf><model name='m'><link name='l'/></model></sdf>"))["l"].status == (
@@ -605,6 +625,21 @@ def test_read_untrusted_input_is_one_line_naming_file_and_fix(tmp_path, name, te
         models.read_model(path)
     msg = str(e.value)
     assert says in msg and "\n" not in msg and msg.startswith(str(path))
+
+
+def test_read_xacro_include_says_run_xacro_first(tmp_path):
+    """Before: "<xacro:include> uses XInclude, which hconv does not follow; paste the included
+    content in", where every other xacro element says to run xacro."""
+    path = tmp_path / "arm.urdf.xacro"
+    path.write_text(
+        '<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro">\n'
+        '<xacro:include filename="parts.xacro"/>\n<link name="a"/>\n</robot>\n'
+    )
+    with pytest.raises(InputError) as e:
+        models.read_model(path)
+    msg = str(e.value)
+    assert msg.startswith(f"{path}, line 2, <xacro:include> is xacro") and "run xacro first" in msg
+    assert "XInclude" not in msg
 
 
 def test_read_forgives_what_tinyxml_forgives_and_keeps_line_numbers(tmp_path):
@@ -793,6 +828,16 @@ def test_show_fits_80_columns_without_cutting_a_name_or_a_number():
                 assert ("-" if x != x else f"{x:.4g}") in rows[b.name].split()
 
 
+def test_show_reasons_and_notes_wrap_without_trailing_spaces():
+    """Before: each wrapped reason and note line ended in the space rich wrapped at."""
+    m = models.read_model(EXAMPLES / "arm.urdf")
+    buf = io.StringIO()
+    modelview.show(m, Console(file=buf, width=60, force_terminal=True, color_system=None))
+    lines = buf.getvalue().splitlines()
+    assert any("sign slip" in ln for ln in lines)
+    assert [ln for ln in lines if ln != ln.rstrip()] == []
+
+
 def test_show_lists_bodies_whose_names_do_not_fit(tmp_path):
     long = "a_link_whose_name_is_far_too_long_for_a_table_row_at_eighty_columns_wide"
     m = model(tmp_path, "l.urdf", urdf(urdf_link(long, 1.0, np.diag([0.1, 0.1, 0.3]))))
@@ -837,6 +882,25 @@ def test_cli_bodies_writes_files_atomically_and_refuses_to_overwrite(tmp_path):
     assert not (tmp_path / "x.csv").exists()
     proc = run_hconv("bodies", str(EXAMPLES / "arm.urdf"), str(EXAMPLES / "arm.urdf"), "--to", "csv", "--force")
     assert proc.returncode == 4 and b"is the input file" in proc.stderr
+
+
+@pytest.mark.parametrize(
+    "args, says",
+    [
+        (("--form", "weird"), "hconv: error: --form must be one of sym6, principal, got 'weird'\n"),
+        (
+            ("--to", "csv"),
+            "hconv: error: --to is for OUT, which is not given; give OUT (- for stdout), or drop it to list the "
+            "bodies\n",
+        ),
+        (("--form", "principal", "--force"), "hconv: error: --form and --force are for OUT, which is not given;"),
+    ],
+)
+def test_cli_bodies_without_out_checks_options_as_with_it(args, says):
+    """Before: without OUT, --form weird and --to csv were ignored, exit 0 and the table."""
+    proc = run_hconv("bodies", str(EXAMPLES / "arm.urdf"), *args)
+    assert proc.returncode == 2 and proc.stdout == b""
+    assert proc.stderr.decode().startswith(says) and proc.stderr.count(b"\n") == 1
 
 
 def test_cli_bodies_strict_exits_5_when_a_body_is_not_ok(tmp_path):

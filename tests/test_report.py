@@ -194,3 +194,29 @@ def test_show_prints_a_list_when_even_one_column_beside_the_keys_is_too_wide():
     lines = shown(console)
     assert_fits(lines, 60, ["document-principal", "x" * 50, "1e+300"])
     assert lines[0].strip() == "document-principal" and not BOX & set("".join(lines))
+
+
+def test_diagnosis_tables_explain_a_hypothesis_with_no_omega_on_any_row(tmp_path):
+    """Before: ordering-urdf on a diagonal sym6 tensor showed "0.0 % - - -" with no word why."""
+    cols = {"Hx": [0.1], "Hy": [0.4], "Hz": [0.9], "Ixx": [1.0], "Iyy": [2.0], "Izz": [3.0]}
+    cols |= {"Ixy": [0.0], "Ixz": [0.0], "Iyz": [0.0], "wx_obs": [0.1], "wy_obs": [0.2], "wz_obs": [0.3]}
+    pacsv.write_csv(pa.table(cols), tmp_path / "log.csv")
+    d = diagnose.diagnose_file(str(tmp_path / "log.csv"))
+    console = pipe()
+    report.diagnosis_tables(d, console)
+    lines = shown(console)
+    row = next(ln.split("\t") for ln in lines if "\tordering-urdf\t" in ln)
+    assert row[2:] == ["0.0 %", "-", "-", "-"]
+    assert "# -: ordering-urdf gives no ω on any row (the tensor read that way is singular" in "\n".join(lines)
+    console = terminal(80)
+    report.diagnosis_tables(d, console)
+    assert any(ln.startswith("-: ordering-urdf gives no ω on any row") for ln in shown(console))
+
+
+def test_note_wraps_on_a_terminal_without_trailing_spaces():
+    """Before: rich kept the space it wrapped at on the end of each line."""
+    console = terminal(40)
+    report.note(console, "every row is explained by at least one hypothesis, and then some more words")
+    lines = shown(console)
+    assert len(lines) > 1 and all(ln == ln.rstrip() and len(ln) <= 40 for ln in lines)
+    assert " ".join(lines) == "every row is explained by at least one hypothesis, and then some more words"

@@ -411,6 +411,7 @@ def one(
     w = [float(x) * scale for x in res.w[0]]
     residual = float(res.residual[0]) if res.residual is not None else float("nan")
     cond, state = float(res.cond[0]), str(res.status[0])
+    cancelled = res.cancelled is not None and bool(res.cancelled[0])
     if state == "invalid_input":  # the status says that, not which value: say it beside, on stderr
         causes = bodies.invalid_inputs(sets, form.name, job.method, job.precision, job.conventions)
         given = {"H": H, "I": I, "r": r, "q": q, "v": v, "m": None if mass is None else f"{mass:g}"}
@@ -433,7 +434,7 @@ def one(
         if res.null_dim is not None:
             out.update(null_axis=axis, null_dim=int(res.null_dim[0]))
         print(json.dumps(out))
-        _status_hint(state, residual)
+        _status_hint(state, residual, cancelled)
         return
     print(f"w        = [{', '.join(repr(x) for x in w)}] {unit_out}")
     print(f"residual = {residual:.3g}  {RESIDUAL_FREE if job.conventions.about == 'free' else RESIDUAL}")
@@ -445,14 +446,16 @@ def one(
     if unit_out == methods.M2_S:
         print(f"note: {unit_out} is not a unit of angular velocity;")
         print("      see 'The seed's three questions' in the README")
-    _status_hint(state, residual)
+    _status_hint(state, residual, cancelled)
 
 
-def _status_hint(state: str, residual: float) -> None:
-    """After the result, on stderr: what a status that the result alone does not explain means."""
-    if state == "cancellation":  # the status says that digits were lost, not how many, nor what to do
+def _status_hint(state: str, residual: float, cancelled: bool) -> None:
+    """After the result, on stderr: what the result alone does not say. A row has one status, so
+    a cancellation under a status that comes first (unit_suspect) is told here, by the same bound
+    (``cancelled``: hconv.solve.bodies); where ω is NaN there is nothing to qualify."""
+    if cancelled and not math.isnan(residual):  # the status says that digits were lost, not how many, nor what to do
         sys.stdout.flush()  # after the result on a shared terminal too
-        print(_cancellation_hint(residual), file=sys.stderr)
+        print(_fill(_cancellation_hint(state, residual), sys.stderr), file=sys.stderr)
 
 
 #: What is wrong and what to give instead, per cause that hconv.solve.bodies.invalid_inputs names.
@@ -488,13 +491,45 @@ def _needs_text(reasons: list[str]) -> str:
     return "; ".join(parts)
 
 
-def _cancellation_hint(residual: float) -> str:
-    """One line for stderr: what the status cancellation means for this row, and the fix."""
-    return (
-        f"hconv: cancellation: H - r × m·v cancels most of H's digits, so the inputs' rounding to float64 "
-        f"may put ω off by up to {residual:.2g} of |ω| (the residual); give H about the centre of mass, with "
-        f"{errors.option('about', 'same')}"
+def _cancellation_hint(state: str, residual: float) -> str:
+    """For stderr: what losing digits to H - r × m·v means for this row, and the fix."""
+    head = "hconv: cancellation" + (
+        "" if state == "cancellation" else f" (the status shows {state}, which comes first)"
     )
+    if residual >= 1:
+        # The bound is first order: once it reaches |ω| no digit is left, and it bounds nothing
+        # (a trial row was off by 48 |ω| with a residual of 10.6).
+        what = (
+            f"{_DIFFERENCE} cancels all of H's digits that survived the inputs' rounding to float64, so ω is "
+            f"unknown: not one digit of it holds, and the residual ({residual:.2g}) is no bound on its error"
+        )
+    else:
+        what = (
+            f"{_DIFFERENCE} cancels most of H's digits, so the inputs' rounding to float64 may put ω off "
+            f"by up to {residual:.2g} of |ω| (the residual)"
+        )
+    fix = errors.option("about", "same").replace(" ", "\xa0")
+    return f"{head}: {what}; give H about the centre of mass, with {fix}"
+
+
+#: A formula that wrapping must not split (no-break spaces, which _fill prints as spaces).
+_DIFFERENCE = "H\xa0-\xa0r\xa0×\xa0m·v"
+
+
+def _width(stream: Any) -> int:
+    """The width text for ``stream`` wraps at: 80 columns, or a narrower terminal's."""
+    import shutil
+
+    return min(80, shutil.get_terminal_size().columns) if stream.isatty() else 80
+
+
+def _fill(text: str, stream: Any, indent: str = "  ", first: str = "") -> str:
+    """``text`` wrapped at spaces to ``stream``'s width, after ``first`` and with later lines
+    indented by ``indent``, with no trailing spaces. A no-break space keeps a number with its unit."""
+    import textwrap
+
+    lines = textwrap.fill(text, _width(stream), initial_indent=first, subsequent_indent=indent, break_on_hyphens=False)
+    return lines.replace("\xa0", " ")
 
 
 def _invalid_hint(causes: list[tuple[str, str]], given: dict[str, str | None], precision: int) -> str:
@@ -701,11 +736,11 @@ def bodies_cmd(
     dst: str | None = typer.Argument(
         None, metavar="[OUT]", help="write a row per body to .csv or .parquet (- for stdout); without it, a table"
     ),
-    form: str = typer.Option(
-        "sym6",
+    form: str | None = typer.Option(
+        None,
         "--form",
-        help="the inertia in OUT: sym6 (Ixx, Iyy, Izz, Ixy, Ixz, Iyz in the body frame) or principal "
-        "(I1, I2, I3 and qw, qx, qy, qz: principal axes to body frame)",
+        help="the inertia in OUT: sym6 (Ixx, Iyy, Izz, Ixy, Ixz, Iyz in the body frame; the default) or "
+        "principal (I1, I2, I3 and qw, qx, qy, qz: principal axes to body frame)",
     ),
     to: Fmt | None = typer.Option(None, "--to", help="output format; needed when OUT is -"),
     force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
@@ -716,6 +751,18 @@ def bodies_cmd(
     from hconv import modelview
     from hconv.tools import models
 
+    # Options are checked before the model is read, and the same way with or without OUT: an
+    # option that only shapes OUT is refused without it, as --endpoint-url is without a URI,
+    # since ignoring it would let the user believe it did something.
+    if form is not None:
+        options.check_choice("form", form, models.OUTPUT_FORMS)
+    if dst is None:
+        given = [name for name, value in (("--form", form), ("--to", to), ("--force", force)) if value]
+        if given:
+            raise UsageError(
+                f"{' and '.join(given)} {'is' if len(given) == 1 else 'are'} for OUT, which is not given; "
+                "give OUT (- for stdout), or drop " + ("it" if len(given) == 1 else "them") + " to list the bodies"
+            )
     m = models.read_model(model)
     bad = [b for b in m.bodies if b.status != "ok"]
     if strict and not m.bodies:  # a model with nothing to check passes no check
@@ -726,7 +773,7 @@ def bodies_cmd(
     if dst is None:
         modelview.show(m)
     elif not (strict and bad):  # as convert --strict: no output when a row is not ok
-        models.write_bodies(m, dst, form=form, dst_format=_value(to), force=force)
+        models.write_bodies(m, dst, form=form or "sym6", dst_format=_value(to), force=force)
         if not quiet:
             print(f"hconv bodies: {model} ({m.format}) to {dst}: {modelview.summary_line(m)}", file=sys.stderr)
             for note in m.notes:
@@ -839,15 +886,10 @@ def _listing(entries: list[tuple[str, ...]]) -> None:
     """Print ``(name, paragraph, ...)`` entries as a name column beside paragraphs wrapped at
     spaces to 80 columns, or to a narrower terminal, so that no line is cut or runs over. A
     no-break space keeps a number with its unit."""
-    import shutil
-    import textwrap
-
-    width = min(80, shutil.get_terminal_size().columns) if sys.stdout.isatty() else 80
     for name, *paragraphs in entries:
         for k, text in enumerate(paragraphs):
             first = f"{name:<8}" if k == 0 else " " * 8
-            lines = textwrap.fill(text, width, initial_indent=first, subsequent_indent=" " * 8, break_on_hyphens=False)
-            print(lines.replace("\xa0", " "))
+            print(_fill(text, sys.stdout, " " * 8, first))
 
 
 @app.command("methods")

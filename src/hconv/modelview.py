@@ -18,6 +18,7 @@ from rich.console import Console
 from rich.table import Table
 from rich.text import Text
 
+from hconv import report
 from hconv.tools.models import Body, Model
 
 _HEADERS = ("body", "m kg", "I1 kg·m²", "I2 kg·m²", "I3 kg·m²", "status")
@@ -53,8 +54,8 @@ def show(model: Model, console: Console | None = None) -> None:
         for note in model.notes:
             out.write(f"# note: {' '.join(note.split())}\n")
         return
-    console.print(Text(title, style="bold"))
-    console.print(principal)
+    report.note(console, Text(title, style="bold"))  # report.note: wrapped, no trailing spaces
+    report.note(console, principal)
     t = Table(box=box.SIMPLE_HEAD, pad_edge=False, show_edge=False, header_style="bold")
     for k, h in enumerate(_HEADERS):
         t.add_column(h, justify="left" if k in (0, 5) else "right", no_wrap=True)
@@ -65,8 +66,8 @@ def show(model: Model, console: Console | None = None) -> None:
     else:  # one body per paragraph: a name or a number is never cut
         for b in model.bodies:
             c = _cells(b)
-            console.print(Text(c[0], style="bold"))
-            console.print(Text(f"  m {c[1]} kg · I1, I2, I3 {c[2]}, {c[3]}, {c[4]} kg·m² · {c[5]}"))
+            report.note(console, Text(c[0], style="bold"))
+            report.note(console, f"  m {c[1]} kg · I1, I2, I3 {c[2]}, {c[3]}, {c[4]} kg·m² · {c[5]}")
     if any(b.reason for b in model.bodies):
         console.print()
     for b in model.bodies:
@@ -74,9 +75,9 @@ def show(model: Model, console: Console | None = None) -> None:
             line = Text()
             line.append(b.name, style="bold")
             line.append(f" ({b.status}): {b.reason}")
-            console.print(line)
+            report.note(console, line)
     for note in model.notes:
-        console.print(Text(f"note: {note}"))
+        report.note(console, f"note: {note}")
 
 
 def _width(t: Table) -> int:

@@ -63,7 +63,10 @@ def _line(console: Console, text: str) -> None:
 def note(console: Console, text: Cell) -> None:
     """A line that is not a table row: wrapped at spaces on a terminal, one ``#`` line elsewhere."""
     if console.is_terminal:
-        console.print(text if isinstance(text, Text) else Text(text))
+        # rich keeps the space it wrapped at on the end of each line: wrap here and drop it
+        for line in (text if isinstance(text, Text) else Text(text)).wrap(console, console.width):
+            line.rstrip()
+            console.print(line)
     else:
         _line(console, "# " + _one_line(_text(text)))
 
@@ -447,6 +450,15 @@ def diagnosis_tables(d: Diagnosis, console: Console | None = None) -> None:
         )
         styles.append("bold green" if rank == 1 and share > 0 else None)
     show(console, cols, rows, title=head, keys=2, styles=styles)
+    # A hypothesis can build a tensor with no inverse on every row (ordering-urdf on a diagonal
+    # tensor puts two zeros on its diagonal): without a word its row of "-" reads like a fault.
+    silent = [s.hypothesis for _, s, _ in ranks if d.rows and not s.residual.answered]
+    if silent:
+        note(
+            console,
+            f"-: {', '.join(silent)} {'gives' if len(silent) == 1 else 'give'} no ω on any row (the tensor "
+            "read that way is singular or not valid on each), so there is no residual or angle to show",
+        )
     groups = d.groups()
     groups = groups if d.rows else []  # no row: nothing is best or closest
     if groups and len(groups[0]) == 1:

@@ -220,6 +220,9 @@ def _cancellation(res: core.Result, eps_C: np.ndarray, k: float, precision: int)
         eps = float(np.finfo(np.float64 if precision == 64 else np.float32).eps)
         solve = res.cond * (k * eps)
         lost = point + solve > status.ILL_CONDITIONED_TOL
+        # where the solve alone could lose them, the row is ill_conditioned (before cancellation),
+        # and the point change is not what to blame
+        cancelled = lost & (solve <= status.ILL_CONDITIONED_TOL)
     code = status.merge(res.status_code, lost, "cancellation")
     residual = None if res.residual is None else res.residual + point
-    return dataclasses.replace(res, status_code=code, residual=residual)
+    return dataclasses.replace(res, status_code=code, residual=residual, cancelled=cancelled)

@@ -54,6 +54,10 @@ class Result:
     null_dim: np.ndarray | None = None
     #: the engine that converted the rows: numpy, numba or python (hconv.solve.engines)
     engine: str = "numpy"
+    #: --about free only: (N,) bool, rows on which taking r × m·v out of H lost digits by the bound
+    #: that sets the status cancellation, also where a status before it holds the row (a row has
+    #: one status); None otherwise (hconv.solve.bodies)
+    cancelled: np.ndarray | None = None
 
     @property
     def status(self) -> str | np.ndarray:

@@ -106,6 +106,8 @@ class Scene:
     form: str | None = None
     quat_order: str = "wxyz"  #: "xyzw" only for a list column q read with --quat-order xyzw
     w_obs_factors: tuple = (1.0, 1.0, 1.0)
+    #: where q is in the input, for the text of the hypotheses about it
+    q_where: str = "the qw, qx, qy, qz columns"
 
     @property
     def uses_q(self) -> bool:
@@ -141,7 +143,10 @@ class Hypothesis:
     declared: Callable[[Scene], bool] = lambda scene: False
 
     def describe(self, scene: Scene) -> str:
-        return self.reverse if self.reverse and self.declared(scene) else self.summary
+        """The summary for ``scene``: the reverse mistake where it declares this convention, and
+        ``{q}`` replaced by where q is in the input (named columns or one list column)."""
+        text = self.reverse if self.reverse and self.declared(scene) else self.summary
+        return text.replace("{q}", scene.q_where)
 
 
 def _solve(sets: dict, scene: Scene, method: str = "exact", form: str | None = None, **conv: Any) -> np.ndarray:
@@ -262,7 +267,7 @@ HYPOTHESES = (
         "quat-xyzw",
         ("q",),
         _quat_xyzw,
-        "an x, y, z, w quaternion (PyBullet, Eigen's coeffs(), ROS) in the qw, qx, qy, qz columns",
+        "an x, y, z, w quaternion (PyBullet, Eigen's coeffs(), ROS) in {q}",
         _moot_xyzw,
     ),
     Hypothesis("flipped-products", (), _flipped, "products of inertia with the opposite sign", _moot_products),
@@ -474,6 +479,8 @@ def diagnose_file(
             plan.form,
             "xyzw" if q is not None and q.is_list and plan.quat_order == "xyzw" else "wxyz",
             tuple(float(f) for f in np.broadcast_to(np.asarray(w_obs.factors or (1.0,), dtype=np.float64), 3)),
+            # a list column is read as w, x, y, z unless --quat-order says otherwise
+            f"the list column {q.columns[0]} (read as w, x, y, z)" if q is not None and q.is_list else Scene.q_where,
         )
         d = None
         first = 0

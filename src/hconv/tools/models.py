@@ -280,8 +280,10 @@ def _urdf(root: Node, path: Path, shown: str) -> tuple[list[_Raw], list[str]]:
             "run xacro first (xacro model.urdf.xacro > model.urdf) and give hconv the URDF",
         )
     raws = []
+    lines: dict[str, list[int]] = {}  # link name -> the lines it is given at
     for link in root.findall("link"):
         name = _name(link, "link")
+        lines.setdefault(name, []).append(link.line)
         inertial = link.find("inertial")
         if inertial is None:
             raws.append(
@@ -319,7 +321,14 @@ def _urdf(root: Node, path: Path, shown: str) -> tuple[list[_Raw], list[str]]:
                 _tensor(*six.values()),
             )
         )
-    return raws, []
+    # Both are listed, as the file gives them, but a parser that keys links by name keeps one
+    notes = [
+        f"{shown}: link {name!r} is given {len(at)} times (lines {', '.join(map(str, at))}); URDF requires "
+        "unique link names, and urdfdom refuses the model: rename or remove all but one"
+        for name, at in lines.items()
+        if len(at) > 1
+    ]
+    return raws, notes
 
 
 # --- SDF -----------------------------------------------------------------------------------
@@ -711,7 +720,12 @@ def _check(raws: list[_Raw]) -> list[Body]:
     with np.errstate(invalid="ignore"):
         zero = have & np.all(I_C_B.reshape(n, 9) == 0, axis=1)
         top = np.abs(S).max(axis=0)
-        singular = have & (np.abs(S).min(axis=0) <= status.singular_rtol(np.float64) * top) & ~(zero & (m == 0))
+        # A moment below zero beyond the singular threshold makes the tensor indefinite, whatever
+        # else is zero: (-1, 0, 1) is no rod, and its reason must say so, not "a line mass".
+        negative = have & (S[0] < -status.singular_rtol(np.float64) * top)
+        singular = (
+            have & ~negative & (np.abs(S).min(axis=0) <= status.singular_rtol(np.float64) * top) & ~(zero & (m == 0))
+        )
         flags = {
             "negative_mass": have & (m < 0),
             "massless_with_inertia": have & (m == 0) & ~zero,

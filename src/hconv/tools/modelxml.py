@@ -162,7 +162,10 @@ def parse_bytes(data: bytes, shown: str) -> Node:
     texts: list[list[str]] = []
 
     def start(tag: str, attrib: dict[str, str]) -> None:
-        if tag.endswith(":include") or any(k.startswith("xmlns") and v == _XINCLUDE for k, v in attrib.items()):
+        # xacro's own <xacro:include> is a macro, not XInclude: the URDF reader refuses every xacro
+        # element with the fix that works for it (run xacro first); pasting content in would not
+        xinclude = tag.endswith(":include") and not tag.startswith("xacro:")
+        if xinclude or any(k.startswith("xmlns") and v == _XINCLUDE for k, v in attrib.items()):
             raise _RefusedError(f"<{tag}> uses XInclude, which hconv does not follow; paste the included content in")
         node = Node(tag, dict(attrib), shown, p.CurrentLineNumber)
         (stack[-1].children if stack else roots).append(node)
