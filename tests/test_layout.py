@@ -229,3 +229,29 @@ def test_plan_field_units_refuses_a_unit_of_the_wrong_kind_naming_the_keyword():
     names = ("Hx", "Hy", "Hz", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz")
     with pytest.raises(UsageError, match=re.escape("field_units={'Ixx': 'm/s'}")):
         layout.plan(pa.schema([(c, pa.float64()) for c in names]), Job(field_units={"Ixx": "m/s"}), "engine")
+
+
+def test_plan_missing_vector_set_suggests_the_map_that_reads_look_alike_columns(tmp_path):
+    src = tmp_path / "in.csv"
+    src.write_text("Lx,Ly,Lz,Ixx,Iyy,Izz,Ixy,Ixz,Iyz\n1,2,3,1,2,4,0,0,0\n")
+    out = tmp_path / "o.csv"
+    proc = run_hconv("convert", str(src), str(out))
+    err = proc.stderr.decode().strip()
+    assert proc.returncode == 3 and len(err.splitlines()) == 1
+    suggested = re.search(r"give (--map \S+)$", err)
+    assert suggested, err
+    assert "Ixx" not in suggested.group(1)  # the inertia's own columns are read by their names
+    # the suggestion is a command that works: ω of the diagonal body is H / I per axis
+    proc = run_hconv("convert", str(src), str(out), *suggested.group(1).split())
+    assert proc.returncode == 0, proc.stderr.decode()
+    row = out.read_text().splitlines()[1].split(",")
+    header = out.read_text().splitlines()[0].split(",")
+    w = [float(row[header.index(c)]) for c in ("wx", "wy", "wz")]
+    assert w == [1.0, 1.0, 0.75]
+
+
+def test_plan_missing_vector_set_without_look_alikes_suggests_nothing():
+    schema = pa.schema([(c, pa.float64()) for c in ("Ax", "By", "Cz", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz")])
+    with pytest.raises(InputError) as info:
+        layout.plan(schema, Job(), "x.csv")
+    assert str(info.value) == "x.csv: missing columns Hx, Hy, Hz (or a list column H)"

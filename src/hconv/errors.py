@@ -44,9 +44,15 @@ def option(name: str, value: object = _UNSET) -> str:
 def entry(name: str, key: str, value: str) -> str:
     """One entry of a mapping option: ``--map Hx=Lx`` on the command line, ``mapping={'Hx': 'Lx'}``
     in Python."""
+    return entries(name, {key: value})
+
+
+def entries(name: str, pairs: dict[str, str]) -> str:
+    """Entries of a mapping option: ``--map Hx=Lx,Hy=Ly`` on the command line,
+    ``mapping={'Hx': 'Lx', 'Hy': 'Ly'}`` in Python."""
     if _reader == "cli":
-        return f"{option(name)} {key}={value}"
-    return f"{name}={{{key!r}: {value!r}}}"
+        return f"{option(name)} " + ",".join(f"{k}={v}" for k, v in pairs.items())
+    return f"{name}={pairs!r}"
 
 
 #: What an interrupted run says after ``hconv: error:``, wherever the interrupt lands.

@@ -22,10 +22,10 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 
-from hconv.errors import InputError, UsageError, entry, option
+from hconv.errors import InputError, UsageError, entries, entry, option
 from hconv.solve import forms, units
 from hconv.tables.job import Job
-from hconv.tables.sets import OPTIONAL_SETS, QUANTITY, VECTOR_SETS
+from hconv.tables.sets import OPTIONAL_SETS, QUANTITY, VECTOR_SETS, all_names
 
 #: The columns hconv writes after the input's.
 W_COLUMNS = ("wx", "wy", "wz")
@@ -333,8 +333,30 @@ def _vector_group(
     if why:
         what = f"{', '.join(cols)}" + (f" (or a list column {name})" if len(cols) > 1 else "")
         tail = "" if name == "H" else f"; {why}"
-        raise InputError(f"{source}: missing column{_plural(cols)} {what}{tail}")
+        raise InputError(f"{source}: missing column{_plural(cols)} {what}{tail}{_look_alike(name, schema)}")
     return None
+
+
+def _look_alike(name: str, schema: pa.Schema) -> str:
+    """A hint for a missing vector set whose components the input may hold under other names: the
+    columns ``Px, Py, Pz`` (``Pw`` too for q) that no hconv name reads, for each such prefix P."""
+    cols = VECTOR_SETS[name]
+    if len(cols) == 1 or any(not c.startswith(name) for c in cols):
+        return ""  # m, and w_obs (wx_obs...), whose names are not a prefix and an axis letter
+    axes = [c[len(name) :] for c in cols]
+    ours = set(all_names()) | set(RESERVED)  # columns hconv reads by their names, or writes
+    free = [f for f in schema.names if f not in ours]
+    prefixes = sorted(
+        {f[: -len(axes[0])] for f in free if f.endswith(axes[0]) and len(f) > len(axes[0])}
+        - {n for n in VECTOR_SETS if n != name}
+        - {"w"}  # wx, wy, wz: hconv's own output
+    )
+    found = [p for p in prefixes if all(p + a in free for a in axes)]
+    if not found:
+        return ""
+    maps = " or ".join(entries("mapping", {c: p + a for c, a in zip(cols, axes)}) for p in found[:2])
+    held = " or ".join(", ".join(p + a for a in axes) for p in found[:2])
+    return f"; if {held} hold {name}, give {maps}"
 
 
 def _inertia_group(
