@@ -7,10 +7,12 @@ from __future__ import annotations
 import csv
 import errno
 import io
+import os
 import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
@@ -160,15 +162,16 @@ def test_convert_interrupted_leaves_no_output_and_no_temporary(big_file, tmp_pat
     args = [sys.executable, "-m", "hconv", "convert", str(big), dst if dst == "-" else str(tmp_path / dst), "-q"]
     if dst == "-":
         args += ["--to", "csv"]
-    import tempfile
-    from pathlib import Path
-
-    spools = lambda: {p.name for p in Path(tempfile.gettempdir()).iterdir() if p.name.startswith("hconv-stdout-")}  # noqa: E731
+    # The child's own temporary folder: tests running beside this one spool into the shared one.
+    tmp = tmp_path.parent / f"{tmp_path.name}-tmp"
+    tmp.mkdir()
+    spools = lambda: {p.name for p in tmp.iterdir() if p.name.startswith("hconv-stdout-")}  # noqa: E731
     before = spools()
     # As from a terminal: Ctrl-C and SIGQUIT at their defaults. A child inherits an ignored signal,
     # and under HCONV_ENGINE=numba this process was caught with both ignored (the mark of a C
     # system() call running in another thread), so the child never saw the SIGINT and finished.
-    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=_terminal_signals)
+    env = dict(os.environ, TMPDIR=str(tmp))
+    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=_terminal_signals, env=env)
 
     def started():
         here = any(p.name.endswith(".hconv-tmp") for p in tmp_path.iterdir())
