@@ -520,8 +520,42 @@ def test_one_about_free_names_every_missing_value(capsys, given, needs, wanted):
 
 
 def test_one_valid_input_prints_nothing_on_stderr(capsys):
-    code, out, err = run_inprocess("one", "--H", "1,2,3", "--I", "1,2,3", "--r", "nan,0,0", capsys=capsys)
-    assert code == 0 and "status   = ok" in out and err == ""  # r is not used by exact
+    code, out, err = run_inprocess("one", "--H", "1,2,3", "--I", "1,2,3", "--q", "1,0,0,0", capsys=capsys)
+    assert code == 0 and "status   = ok" in out and err == ""
+
+
+@pytest.mark.parametrize(
+    "given, unread",
+    [
+        (["--r", "1,0,0"], ["--r"]),
+        (["--v", "0,1,0"], ["--v"]),
+        (["--r", "1,0,0", "--v", "0,1,0"], ["--r", "--v"]),
+        (["--v", "0,1,0", "--r", "1,0,0", "--about", "pivot", "--m", "2"], ["--v"]),
+    ],
+)  # the unused values first: the run without them drops them
+def test_one_value_no_run_reads_is_told_not_silently_ignored(capsys, given, unread):
+    """Before, --r without --about (and an exact method) or --v without --about free was ignored
+    without a word, and the answer read as if it had used them. The answer is still printed (one
+    command re-run with another --method is a habit), and a note on stderr says what was unused."""
+    code, out, err = run_inprocess("one", "--H", "1,2,3", "--I", "1,2,3", *given, capsys=capsys)
+    without = run_inprocess("one", "--H", "1,2,3", "--I", "1,2,3", *given[len(unread) * 2 :], capsys=capsys)
+    assert code == 0 and out == without[1]  # the same answer as without the unused values
+    assert err.startswith(f"hconv: this run did not use {' or '.join(unread)}: "), err
+    for flag in unread:
+        assert f"{flag} is read only " in " ".join(err.split())
+
+
+@pytest.mark.parametrize(
+    "given",
+    [
+        ["--r", "1,0,0", "--method", "document"],
+        ["--r", "1,0,0", "--about", "pivot", "--m", "2"],
+        ["--r", "7,0,0", "--v", "0,1,0", "--about", "free", "--m", "2"],
+    ],
+)
+def test_one_value_a_run_reads_is_accepted(capsys, given):
+    code, out, err = run_inprocess("one", "--H", "1,2,3", "--I", "1,2,3", *given, capsys=capsys)
+    assert code == 0 and out.startswith("w        = [") and err == "", err
 
 
 def test_one_does_not_import_pyarrow_rich_pint_or_numba():

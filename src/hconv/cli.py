@@ -406,6 +406,9 @@ def one(
     if missing:  # every value at once: one run to find them all, not one per missing value
         wanted = " ".join(f"--{k} {ONE_VALUES[k]}" for k in missing)
         raise UsageError(f"{_needs_text([need[k] for k in missing])}; pass {wanted}")
+    # A value given and silently unused reads as if it had changed the answer; refusing it would
+    # break the habit of one command re-run with another --method, so it is a note after the result.
+    unread = [k for k in ONE_READ_BY if k in sets and k not in need]
     res = bodies.solve(sets, form.name, job.method, job.precision, job.conventions)
     unit_out, scale = job.unit, job.omega_scale
     w = [float(x) * scale for x in res.w[0]]
@@ -435,6 +438,7 @@ def one(
             out.update(null_axis=axis, null_dim=int(res.null_dim[0]))
         print(json.dumps(out))
         _status_hint(state, residual, cancelled)
+        _unread_hint(unread)
         return
     print(f"w        = [{', '.join(repr(x) for x in w)}] {unit_out}")
     print(f"residual = {residual:.3g}  {RESIDUAL_FREE if job.conventions.about == 'free' else RESIDUAL}")
@@ -447,6 +451,16 @@ def one(
         print(f"note: {unit_out} is not a unit of angular velocity;")
         print("      see 'The seed's three questions' in the README")
     _status_hint(state, residual, cancelled)
+    _unread_hint(unread)
+
+
+def _unread_hint(unread: list[str]) -> None:
+    """On stderr: the values given that this run did not read (:data:`ONE_READ_BY`)."""
+    if unread:
+        sys.stdout.flush()
+        said = "; ".join(f"--{k} is read only {ONE_READ_BY[k]}" for k in unread)
+        text = f"hconv: this run did not use {' or '.join(f'--{k}' for k in unread)}: {said}"
+        print(_fill(text, sys.stderr), file=sys.stderr)
 
 
 def _status_hint(state: str, residual: float, cancelled: bool) -> None:
@@ -457,6 +471,13 @@ def _status_hint(state: str, residual: float, cancelled: bool) -> None:
         sys.stdout.flush()  # after the result on a shared terminal too
         print(_fill(_cancellation_hint(state, residual), sys.stderr), file=sys.stderr)
 
+
+#: hconv one's values that only some runs read (q and m are read by every run: the frame, the
+#: density check), and by which.
+ONE_READ_BY = {
+    "r": "by the document methods (--method document|document-principal) and with --about pivot|free",
+    "v": "with --about free",
+}
 
 #: What is wrong and what to give instead, per cause that hconv.solve.bodies.invalid_inputs names.
 INVALID_HINTS = {
