@@ -617,3 +617,23 @@ def test_csv_writer_parquet_empty_string_and_null_stay_distinct(tmp_path):
     convert_file(src, str(tmp_path / "out.csv"))
     lines = (tmp_path / "out.csv").read_text().splitlines()
     assert [line.split(",")[18] for line in lines[1:4]] == ['""', "", "x"]
+
+
+def test_open_input_csv_nan_in_a_numeric_column_stays_nan_and_an_empty_field_stays_missing(tmp_path):
+    """A file's NaN is a float value: pyarrow's default null markers include its spellings, and
+    hconv turned it into a null (an empty field in CSV output, a null in Parquet)."""
+    import math
+
+    import pyarrow.parquet as pq
+
+    src = tmp_path / "in.csv"
+    src.write_text("Hx,Hy,Hz,Ixx,Iyy,Izz,Ixy,Ixz,Iyz\nNaN,2,3,1,2,4,0,0,0\n,2,3,1,2,4,0,0,0\n-nan,NA,3,1,2,4,0,0,0\n")
+    assert run_hconv("convert", str(src), str(tmp_path / "o.parquet"), "-q").returncode == 0
+    got = pq.read_table(tmp_path / "o.parquet")
+    hx, hy = got.column("Hx").to_pylist(), got.column("Hy").to_pylist()
+    assert math.isnan(hx[0]) and hx[1] is None and math.isnan(hx[2])
+    assert hy == [2.0, 2.0, None]  # NA is a missing value, as pyarrow reads it
+    assert got.column("status").to_pylist() == ["invalid_input"] * 3
+    assert run_hconv("convert", str(src), str(tmp_path / "o.csv"), "-q").returncode == 0
+    first = [line.split(",")[0] for line in (tmp_path / "o.csv").read_text().splitlines()[1:]]
+    assert first[0].lower() == "nan" and first[1] == "" and first[2].lower() in ("nan", "-nan")

@@ -41,7 +41,7 @@ import pyarrow.parquet as pq
 
 from hconv.errors import InputError, OutputError, UsageError, option
 from hconv.solve import forms
-from hconv.tables import layout, sets
+from hconv.tables import csvtypes, layout, sets
 from hconv.tables.formats import EXTENSIONS, FORMATS
 from hconv.tables.job import Job
 
@@ -547,7 +547,9 @@ def _open_csv(path: str, name: str, job: Job) -> Input:
         raise InputError(f"{exc}{_header_hint(names)}") from None
     nums = set(plan.numeric)
     types = {n: (pa.float64() if n in nums else pa.string()) for n in names}
-    copts = pacsv.ConvertOptions(column_types=types, strings_can_be_null=False)
+    # NaN is a float value, not a missing one: pyarrow's default null markers include its
+    # spellings, which turned a file's NaN into a null (an empty field in CSV output).
+    copts = pacsv.ConvertOptions(column_types=types, strings_can_be_null=False, null_values=csvtypes.NULLS.to_pylist())
     f = open(path, "rb")  # noqa: SIM115 - stays open for the batches; Input.close() closes it
     try:  # the reader parses its first block here already, so bad values can show up now
         reader = pacsv.open_csv(f, read_options=ropts, convert_options=copts)
