@@ -220,3 +220,19 @@ def test_note_wraps_on_a_terminal_without_trailing_spaces():
     lines = shown(console)
     assert len(lines) > 1 and all(ln == ln.rstrip() and len(ln) <= 40 for ln in lines)
     assert " ".join(lines) == "every row is explained by at least one hypothesis, and then some more words"
+
+
+@pytest.mark.parametrize(
+    "asked, ran, told",
+    [("numba", {"numpy": 10}, True), ("python", {"numpy": 10}, True), ("numba", {"numba": 10}, False)]
+    + [("numba", {"numba": 6, "numpy": 4}, False), ("auto", {"numpy": 10}, False), ("numpy", {"numpy": 10}, False)],
+)
+def test_summary_says_when_the_engine_asked_for_converted_no_row(asked, ran, told):
+    """Before, --engine numba --method lapack said only "engine numpy" in the head."""
+    tally = Tally("lapack", "rad/s", rows=10, seconds=0.5)
+    tally.engines.update(ran)
+    console = pipe()
+    report.summary(tally, console, asked=asked)
+    text = "\n".join(shown(console))
+    assert (f"--engine {asked} computes --method exact or refined" in text) is told, text
+    assert ("this run's rows went to numpy" in text) is told

@@ -653,7 +653,7 @@ def convert_cmd(
     else:
         tally = pipeline.convert_file(src, dst, **kwargs)
     if not quiet:
-        report.summary(tally)
+        report.summary(tally, asked=job.engine)
 
 
 def _convert_dataset(src: str, dst: str, kwargs: dict[str, Any], endpoint_url: str | None, quiet: bool) -> None:
@@ -675,10 +675,10 @@ def _convert_dataset(src: str, dst: str, kwargs: dict[str, Any], endpoint_url: s
             result = run()
     except dataset.DatasetError as exc:
         if not quiet:
-            report.dataset_summary(exc.result)
+            report.dataset_summary(exc.result, asked=kwargs["job"].engine)
         raise
     if not quiet:
-        report.dataset_summary(result)
+        report.dataset_summary(result, asked=kwargs["job"].engine)
 
 
 @app.command("diagnose")

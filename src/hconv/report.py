@@ -184,8 +184,9 @@ def _as_list(
         console.print(Padding(g, (0, 0, 0, 2)))
 
 
-def summary(tally: Tally, console: Console | None = None) -> None:
-    """Print a run's summary: rows, rows per status, the worst residual and the time taken."""
+def summary(tally: Tally, console: Console | None = None, asked: str = "auto") -> None:
+    """Print a run's summary: rows, rows per status, the worst residual and the time taken;
+    ``asked``: the engine asked for, told when no row ran on it."""
     console = console or Console(stderr=True)
     rate = f"{tally.rows / tally.seconds:,.0f} rows/s" if tally.seconds > 0 and tally.rows else "-"
     engines = " + ".join(tally.engines) or "-"
@@ -193,7 +194,18 @@ def summary(tally: Tally, console: Console | None = None) -> None:
     _status_table(console, tally, head)
     if tally.worst_row is not None:
         note(console, f"worst residual {tally.worst_residual:.3g} (data row {tally.worst_row}), relative to I⁻¹H")
+    _engine_note(console, tally, asked)
     note(console, f"time {tally.seconds:.3f} s ({rate})")
+
+
+def _engine_note(console: Console, tally: Tally, asked: str) -> None:
+    """Say so when the engine asked for by name converted no row: a run it does not cover goes to
+    the numpy engine whatever was asked (hconv.solve.engines), and the head's "engine numpy"
+    alone reads like a mistake."""
+    from hconv.solve import engines
+
+    if asked not in ("auto", "numpy") and tally.rows and asked not in tally.engines:
+        note(console, f"--engine {asked} computes {engines.scope_text()}; this run's rows went to numpy")
 
 
 def _status_table(console: Console, tally: Tally, head: Text) -> None:
@@ -208,9 +220,10 @@ def _status_table(console: Console, tally: Tally, head: Text) -> None:
     )
 
 
-def dataset_summary(result: DatasetResult, console: Console | None = None) -> None:
+def dataset_summary(result: DatasetResult, console: Console | None = None, asked: str = "auto") -> None:
     """Print a dataset run's summary: the whole dataset's rows per status and worst residual
-    (naming its file), the files converted, up to date and failed, and this run's time."""
+    (naming its file), the files converted, up to date and failed, and this run's time;
+    ``asked``: the engine asked for, told when no row ran on it."""
     console = console or Console(stderr=True)
     tally = result.tally
     engines = " + ".join(tally.engines) or "-"
@@ -233,6 +246,8 @@ def dataset_summary(result: DatasetResult, console: Console | None = None) -> No
     note(console, f"files: {', '.join(parts)}; {result.manifest} says the dataset is {state}")
     if result.ran_on:
         note(console, f"converted on {result.ran_on}")
+    if result.converted:
+        _engine_note(console, tally, asked)
     rate = f", {result.rows_converted / result.seconds:,.0f} rows/s" if result.seconds > 0 and done else ""
     note(console, f"time {result.seconds:.3f} s ({result.rows_converted:,} rows converted{rate})")
 

@@ -70,6 +70,14 @@ def covers(method: str, precision: int, degenerate: str, form: str, degenerate_r
     )
 
 
+def scope_text() -> str:
+    """What the row engines (numba, python) compute themselves, for a reader who asked for one."""
+    return (
+        f"--method {' or '.join(rows.METHODS)} on {' or '.join(rows.FORMS)} tensors, --precision 64, "
+        "--degenerate error at its default threshold"
+    )
+
+
 def check_engine(engine: str) -> None:
     """The choice, and numba installed when it is asked for by name."""
     check_choice("engine", engine, ENGINES)
