@@ -452,6 +452,17 @@ def test_held_interrupt_waits_for_the_block_then_acts():
     assert done == [1] and signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
+@pytest.mark.parametrize("keyword", ["progress", "log"])
+def test_convert_dataset_callback_not_callable_fails_at_once_and_writes_nothing(keyword, tmp_path):
+    """Before, progress=5 converted the first file and then failed with a TypeError."""
+    from hconv.errors import UsageError
+
+    _dataset(tmp_path / "data")
+    with pytest.raises(UsageError, match=f"^{keyword} takes a function or None, got 5"):
+        dataset.convert_dataset(tmp_path / "data", tmp_path / "out", **{keyword: 5})
+    assert not (tmp_path / "out").exists()
+
+
 def test_convert_dataset_bad_threads_fails_at_once_and_writes_nothing(tmp_path):
     from hconv.errors import UsageError
 

@@ -32,6 +32,8 @@ def test_job_is_immutable():
         ({"method": "document", "omega_unit": "deg/s"}, r"gives m\^2/s, which is not an angular velocity"),
         ({"conventions": "world"}, "conventions must be a Conventions, got str"),
         ({"keep_text": "no"}, "keep_text must be True or False, got 'no'"),
+        ({"diagnostics": "no"}, "diagnostics must be True or False, got 'no'"),  # 'no' read as True
+        ({"observed": 1}, "observed must be True or False, got 1"),
     ],
 )
 def test_job_bad_option_is_refused_when_made(kwargs, needle):

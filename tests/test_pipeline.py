@@ -84,6 +84,17 @@ def test_convert_file_threads_below_one_is_usage_error(tmp_path):
         pipeline.convert_file("in.parquet", str(tmp_path / "out.parquet"), threads=0)
 
 
+def test_convert_file_progress_not_callable_is_usage_error_and_writes_nothing(tmp_path):
+    """Before, a TypeError after the first batch."""
+    from hconv.errors import UsageError
+
+    src = tmp_path / "in.csv"
+    src.write_text("Hx,Hy,Hz,Ixx,Iyy,Izz,Ixy,Ixz,Iyz\n1,2,3,1,2,4,0,0,0\n")
+    with pytest.raises(UsageError, match=r"^progress takes a function or None, got 5 \(int\)"):
+        pipeline.convert_file(str(src), str(tmp_path / "out.parquet"), progress=5)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.csv"]
+
+
 def test_default_threads_is_between_one_and_the_cap():
     assert 1 <= pipeline.default_threads() <= pipeline.MAX_THREADS
 

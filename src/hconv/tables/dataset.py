@@ -41,7 +41,7 @@ from hconv.solve import methods, status
 from hconv.tables import storage
 from hconv.tables.formats import EXTENSIONS, FORMATS
 from hconv.tables.job import Job, check_job
-from hconv.tables.pipeline import Tally, check_threads, convert_file
+from hconv.tables.pipeline import Tally, check_callback, check_threads, convert_file
 from hconv.tables.storage import Listed, Place, Source
 
 MANIFEST = "_hconv_manifest.json"
@@ -464,6 +464,8 @@ def convert_dataset(
     t0 = time.perf_counter()
     check_job(job)
     check_threads(threads)  # before anything is written: a bad option fails the run, not each file
+    check_callback("progress", progress)
+    check_callback("log", log)
     if cluster is not None or workers is not None:
         from hconv.tables import cluster as dask_cluster  # dask, only when asked for
 

@@ -107,8 +107,9 @@ class Job:
         options.check_degenerate(self.conventions.degenerate, self.conventions.degenerate_rtol, self.method)
         options.check_choice("quat_order", self.quat_order, options.QUAT_ORDERS)
         engines.check_engine(self.engine)
-        if not isinstance(self.keep_text, bool):
-            raise UsageError(f"keep_text must be True or False, got {self.keep_text!r}")
+        for name in ("diagnostics", "observed", "keep_text"):  # diagnostics='no' would read as True
+            if not isinstance(getattr(self, name), bool):
+                raise UsageError(f"{option(name)} must be True or False, got {getattr(self, name)!r}")
         # an unknown unit fails now, not mid-run
         if not isinstance(self.omega_unit, str):
             raise UsageError(f"{option('omega_unit')} takes a unit as text, e.g. 'deg/s', got {self.omega_unit!r}")

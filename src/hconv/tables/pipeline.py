@@ -180,6 +180,13 @@ def check_threads(threads: object) -> None:
         raise UsageError(f"{option('threads')} must be a whole number, 1 or more, got {threads!r}")
 
 
+def check_callback(name: str, value: object) -> None:
+    """UsageError unless ``value`` is None or callable: a callback checked before anything is
+    read or written, not a TypeError after the first batch or file."""
+    if value is not None and not callable(value):
+        raise UsageError(f"{name} takes a function or None, got {value!r} ({type(value).__name__})")
+
+
 def convert_file(
     src: str,
     dst: str,
@@ -209,6 +216,7 @@ def convert_file(
     Raises :class:`hconv.errors.HconvError` subclasses with one-line messages.
     """
     check_threads(threads)
+    check_callback("progress", progress)
     threads = threads or default_threads()
     check_job(job)
     job = job or Job(method, precision, diagnostics)
