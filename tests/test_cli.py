@@ -779,6 +779,23 @@ def test_completion_completes_choices_and_adds_no_option_to_commands():
         assert b"completion" not in run_hconv(name, "--help").stdout, name
 
 
+@pytest.mark.parametrize(
+    "words, want",
+    [
+        ("hconv convert a.csv b.csv --precision ", ["64", "32"]),
+        ("hconv one --H 1,2,3 --I 1 --precision 3", ["32"]),
+        ("hconv bodies m.urdf --form ", ["sym6", "principal"]),
+        ("hconv generate o.csv --scene cy", ["cylinder"]),
+    ],
+)
+def test_completion_completes_options_that_are_not_choice_types(words, want):
+    """An int option and options the library checks itself completed nothing before."""
+    cword = len(words.split()) - (0 if words.endswith(" ") else 1)
+    env = dict(os.environ, _HCONV_COMPLETE="complete_bash", COMP_WORDS=words, COMP_CWORD=str(cword))
+    proc = subprocess.run([sys.executable, "-m", "hconv"], capture_output=True, env=env, timeout=60)
+    assert proc.returncode == 0 and proc.stdout.decode().split() == want, proc.stderr.decode()
+
+
 def test_one_has_no_short_method_option_beside_mass():
     """--m is the mass; a short -m for --method sat one keystroke away from it."""
     proc = run_hconv("one", "--H", "1,0,0", "--I", "1", "-m", "5")

@@ -113,6 +113,18 @@ def _choices(name: str, values: Iterable[object]) -> Any:
     return Enum(name, {str(v): str(v) for v in values}, type=str)
 
 
+def _completes(values: Callable[[], Iterable[object]]) -> Callable[[str], list[str]]:
+    """Shell completion for an option that is not a choice type (an int, or a choice checked by
+    the library): the library's own values, taken only when a shell asks."""
+    return lambda incomplete: [str(v) for v in values() if str(v).startswith(incomplete)]
+
+
+def _body_forms() -> Iterable[str]:
+    from hconv.tools.models import OUTPUT_FORMS  # not at start-up: hconv one does not need it
+
+    return OUTPUT_FORMS
+
+
 def _value(choice: str | None) -> str | None:
     return choice.value if isinstance(choice, Enum) else choice
 
@@ -146,7 +158,15 @@ JOB_OPTIONS = {
         MethodName,
         typer.Option("exact", "--method", metavar="METHOD", help=f"{', '.join(METHODS)} (see hconv methods)"),
     ),
-    "precision": (int, typer.Option(64, "--precision", help="64 or 32: the dtype the method computes in")),
+    "precision": (
+        int,
+        typer.Option(
+            64,
+            "--precision",
+            help="64 or 32: the dtype the method computes in",
+            autocompletion=_completes(lambda: options.PRECISIONS),
+        ),
+    ),
     "frame": (
         Frame,
         typer.Option("world", "--frame", help="the frame of H (and r, v): world, or body (the frame of q's body)"),
@@ -760,6 +780,7 @@ def bodies_cmd(
     form: str | None = typer.Option(
         None,
         "--form",
+        autocompletion=_completes(_body_forms),
         help="the inertia in OUT: sym6 (Ixx, Iyy, Izz, Ixy, Ixz, Iyz in the body frame; the default) or "
         "principal (I1, I2, I3 and qw, qx, qy, qz: principal axes to body frame)",
     ),
@@ -812,7 +833,9 @@ def bodies_cmd(
 def generate_cmd(
     dst: str = typer.Argument(..., metavar="OUT", help="output .csv or .parquet, or - for stdout"),
     rows: int = typer.Option(..., "--rows", "-n", help="number of bodies"),
-    scene: str = typer.Option("mix", "--scene", help=f"{', '.join(SCENES[:-1])} or {SCENES[-1]}"),
+    scene: str = typer.Option(
+        "mix", "--scene", help=f"{', '.join(SCENES[:-1])} or {SCENES[-1]}", autocompletion=_completes(lambda: SCENES)
+    ),
     cond_max: float = typer.Option(
         1e3, "--cond-max", help="cond(I) is log-uniform from 1 to this (as the body kind allows)"
     ),
