@@ -139,9 +139,10 @@ def vec(prefix, a, names="xyz"):
     return {f"{prefix}{c}": a[:, k] for k, c in enumerate(names)}
 
 
-def run_hconv(*args: str, input: bytes | None = None, cwd=None) -> subprocess.CompletedProcess:
-    """Run the real command (``python -m hconv``) as a user would; bytes in, bytes out."""
-    env = dict(os.environ, COLUMNS="200")
+def run_hconv(*args: str, input: bytes | None = None, cwd=None, env: dict | None = None) -> subprocess.CompletedProcess:
+    """Run the real command (``python -m hconv``) as a user would; bytes in, bytes out; ``env``
+    replaces the environment (COLUMNS=200 unless it says otherwise)."""
+    env = dict(os.environ, COLUMNS="200") if env is None else {"COLUMNS": "200", **env}
     return subprocess.run(
         [sys.executable, "-m", "hconv", *args], input=input, capture_output=True, cwd=cwd, env=env, timeout=120
     )

@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import os
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -229,13 +230,18 @@ def test_convert_cluster_interrupt_writes_the_manifest_and_leaves_no_temporary(s
     _same_as_one_process(out, data, tmp_path)
 
 
-def test_convert_cluster_local_starts_its_workers(tmp_path):
+def test_convert_cluster_local_starts_its_workers_and_leaves_no_scratch_space(tmp_path):
     data = tmp_path / "data"
     _write_dataset(data, files=2, rows=500)
-    proc = run_hconv("convert", "data", "out", "--cluster", "local", "--workers", "2", cwd=tmp_path)
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    env = dict(os.environ, TMPDIR=str(tmp))
+    proc = run_hconv("convert", "data", "out", "--cluster", "local", "--workers", "2", cwd=tmp_path, env=env)
     err = proc.stderr.decode()
     assert proc.returncode == 0, err
     assert "converted on a local Dask cluster, 2 workers" in err
+    assert "Warning" not in err
+    assert list(tmp.iterdir()) == []  # Dask's dask-scratch-space stayed there after every run
     _same_as_one_process(tmp_path / "out", data, tmp_path)
 
 
@@ -286,10 +292,29 @@ def test_convert_cluster_unreachable_scheduler_names_it_within_the_timeout(tmp_p
     seconds = time.perf_counter() - t0
     err = proc.stderr.decode().splitlines()
     assert proc.returncode == 2 and err[-1] == (
-        f"hconv: error: --cluster {address}: no Dask scheduler answered within 1 s; start one there "
+        f"hconv: error: --cluster {address}: nothing listens there (connection refused); start one there "
         "(dask scheduler), give its address, or raise --cluster-timeout"
     )
     assert seconds < 8
+    assert not (tmp_path / "out").exists()
+
+
+def test_convert_cluster_address_of_a_server_that_is_not_dask_fails_within_the_timeout(tmp_path):
+    """A server that waits for a request (an HTTP server: the dashboard's port 8787, a proxy):
+    Dask's client waited for ever there, whatever --cluster-timeout said, and Ctrl-C did not stop it."""
+    _write_dataset(tmp_path / "data", files=1, rows=10)
+    with socket.socket() as server:  # accepts connections, never sends a byte
+        server.bind(("127.0.0.1", 0))
+        server.listen()
+        address = f"tcp://127.0.0.1:{server.getsockname()[1]}"
+        t0 = time.perf_counter()
+        proc = run_hconv("convert", "data", "out", "--cluster", address, "--cluster-timeout", "1", cwd=tmp_path)
+        seconds = time.perf_counter() - t0
+    err = proc.stderr.decode().splitlines()
+    assert proc.returncode == 2 and err[-1].startswith(
+        f"hconv: error: --cluster {address}: something accepts connections there but sent"
+    ), err
+    assert "Traceback" not in proc.stderr.decode() and "8786" in err[-1] and seconds < 8
     assert not (tmp_path / "out").exists()
 
 

@@ -37,9 +37,11 @@ import contextlib
 import dataclasses
 import importlib.util
 import re
+import shutil
 import tempfile
 import time
 import uuid
+import warnings
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -95,6 +97,7 @@ def connect(cluster: object, workers: int | None, timeout: float, threads: int |
     """A session on the cluster ``cluster`` (see :func:`check`), its workers' hconv checked;
     closed (and the run's temporary files removed) on the way out. ``threads``: batches each
     task converts at once (default: a worker's cores shared among the tasks it runs at once)."""
+    import dask
     import distributed
 
     own: list[Any] = []  # what this session started, and so closes
@@ -104,21 +107,39 @@ def connect(cluster: object, workers: int | None, timeout: float, threads: int |
         n = workers or cores
         # one file at a time per worker; its batches on the cores left to it
         threads = threads or max(1, cores // n)
-        local = distributed.LocalCluster(
-            n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=40
-        )
-        own.append(local)
+        # The workers' scratch space in a folder of this run's, removed with it: Dask's default
+        # (TMPDIR/dask-scratch-space) stayed behind after every run.
+        scratch = _Scratch()
+        with scratch.removed_on_error(), warnings.catch_warnings(), dask.config.set(temporary_directory=scratch.path):
+            # "Port 8787 is already in use" and the like: hconv asks for no dashboard, and the
+            # warning's four lines crowded out hconv's own output
+            warnings.simplefilter("ignore", UserWarning)
+            local = distributed.LocalCluster(
+                n_workers=n,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                silence_logs=40,
+                local_directory=scratch.path,
+            )
+        own += [local, scratch]  # closed in this order: the workers first, then their folder
         client = distributed.Client(local, set_as_default=False)
         own.insert(0, client)
         where = "a local Dask cluster"
     elif isinstance(cluster, str):
+        not_there = f"start one there (dask scheduler), give its address, or raise {option('cluster_timeout')}"
+        _probe(cluster, timeout, not_there)
         try:
             client = distributed.Client(cluster, timeout=timeout, set_as_default=False)
         except (OSError, TimeoutError) as exc:
             why = "" if "timed out" in str(exc).lower() else f" ({first_line(exc)})"
             raise UsageError(
-                f"{option('cluster', cluster)}: no Dask scheduler answered within {timeout:g} s{why}; "
-                f"start one there (dask scheduler), give its address, or raise {option('cluster_timeout')}"
+                f"{option('cluster', cluster)}: no Dask scheduler answered within {timeout:g} s{why}; {not_there}"
+            ) from None
+        except Exception as exc:  # noqa: BLE001 - whatever a server that is not Dask's makes its client raise
+            raise UsageError(
+                f"{option('cluster', cluster)}: what answers there is not a Dask scheduler "
+                f"({type(exc).__name__}: {first_line(exc)}); {not_there}"
             ) from None
         own.append(client)
         where = f"the Dask scheduler at {cluster}"
@@ -131,6 +152,45 @@ def connect(cluster: object, workers: int | None, timeout: float, threads: int |
         yield session
     finally:
         session.close(own)
+
+
+def _probe(address: str, timeout: float, fix: str) -> None:
+    """UsageError unless a Dask scheduler may be at ``tcp://HOST:PORT``: something accepts a
+    connection there within ``timeout`` and speaks first, as a Dask server does (it sends its
+    handshake on accepting). Dask's client, connected to a server that waits for a request (an
+    HTTP server: the dashboard's port 8787, a proxy), waits for ever whatever its timeout says,
+    and Ctrl-C does not reach it. tls:// is left to Dask: there the client speaks first."""
+    import socket
+
+    scheme, _, rest = address.partition("://")
+    if scheme != "tcp":
+        return
+    host, _, port = rest.rstrip("/").rpartition(":")
+    given = option("cluster", address)
+    deadline = time.monotonic() + timeout
+    try:
+        sock = socket.create_connection((host, int(port)), timeout=timeout)
+    except TimeoutError:
+        raise UsageError(f"{given}: no Dask scheduler answered within {timeout:g} s; {fix}") from None
+    except ConnectionRefusedError:
+        raise UsageError(f"{given}: nothing listens there (connection refused); {fix}") from None
+    except OSError as exc:
+        raise UsageError(f"{given}: no Dask scheduler answered ({first_line(exc)}); {fix}") from None
+    with sock:
+        try:
+            sock.settimeout(max(0.1, deadline - time.monotonic()))
+            first = sock.recv(8)
+        except TimeoutError:
+            raise UsageError(
+                f"{given}: something accepts connections there but sent nothing in {timeout:g} s, as a "
+                "Dask scheduler would at once (is it the dashboard's port? a scheduler listens on 8786 "
+                f"unless told otherwise); {fix}"
+            ) from None
+        except OSError as exc:
+            why = first_line(exc)
+            raise UsageError(f"{given}: what answers there is not a Dask scheduler ({why}); {fix}") from None
+    if len(first) < 8 or first.startswith(b"HTTP"):
+        raise UsageError(f"{given}: what answers there is not a Dask scheduler; {fix}")
 
 
 class Session:
@@ -234,6 +294,24 @@ class Session:
         _remove_run_temporaries(self.run_id)
         if self.dst is not None and self.dst.local:
             tableio.remove_run_temporaries(self.dst.root, self.run_id, recursive=True)
+
+
+class _Scratch:
+    """A local cluster's scratch folder, removed when closed."""
+
+    def __init__(self) -> None:
+        self.path = tempfile.mkdtemp(prefix="hconv-dask-")
+
+    @contextlib.contextmanager
+    def removed_on_error(self) -> Iterator[None]:
+        try:
+            yield
+        except BaseException:
+            self.close()
+            raise
+
+    def close(self) -> None:
+        shutil.rmtree(self.path, ignore_errors=True)
 
 
 def _cli() -> bool:
