@@ -411,6 +411,31 @@ def test_convert_dataset_s3_failing_file_and_missing_bucket_are_named(s3, tmp_pa
     err = proc.stderr.decode()
     assert f"hconv: error: s3://no-such-bucket-here/conv/{MANIFEST}: could not be written (" in err
     assert "The specified bucket does not exist" in err
+    assert "); the bucket does not exist: create it, or check the URI; it was left as it was" in err
+
+
+@pytest.mark.parametrize(
+    "text, hint",
+    [
+        # what pyarrow 26 said to the trial's workers that lacked the credentials the driver had
+        (
+            "When reading information for key 'raw/a.parquet' in bucket 'b': AWS Error ACCESS_DENIED during "
+            "HeadObject operation: No response body.",
+            "; the store refused the credentials: check AWS_ACCESS_KEY_ID and AWS_SECRET_ACCESS_KEY (or "
+            "AWS_PROFILE), and with --cluster each worker's too",
+        ),
+        ("AWS Error NETWORK_CONNECTION ... InvalidAccessKeyId", "the store refused the credentials"),
+        ("When uploading part for key 'x' in bucket 'gone': AWS Error NO_SUCH_BUCKET", "the bucket does not exist"),
+        ("When reading 'x': AWS Error NETWORK_CONNECTION during GetObject", None),
+    ],
+)
+def test_store_failure_names_the_common_causes(text, hint):
+    from hconv.errors import command_line
+
+    with command_line():
+        said = storage.store_failure(OSError(text + "\nsecond line"))
+    assert said.startswith(f"({text})")
+    assert (said == f"({text})") if hint is None else (hint in said)
 
 
 def test_remove_stale_temporaries_sweeps_a_killed_dataset_runs_fetched_and_staged_files(tmp_path, capsys):

@@ -119,7 +119,7 @@ class Place:
         try:
             infos = self.fs.get_file_info(pafs.FileSelector(self.root, recursive=True, allow_not_found=True))
         except OSError as exc:
-            raise InputError(f"{self.shown}: cannot list it ({first_line(exc)})") from None
+            raise InputError(f"{self.shown}: cannot list it {store_failure(exc)}") from None
         cut = len(self.root) + 1 if self.root else 0
         return sorted(
             (Listed(i.path[cut:], i.size, i.mtime_ns) for i in infos if i.type == pafs.FileType.File),
@@ -130,6 +130,26 @@ class Place:
 def first_line(exc: BaseException) -> str:
     text = str(exc).strip()
     return text.splitlines()[0] if text else type(exc).__name__
+
+
+#: What object stores say (pyarrow's S3 error names, and the services' own codes) when a request
+#: lacks or has wrong credentials, or names a bucket that is not there; the rest of their text
+#: buries the cause.
+_DENIED = ("ACCESS_DENIED", "AccessDenied", "InvalidAccessKeyId", "SignatureDoesNotMatch", "No credentials")
+_NO_BUCKET = ("NO_SUCH_BUCKET", "NoSuchBucket")
+
+
+def store_failure(exc: BaseException) -> str:
+    """``(the error's first line)``, and what to do where the cause is a common one."""
+    text = first_line(exc)
+    if any(k in text for k in _NO_BUCKET):
+        return f"({text}); the bucket does not exist: create it, or check the URI"
+    if any(k in text for k in _DENIED):
+        return (
+            f"({text}); the store refused the credentials: check AWS_ACCESS_KEY_ID and "
+            f"AWS_SECRET_ACCESS_KEY (or AWS_PROFILE), and with {option('cluster')} each worker's too"
+        )
+    return f"({text})"
 
 
 def endpoint(endpoint_url: str | None) -> str | None:
@@ -152,7 +172,7 @@ def filesystem(uri: str, endpoint_url: str | None = None) -> tuple[Any, str]:
         fs, path = pafs.FileSystem.from_uri(uri)
     except (pa.ArrowInvalid, pa.ArrowNotImplementedError) as exc:
         if "scheme" not in str(exc).lower() and "not supported" not in str(exc).lower():
-            raise UsageError(f"{uri}: not a URI hconv can read ({first_line(exc)})") from None
+            raise UsageError(f"{uri}: not a URI hconv can read {store_failure(exc)}") from None
         return _fsspec(uri, scheme)
     except OSError as exc:
         raise UsageError(f"{uri}: {first_line(exc)}") from None
@@ -170,7 +190,7 @@ def _fsspec(uri: str, scheme: str) -> tuple[Any, str]:
     try:
         fs, path = fsspec.core.url_to_fs(uri)
     except (ImportError, ValueError) as exc:
-        raise UsageError(f"{uri}: fsspec cannot open {scheme}:// ({first_line(exc)})") from None
+        raise UsageError(f"{uri}: fsspec cannot open {scheme}:// {store_failure(exc)}") from None
     return pafs.PyFileSystem(pafs.FSSpecHandler(fs)), str(path).rstrip("/")
 
 
@@ -236,7 +256,7 @@ def source(spec: str, endpoint_url: str | None = None) -> Source:
         try:
             info = where.fs.get_file_info(where.root)
         except OSError as exc:
-            raise InputError(f"{spec}: cannot read it ({first_line(exc)})") from None
+            raise InputError(f"{spec}: cannot read it {store_failure(exc)}") from None
         if info.type == pafs.FileType.File:
             return Source(_parent(where), glob_escape(where.root.rsplit("/", 1)[-1]), spec)
     return Source(where, None, spec)
@@ -295,7 +315,7 @@ def fetch(where: Place, rel: str, path: str) -> str | None:
     try:
         stream = where.fs.open_input_stream(where.path(rel), buffer_size=FETCH_BUFFER)
     except OSError as exc:
-        raise InputError(f"{name}: cannot read it ({first_line(exc)})") from None
+        raise InputError(f"{name}: cannot read it {store_failure(exc)}") from None
     with stream, open(path, "wb") as f:
         try:
             meta = stream.metadata() or {}
@@ -305,7 +325,7 @@ def fetch(where: Place, rel: str, path: str) -> str | None:
             try:
                 chunk = stream.read(FETCH_BUFFER)
             except OSError as exc:
-                raise InputError(f"{name}: cannot read it ({first_line(exc)})") from None
+                raise InputError(f"{name}: cannot read it {store_failure(exc)}") from None
             if not chunk:
                 break
             try:
@@ -349,7 +369,7 @@ def put(local_path: str, where: Place, rel: str) -> int:
         )
         stored = where.fs.get_file_info(target).size
     except OSError as exc:
-        raise OutputError(f"{name}: could not be written ({first_line(exc)}); it was left as it was") from None
+        raise OutputError(f"{name}: could not be written {store_failure(exc)}; it was left as it was") from None
     if stored != size:
         raise OutputError(f"{name}: holds {stored} bytes after the upload of {size}; run again to write it anew")
     return size
@@ -400,7 +420,7 @@ def read_bytes(where: Place, rel: str) -> bytes | None:
     except OSError as exc:
         if not where.local and where.fs.get_file_info(where.path(rel)).type == pafs.FileType.NotFound:
             return None
-        raise OutputError(f"{where.name(rel)}: cannot read it ({first_line(exc)})") from None
+        raise OutputError(f"{where.name(rel)}: cannot read it {store_failure(exc)}") from None
 
 
 def _umask() -> int:
