@@ -79,10 +79,10 @@ def _read(path: Path) -> pa.Table:
     return pa.concat_tables([pq.read_table(f) for f in files])
 
 
-def _run(recipe: str, dataset: Path, cwd: Path) -> str:
+def _run(recipe: str, dataset: Path, cwd: Path) -> tuple[str, Path]:
     """Run the command docs/recipes/RECIPE's docstring shows, word for word, as a user does from a
     clone's root with the dataset in data/ (here ``cwd``, with ``docs`` and ``data`` linked in);
-    its stderr and stdout. Its output lands in ``cwd``."""
+    its stderr and stdout, and its output (the command's last argument, in ``cwd``)."""
     command = re.search(rf"^ +python (docs/recipes/{re.escape(recipe)} .*)$", (RECIPES / recipe).read_text(), re.M)
     assert command, f"{recipe}: its docstring shows no 'python docs/recipes/{recipe} ...' command"
     for name, target in (("docs", ROOT / "docs"), ("data", dataset)):
@@ -92,7 +92,7 @@ def _run(recipe: str, dataset: Path, cwd: Path) -> str:
         [sys.executable, *shlex.split(command.group(1))], capture_output=True, cwd=cwd, timeout=600, text=True
     )
     assert proc.returncode == 0, f"{recipe} failed:\n{proc.stdout}\n{proc.stderr}"
-    return proc.stdout + proc.stderr
+    return proc.stdout + proc.stderr, cwd / shlex.split(command.group(1))[-1]
 
 
 def _plain(column: pa.ChunkedArray) -> pa.ChunkedArray:
@@ -139,31 +139,31 @@ def _sorted(table: pa.Table) -> pa.Table:
 
 def test_duckdb_recipe_writes_what_hconv_convert_writes(dataset, reference, tmp_path):
     _engine("duckdb")
-    _run("duckdb_hconv.py", dataset, tmp_path)
-    got = _read(tmp_path / "omega.parquet")
+    _, omega = _run("duckdb_hconv.py", dataset, tmp_path)
+    got = _read(omega)
     assert_same_rows(got, reference)
     assert got.schema.equals(reference.schema, check_metadata=True)
-    assert_same_units(tmp_path / "omega.parquet", reference)
+    assert_same_units(omega, reference)
 
 
 def test_polars_recipe_writes_what_hconv_convert_writes(dataset, reference, tmp_path):
     _engine("polars")
-    _run("polars_hconv.py", dataset, tmp_path)
-    got = _read(tmp_path / "omega.parquet")
+    _, omega = _run("polars_hconv.py", dataset, tmp_path)
+    got = _read(omega)
     assert_same_rows(got, reference)
-    assert_same_units(tmp_path / "omega.parquet", reference)
+    assert_same_units(omega, reference)
     assert got.schema.field("status").type == reference.schema.field("status").type
     assert got.schema.field("body").type == pa.large_string()  # Polars' text
 
 
 def test_dask_recipe_writes_what_hconv_convert_writes_in_files_that_sort(dataset, reference, tmp_path):
     _engine("dask.dataframe")
-    _run("dask_hconv.py", dataset, tmp_path)
-    names = sorted(p.name for p in (tmp_path / "omega").glob("*.parquet"))
+    _, omega = _run("dask_hconv.py", dataset, tmp_path)
+    names = sorted(p.name for p in omega.glob("*.parquet"))
     assert names == [f"part-{k:05d}.parquet" for k in range(FILES)]
-    got = _read(tmp_path / "omega")
+    got = _read(omega)
     assert_same_rows(got, reference)
-    assert_same_units(tmp_path / "omega", reference)
+    assert_same_units(omega, reference)
     assert got.schema.field("status").type == reference.schema.field("status").type
     assert got.schema.field("Ixx").metadata == reference.schema.field("Ixx").metadata
 
@@ -171,35 +171,35 @@ def test_dask_recipe_writes_what_hconv_convert_writes_in_files_that_sort(dataset
 @pytest.mark.engines_slow
 def test_ray_data_recipe_writes_hconv_converts_rows(dataset, reference, tmp_path):
     _engine("ray.data")
-    _run("ray_data_hconv.py", dataset, tmp_path)
-    got = _read(tmp_path / "omega")
+    _, omega = _run("ray_data_hconv.py", dataset, tmp_path)
+    got = _read(omega)
     # Ray does not promise the order (the recipe says so): the same rows, in any order
     assert_same_rows(_sorted(got), _sorted(reference))
     assert got.schema.equals(reference.schema, check_metadata=True)
-    assert_same_units(tmp_path / "omega", reference)
+    assert_same_units(omega, reference)
 
 
 @pytest.mark.engines_slow
 def test_ray_tasks_recipe_writes_what_hconv_convert_writes_file_by_file(dataset, reference, tmp_path):
     _engine("ray")
-    out = _run("ray_tasks_hconv.py", dataset, tmp_path)
+    out, omega = _run("ray_tasks_hconv.py", dataset, tmp_path)
     assert f"{reference.num_rows} rows in {FILES} files" in out
-    assert sorted(p.name for p in (tmp_path / "omega").iterdir()) == sorted(p.name for p in dataset.iterdir())
-    got = _read(tmp_path / "omega")
+    assert sorted(p.name for p in omega.iterdir()) == sorted(p.name for p in dataset.iterdir())
+    got = _read(omega)
     assert_same_rows(got, reference)
     assert got.schema.equals(reference.schema, check_metadata=True)
-    assert_same_units(tmp_path / "omega", reference)
+    assert_same_units(omega, reference)
 
 
 @pytest.mark.engines_slow
 def test_spark_recipe_writes_hconv_converts_rows_in_order_with_the_units_in_sparks_schema(dataset, reference, tmp_path):
     _engine("pyspark.sql")
-    _run("spark_hconv.py", dataset, tmp_path)
-    got = _read(tmp_path / "omega")
+    _, omega = _run("spark_hconv.py", dataset, tmp_path)
+    got = _read(omega)
     assert_same_rows(got, reference)
     assert got.schema.field("status").type == pa.string()
     assert not got.schema.field("wx").metadata  # pyarrow reads Spark's files bare ...
-    assert_same_units(tmp_path / "omega", reference)  # ... the units are in Spark's schema
+    assert_same_units(omega, reference)  # ... the units are in Spark's schema
 
 
 # ---- the doc quotes the files it shows ----
@@ -243,5 +243,17 @@ def test_recipes_doc_try_block_runs_word_for_word_from_a_clones_root(tmp_path):
             env={**os.environ, "PATH": path},
         )
         assert proc.returncode == 0, f"{line}\n{proc.stdout}\n{proc.stderr}"
-    got = pq.read_table(tmp_path / "omega.parquet")
-    assert got.num_rows == 6000 and hconv.units_of(tmp_path / "omega.parquet")["wx"] == "rad/s"
+    omega = tmp_path / shlex.split(lines[-1])[-1]
+    got = pq.read_table(omega)
+    assert got.num_rows == 6000 and hconv.units_of(omega)["wx"] == "rad/s"
+
+
+def test_recipes_docstring_commands_write_distinct_outputs():
+    """Run one after another as shown, recipes that shared omega/ mixed their files there, and
+    Spark's refused to write into it."""
+    outs = [
+        shlex.split(m.group(1))[-1]
+        for p in sorted(RECIPES.glob("*.py"))
+        if (m := re.search(r"^ +python (docs/recipes/\S+ .*)$", p.read_text(), re.M))
+    ]
+    assert len(outs) == len(list(RECIPES.glob("*.py"))) and len(set(outs)) == len(outs), outs

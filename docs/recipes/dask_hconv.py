@@ -1,7 +1,7 @@
 """Dask DataFrame: each partition goes to hconv as Arrow data and comes back with Arrow dtypes;
 Dask writes one Parquet file per partition, with hconv's schema and settings, in names that sort.
 
-    python docs/recipes/dask_hconv.py data/ omega/
+    python docs/recipes/dask_hconv.py data/ omega-dask/
 """
 
 import sys

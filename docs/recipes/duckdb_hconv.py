@@ -1,7 +1,7 @@
 """DuckDB reads (a glob of Parquet files, or any query), hconv converts batch by batch, and
 pyarrow writes one Parquet file with hconv's settings.
 
-    python docs/recipes/duckdb_hconv.py 'data/*.parquet' omega.parquet
+    python docs/recipes/duckdb_hconv.py 'data/*.parquet' omega-duckdb.parquet
 """
 
 import sys

@@ -1,7 +1,7 @@
 """Polars plans the query (a scan, filters, selections), hconv converts its result batch by
 batch, and pyarrow writes one Parquet file with hconv's settings.
 
-    python docs/recipes/polars_hconv.py 'data/*.parquet' omega.parquet
+    python docs/recipes/polars_hconv.py 'data/*.parquet' omega-polars.parquet
 """
 
 import sys

@@ -2,7 +2,7 @@
 and settings. Ray does not promise the rows' order in what it writes (see ray_tasks_hconv.py
 for a recipe that keeps it).
 
-    python docs/recipes/ray_data_hconv.py data/ omega/
+    python docs/recipes/ray_data_hconv.py data/ omega-ray-data/
 """
 
 import sys

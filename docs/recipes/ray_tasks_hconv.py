@@ -1,7 +1,7 @@
 """Ray tasks, one per file: each reads its file batch by batch, converts with hconv and writes an
 output file of the same name with hconv's schema and settings, so every row keeps its place.
 
-    python docs/recipes/ray_tasks_hconv.py data/ omega/
+    python docs/recipes/ray_tasks_hconv.py data/ omega-ray-tasks/
 """
 
 import os

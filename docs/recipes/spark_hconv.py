@@ -5,7 +5,7 @@ unit goes into Spark's own schema, which Spark stores in the files it writes (py
 without it; hconv.units_of(omega/) and hconv read it); and it reads the files in an order of its
 own, so the rows are sorted back by file name and row first.
 
-    python docs/recipes/spark_hconv.py data/ omega/
+    python docs/recipes/spark_hconv.py data/ omega-spark/
 """
 
 import os
