@@ -183,6 +183,8 @@ def test_convert_cluster_worker_killed_midfile_loses_nothing_and_leaves_no_tempo
         _stop([victim])
     m = _same_as_one_process(out, data, tmp_path)
     assert m["inputs"] == 7
+    # the summary does not claim the workers it started with: one died (it said "3 workers")
+    assert "3 workers (1 lost during the run; their files were converted again)" in err.decode()
 
 
 def test_convert_cluster_s3_in_and_out_through_a_scheduler(scheduler, s3, tmp_path):

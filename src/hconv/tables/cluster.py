@@ -202,11 +202,22 @@ class Session:
         self.threads = threads
         self.run_id = uuid.uuid4().hex[:12]
         self.workers = 0
+        self.addresses: set[str] = set()
         self.dst: Place | None = None
         self.futures: list[Any] = []
 
     def describe(self) -> str:
         return f"{self.where}, {self.workers} worker" + ("s" if self.workers != 1 else "")
+
+    def describe_end(self) -> str:
+        """:meth:`describe`, and how many of the workers the run started with are gone by its end
+        (a worker that died: Dask ran its tasks again elsewhere)."""
+        try:
+            now = set(self.client.scheduler_info().get("workers", {}))
+        except Exception:  # noqa: BLE001 - a scheduler lost at the end: nothing more to say
+            return self.describe()
+        lost = len(self.addresses - now)
+        return self.describe() + (f" ({lost} lost during the run; their files were converted again)" if lost else "")
 
     def check_workers(self, timeout: float) -> None:
         """UsageError unless the cluster has a worker within ``timeout`` and each runs this hconv."""
@@ -229,6 +240,7 @@ class Session:
                 f"install hconv {__version__} with its dask extra on every worker"
             )
         self.workers = len(found)
+        self.addresses = set(found)
 
     def run(
         self, plan: Plan, keep: Callable[[FileRecord], None], *, strict: bool

@@ -530,6 +530,8 @@ def convert_dataset(
                 f"{plan.dst.name(MANIFEST)} (complete: false), and no other file was written; "
                 "run the same command again to convert the rest"
             ) from None
+        if ran_on is not None:
+            ran_on = session.describe_end()
     if plan.todo or plan.refused or _manifest_stale(plan, records, failed):
         _write_manifest(plan, records, failed, written, t0)
     result = _result(plan, records, failed, converted, t0)
