@@ -202,6 +202,7 @@ def convert_file(
     threads: int | None = None,
     progress: Callable[[int, int | None], None] | None = None,
     name: str | None = None,
+    rows: tuple[int, int] | None = None,
 ) -> Tally:
     """Convert the table in ``src`` into ``dst`` ("-" for stdin/stdout); returns the tally.
 
@@ -213,6 +214,9 @@ def convert_file(
     ``progress(done, total)`` is called after each batch with rows or bytes read so far.
     ``name``: what messages call the input (default: ``src``), such as the URI of an object
     fetched into ``src`` (:func:`hconv.tables.dataset.convert_dataset`).
+    ``rows``: (start, stop), convert only those rows of a Parquet ``src`` (a part of a file
+    converted by one task of a cluster run: :func:`hconv.tables.dataset.convert_part`); messages
+    name the file's rows, the tally's ``worst_row`` counts from ``start``.
     Raises :class:`hconv.errors.HconvError` subclasses with one-line messages.
     """
     check_threads(threads)
@@ -226,7 +230,7 @@ def convert_file(
     fout = format_of(dst, dst_format, "dst_format")
     out = Output(dst, fout, force=force, input_path=src)  # refuses early, before reading
     t0 = time.perf_counter()
-    with open_input(src, fin, job, name) as inp:
+    with open_input(src, fin, job, name, rows) as inp:
         if fout == "csv":
             tableio.check_csv_columns(inp.schema, inp.name)  # before converting anything
         # CSV's text columns get types in Parquet, the first block's (csvtypes); CSV keeps them as they were
@@ -275,11 +279,11 @@ def _convert(
     # closing(): an interrupt that lands here, in the consumer (often while the writer's queue is
     # full), stops the compute threads now rather than when the suspended generator is collected,
     # so that none is still converting while a dataset run goes on to its next file or manifest.
-    results = ordered_map(one, _numbered(batches), threads)
+    results = ordered_map(one, _numbered(batches, inp.first_row), threads)
     with out, BackgroundWriter(out) as writer, contextlib.closing(results):
         for table, engine in results:
             if strict:
-                _check_strict(table, tally.rows, inp.name)
+                _check_strict(table, inp.first_row + tally.rows, inp.name)
             writer.write(table)
             tally.add(table, engine)
             if progress is not None:
@@ -289,9 +293,9 @@ def _convert(
     return tally
 
 
-def _numbered(batches: Iterable[pa.RecordBatch]) -> Iterator[tuple[int, pa.RecordBatch]]:
-    """Each batch with the index of its first row in the file, counted on the reading thread."""
-    first = 0
+def _numbered(batches: Iterable[pa.RecordBatch], first: int = 0) -> Iterator[tuple[int, pa.RecordBatch]]:
+    """Each batch with the index of its first row in the file (the first's: ``first``), counted
+    on the reading thread."""
     for batch in batches:
         yield first, batch
         first += batch.num_rows

@@ -32,7 +32,7 @@ import zlib
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import BinaryIO
+from typing import Any, BinaryIO
 
 import pyarrow as pa
 import pyarrow.compute as pc
@@ -258,6 +258,7 @@ class Input:
     #: CSV: the columns hconv does not use, read as text (Parquet: none); see hconv.tables.csvtypes
     text: tuple = ()
     path: str = ""  #: the file read (for stdin, its spooled copy, which lives as long as this Input)
+    first_row: int = 0  #: the file's row that :attr:`batches` starts at (a part of the file: ``rows``)
 
     def close(self) -> None:
         for c in reversed(self._closers):
@@ -271,11 +272,12 @@ class Input:
         self.close()
 
 
-def open_input(path: str, fmt: str, job: Job, name: str | None = None) -> Input:
+def open_input(path: str, fmt: str, job: Job, name: str | None = None, rows: tuple[int, int] | None = None) -> Input:
     """Open ``path`` ("-" for stdin) as ``fmt``, planned for ``job`` (:func:`hconv.tables.layout.plan`);
     InputError with a fix if it can't be. Stdin, or a pipe given by name, is spooled first.
     ``name``: what messages call the input (default: ``path``), such as the URI of an object
-    that was fetched into ``path``."""
+    that was fetched into ``path``. ``rows``: (start, stop), only those rows of a Parquet file
+    (:func:`_open_parquet`)."""
     closers = []
     name = name or path
     if path == "-":
@@ -300,7 +302,9 @@ def open_input(path: str, fmt: str, job: Job, name: str | None = None) -> Input:
         closers.append(lambda: os.unlink(spooled))
         path = spooled
     try:
-        inp = _open_csv(path, name, job) if fmt == "csv" else _open_parquet(path, name, job)
+        if rows is not None and fmt != "parquet":
+            raise ValueError("rows is for Parquet input")
+        inp = _open_csv(path, name, job) if fmt == "csv" else _open_parquet(path, name, job, rows)
     except BaseException:
         for c in closers:
             c()
@@ -394,6 +398,24 @@ def remove_stale_temporaries(directory: str) -> list[str]:
     return removed
 
 
+#: A part of one output converted by one task of a cluster run (hconv.tables.dataset.split):
+#: ``.OUT.run-<hex>.part-<k>.hconv-tmp``, named without the process that wrote it, so that a task
+#: run again after its worker died writes the same part (the run removes its parts at its end).
+_PART_NAME = re.compile(r"^\..+\.run-[0-9a-f]+\.part-\d+\.hconv-tmp$")
+
+
+def part_name(name: str, run: str, k: int) -> str:
+    """The name of part ``k`` of the output named ``name``, in the run ``run``."""
+    return f".{os.fsdecode(os.fsencode(name)[:160])}.run-{run}.part-{k:05d}{TEMP_SUFFIX}"
+
+
+def is_run_temporary(name: str, run: str) -> bool:
+    """Whether the file name ``name`` is a temporary file or a part of the run ``run``."""
+    return (
+        name.endswith(TEMP_SUFFIX) and f"run-{run}." in name and bool(_TEMP_NAME.match(name) or _PART_NAME.match(name))
+    )
+
+
 def run_prefix(prefix: str, run: str | None) -> str:
     """``prefix`` for a temporary file of the run ``run`` (a tag of hex digits), if any."""
     return f"{prefix}run-{run}." if run else prefix
@@ -404,11 +426,10 @@ def remove_run_temporaries(directory: str, run: str, recursive: bool = False) ->
     ``recursive``), whoever made them: those of a worker killed mid-file, which no other process
     removes while the worker's host cannot tell that it has gone; returns their paths. Call it
     only when no process of that run is still writing."""
-    tag = f"run-{run}."
     removed = []
     for folder, _dirs, names in os.walk(directory) if recursive else [(directory, [], _names(directory))]:
         for name in names:
-            if name.endswith(TEMP_SUFFIX) and tag in name and _TEMP_NAME.match(name):
+            if is_run_temporary(name, run):
                 path = os.path.join(folder, name)
                 with contextlib.suppress(FileNotFoundError):
                     os.unlink(path)
@@ -684,7 +705,12 @@ def _not_parquet(path: str, name: str, exc: Exception) -> InputError:
     )
 
 
-def _open_parquet(path: str, name: str, job: Job) -> Input:
+def _open_parquet(path: str, name: str, job: Job, rows: tuple[int, int] | None = None) -> Input:
+    """The Parquet file ``path``, in batches of :data:`PARQUET_BATCH_ROWS` rows counted from its
+    first row; with ``rows`` (start, stop), only those rows, reading only the row groups that hold
+    them, in the batches the whole file's reading gives them when ``start`` is a multiple of
+    :data:`PARQUET_BATCH_ROWS` (so that a part's output row groups are the whole file's:
+    :func:`hconv.tables.dataset.split`)."""
     try:
         if os.path.getsize(path) == 0:
             raise InputError(f"{name}: the file is empty (0 bytes); it is not a Parquet file")
@@ -700,10 +726,13 @@ def _open_parquet(path: str, name: str, job: Job) -> Input:
     schema = pf.schema_arrow
     plan = layout.plan(schema, job, name)
     done = [0]
+    start, stop = rows if rows is not None else (0, pf.metadata.num_rows)
+    groups, skip = _row_groups(pf.metadata, start, stop)
 
     def read_all() -> Iterator[pa.RecordBatch]:
         try:
-            for batch in pf.iter_batches(batch_size=PARQUET_BATCH_ROWS):
+            got = pf.iter_batches(batch_size=PARQUET_BATCH_ROWS, row_groups=groups)
+            for batch in got if rows is None else _rebatched(got, skip, stop - start):
                 done[0] += batch.num_rows
                 yield batch
         except pa.ArrowException as exc:
@@ -713,13 +742,79 @@ def _open_parquet(path: str, name: str, job: Job) -> Input:
 
     batches = read_all()
     if any(g.is_list and g.size is None for g in plan.groups.values()):
-        # A variable-length list column's length shows only in the data: the first batch fixes
-        # it, here on the reading thread, so every batch is held to the same plan.
-        first = next(batches, None)
+        # A variable-length list column's length shows only in the data: the file's first batch
+        # fixes it, here on the reading thread, so every batch (of every part) is held to the same plan.
+        first = next(batches, None) if start == 0 else next(pf.iter_batches(PARQUET_BATCH_ROWS, [0]), None)
         if first is not None:
             plan = plan.resolve(pa.Table.from_batches([first]))
-            batches = itertools.chain([first], batches)
-    return Input(name, schema, batches, pf.metadata.num_rows, lambda: done[0], plan, [pf.close])
+            if start == 0:
+                batches = itertools.chain([first], batches)
+    closers = [pf.close]
+    return Input(name, schema, batches, stop - start, lambda: done[0], plan, closers, first_row=start)
+
+
+def _row_groups(meta: pq.FileMetaData, start: int, stop: int) -> tuple[list[int], int]:
+    """The row groups holding rows [start, stop), and how many rows of the first precede ``start``."""
+    groups: list[int] = []
+    skip = first = 0
+    for k in range(meta.num_row_groups):
+        n = meta.row_group(k).num_rows
+        if first < stop and first + n > start:
+            if not groups:
+                skip = start - first
+            groups.append(k)
+        first += n
+    return groups, skip
+
+
+def _rebatched(batches: Iterator[pa.RecordBatch], skip: int, count: int) -> Iterator[pa.RecordBatch]:
+    """``count`` rows after the first ``skip`` of ``batches``, in batches of
+    :data:`PARQUET_BATCH_ROWS` (the last shorter): the reader's batches start at a row group's
+    first row, the whole file's at the file's."""
+    held: list[pa.RecordBatch] = []
+    n = 0
+    for batch in batches:
+        if skip >= batch.num_rows:
+            skip -= batch.num_rows
+            continue
+        batch = batch.slice(skip, min(batch.num_rows - skip, count))
+        skip = 0
+        count -= batch.num_rows
+        held.append(batch)
+        n += batch.num_rows
+        while n >= PARQUET_BATCH_ROWS:
+            whole = pa.concat_batches(held) if len(held) > 1 else held[0]
+            yield whole.slice(0, PARQUET_BATCH_ROWS)
+            rest = whole.slice(PARQUET_BATCH_ROWS)
+            held, n = ([rest] if rest.num_rows else []), rest.num_rows
+        if count <= 0:
+            break
+    if n:
+        yield pa.concat_batches(held) if len(held) > 1 else held[0]
+
+
+def parquet_shape(source: str | Any) -> tuple[int, int]:
+    """(rows, row groups) of a Parquet file, a path or an open file, from its footer alone."""
+    with pq.ParquetFile(source) as pf:
+        return pf.metadata.num_rows, pf.metadata.num_row_groups
+
+
+def join_parquet(parts: list[str], path: str) -> None:
+    """Write the Parquet files ``parts`` (the parts of one output, in order, each written by
+    hconv's writer) into ``path`` as one file, row group by row group: the same schema, metadata
+    and writer options, so that the file is the one the whole conversion writes
+    (:func:`hconv.tables.dataset.join_parts`)."""
+    writer: _ParquetWriter | None = None
+    try:
+        for part in parts:
+            with pq.ParquetFile(part) as pf:
+                if writer is None:
+                    writer = _ParquetWriter(path, pf.schema_arrow)
+                for k in range(pf.metadata.num_row_groups):
+                    writer.write(pf.read_row_group(k))
+    finally:
+        if writer is not None:
+            writer.close()
 
 
 class Output:
