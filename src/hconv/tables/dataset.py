@@ -38,7 +38,7 @@ import numpy as np
 from hconv import interrupts
 from hconv.errors import HconvError, OutputError, UsageError, option
 from hconv.solve import methods, status
-from hconv.tables import storage
+from hconv.tables import storage, tableio
 from hconv.tables.formats import EXTENSIONS, FORMATS
 from hconv.tables.job import Job, check_job
 from hconv.tables.pipeline import Tally, check_callback, check_threads, convert_file
@@ -378,6 +378,213 @@ def convert_one(
     return record
 
 
+#: Splitting a large Parquet file into parts converted by separate tasks of a cluster run (see
+#: :func:`split`): by default, a file of more rows than this (figures: docs/scaling.md).
+TASK_ROWS = 4 * 1024 * 1024
+
+
+def check_task_rows(task_rows: object) -> None:
+    """UsageError unless ``task_rows`` is None (the default), 0 (no splitting) or at least one
+    batch (:data:`hconv.tables.tableio.PARQUET_BATCH_ROWS` rows)."""
+    least = tableio.PARQUET_BATCH_ROWS
+    if task_rows is not None and (
+        isinstance(task_rows, bool) or not isinstance(task_rows, int) or (task_rows != 0 and task_rows < least)
+    ):
+        raise UsageError(
+            f"{option('task_rows')} must be 0 (one task per file) or a whole number of rows, {least} or more, "
+            f"got {task_rows!r}"
+        )
+
+
+@dataclass(frozen=True)
+class Part:
+    """Rows [start, stop) of a task's Parquet input, converted by one task into a part file that
+    :func:`join_parts` joins with the others into the task's output."""
+
+    k: int  #: its place among the file's parts
+    start: int
+    stop: int
+    rel: str  #: the part file, relative to OUT: hidden, run-tagged (tableio.part_name)
+
+
+@dataclass
+class PartRecord:
+    """What converting one part gave: :class:`FileRecord`'s counts, rows counted from its start."""
+
+    rows: int
+    statuses: dict
+    worst_residual: float | None
+    worst_row: int | None
+    engines: dict
+    seconds: float
+    input_etag: str | None  #: where the store gives one (object storage)
+
+
+def split(task: Task, src: Place, task_rows: int, run: str) -> list[Part]:
+    """The parts of ``task``'s input, or [] to convert it whole: a Parquet file written as
+    Parquet, of at least 2 row groups and more than ``task_rows`` rows (0: never), cut into
+    ranges of about ``task_rows`` rows.
+
+    Each cut falls on a multiple of :data:`~hconv.tables.tableio.PARQUET_BATCH_ROWS` rows, where
+    the whole file's reading starts a batch: hconv writes one row group per batch, so the parts'
+    row groups are the whole conversion's and the joined file is its bytes. A file smaller than
+    ``task_rows`` bytes is not opened to count its rows: no hconv input stores a row in less than
+    a byte, so it cannot hold more."""
+    if not task_rows or task.src_format != "parquet" or task.dst_format != "parquet" or task.input.size < task_rows:
+        return []
+    where = src.path(task.input.rel)
+    try:
+        if src.local:
+            rows, groups = tableio.parquet_shape(where)
+        else:
+            with src.fs.open_input_file(where) as f:
+                rows, groups = tableio.parquet_shape(f)
+    except (OSError, ValueError):  # pyarrow's errors are one or the other
+        return []  # converted whole: its task names what is wrong with it
+    if groups < 2 or rows <= task_rows:
+        return []
+    batch = tableio.PARQUET_BATCH_ROWS
+    step = max(batch, round(task_rows / batch) * batch)
+    cuts = list(range(0, rows, step)) + [rows]
+    if rows - cuts[-2] < step // 2 and len(cuts) > 2:  # a short tail joins the part before it
+        del cuts[-2]
+    folder, name = os.path.split(task.output)
+    return [
+        Part(k, a, b, os.path.join(folder, tableio.part_name(name, run, k)).replace(os.sep, "/"))
+        for k, (a, b) in enumerate(zip(cuts, cuts[1:]))
+    ]
+
+
+def convert_part(
+    task: Task,
+    part: Part,
+    src: Place,
+    dst: Place,
+    job: Job,
+    *,
+    strict: bool = False,
+    threads: int | None = None,
+    progress: Callable[[int, int | None], None] | None = None,
+    run: str | None = None,
+) -> PartRecord:
+    """Convert ``part`` of ``task``'s input into its part file in OUT (hidden, run-tagged), as
+    :func:`convert_one` converts a whole file: through a temporary file, committed whole, so that a
+    second run of the same part (its worker died) writes the same part again."""
+    t0 = time.perf_counter()
+    rel = task.input.rel
+    etag = None
+    with contextlib.ExitStack() as cleanup:
+        local_in = src.path(rel)
+        if not src.local:
+            # the whole object, for each part: reading row groups from the store is left to do
+            with interrupts.held():
+                local_in = storage.stage(kind="fetch", run=run)
+                cleanup.callback(_remove, local_in)
+            etag = storage.fetch(src, rel, local_in)
+        target = dst.path(part.rel)
+        if dst.local:
+            _make_folders(os.path.dirname(target), cleanup)
+        with interrupts.held():
+            staged = storage.stage(target if dst.local else None, run=run)
+            cleanup.callback(_remove, staged)
+        tally = convert_file(
+            local_in,
+            staged,
+            src_format="parquet",
+            dst_format="parquet",
+            force=True,
+            job=job,
+            strict=strict,
+            threads=threads,
+            progress=progress,
+            name=src.name(rel),
+            rows=(part.start, part.stop),
+        )
+        with interrupts.held():
+            if dst.local:
+                os.replace(staged, target)
+            else:
+                storage.put(staged, dst, part.rel)
+    worst = tally.worst_residual
+    return PartRecord(
+        tally.rows,
+        tally.counts(),
+        None if np.isnan(worst) else worst,
+        tally.worst_row,
+        dict(tally.engines),
+        time.perf_counter() - t0,
+        etag,
+    )
+
+
+def join_parts(
+    task: Task, parts: list[Part], records: list[PartRecord], dst: Place, *, run: str | None = None
+) -> FileRecord:
+    """Join the part files of ``task`` into its output, committed as :func:`convert_one` commits
+    one, then remove them; the file's record, from the parts' (their worst row moved by the
+    part's first row). Run again after it committed (its worker died), it finds the parts gone,
+    as they are removed only after the commit, and returns the same record."""
+    t0 = time.perf_counter()
+    target = dst.path(task.output)
+    with contextlib.ExitStack() as cleanup:
+        if all(storage.exists(dst, p.rel) for p in parts):
+            local = [dst.path(p.rel) for p in parts]
+            if not dst.local:
+                local = []
+                for p in parts:
+                    with interrupts.held():
+                        fetched = storage.stage(kind="fetch", run=run)
+                        cleanup.callback(_remove, fetched)
+                    storage.fetch(dst, p.rel, fetched)
+                    local.append(fetched)
+            with interrupts.held():
+                staged = storage.stage(target if dst.local else None, run=run)
+                cleanup.callback(_remove, staged)
+            tableio.join_parquet(local, staged)
+            with interrupts.held():
+                if dst.local:
+                    _flushed(staged)
+                    _commit(staged, target, task.overwrite, dst.name(task.output))
+                else:
+                    storage.put(staged, dst, task.output)
+        remove_parts(parts, dst)
+    size = os.path.getsize(target) if dst.local else dst.fs.get_file_info(target).size
+    tally = Tally("", "")
+    index = {s: k for k, s in enumerate(status.STATUSES)}
+    worst_row = None
+    for part, r in zip(parts, records):
+        for s, n in r.statuses.items():
+            tally.per_status[index[s]] += n
+        for e, n in r.engines.items():
+            tally.engines[e] = tally.engines.get(e, 0) + n
+        # a later part's residual replaces only a larger one, as Tally.add keeps the first row of the worst
+        if r.worst_residual is not None and not r.worst_residual <= tally.worst_residual:
+            tally.worst_residual = r.worst_residual
+            worst_row = None if r.worst_row is None else part.start + r.worst_row
+        tally.rows += r.rows
+    worst = tally.worst_residual
+    return FileRecord(
+        input=task.input.rel,
+        output=task.output,
+        input_size=task.input.size,
+        input_mtime_ns=task.input.mtime_ns,
+        input_etag=records[0].input_etag if records else None,
+        output_size=size,
+        rows=tally.rows,
+        statuses=tally.counts(),
+        worst_residual=None if np.isnan(worst) else worst,
+        worst_row=worst_row,
+        engines=dict(tally.engines),
+        seconds=sum(r.seconds for r in records) + time.perf_counter() - t0,
+    )
+
+
+def remove_parts(parts: list[Part], dst: Place) -> None:
+    """Remove the part files of one output, those that are there."""
+    for p in parts:
+        storage.remove(dst, p.rel)
+
+
 def _commit(staged: str, target: str, overwrite: bool, shown: str) -> None:
     """Rename a finished output into place; refuse one that appeared since the plan was made.
     ``shown``: the output as messages name it."""
@@ -446,6 +653,7 @@ def convert_dataset(
     cluster: object = None,
     workers: int | None = None,
     cluster_timeout: float = 10.0,
+    task_rows: int | None = None,
 ) -> DatasetResult:
     """Convert every file of the dataset ``src`` (a directory, a glob or a URI) into ``dst`` (a
     directory or prefix), each at its relative path, and write the manifest last; see the module.
@@ -457,7 +665,10 @@ def convert_dataset(
     and for each failing file (``error: ...``); ``cluster``: convert the files on a Dask cluster
     (:mod:`hconv.tables.cluster`, the ``hconv[dask]`` extra): ``"local"`` (``workers`` processes,
     default one per core), a scheduler's address (``"tcp://HOST:PORT"``, given ``cluster_timeout``
-    seconds to answer) or a ``distributed.Client``; ``threads`` is then each worker's. Raises
+    seconds to answer) or a ``distributed.Client``; ``threads`` is then each worker's;
+    ``task_rows``: a Parquet file of more rows (and 2 row groups or more) is converted by several
+    tasks of about this many rows each, and joined into the same output (:func:`split`; default
+    :data:`TASK_ROWS`, 0: one task per file). Raises
     :class:`DatasetError` after the run if a file failed, KeyboardInterrupt (with what was kept)
     if interrupted, and HconvError subclasses if the dataset cannot be read or written at all.
     """
@@ -466,6 +677,9 @@ def convert_dataset(
     check_threads(threads)  # before anything is written: a bad option fails the run, not each file
     check_callback("progress", progress)
     check_callback("log", log)
+    check_task_rows(task_rows)
+    if task_rows is not None and cluster is None:
+        raise UsageError(f"{option('task_rows')} sets how {option('cluster')} splits large files; add that")
     if cluster is not None or workers is not None:
         from hconv.tables import cluster as dask_cluster  # dask, only when asked for
 
@@ -506,7 +720,8 @@ def convert_dataset(
             session = stack.enter_context(dask_cluster.connect(cluster, workers, cluster_timeout, threads))
             ran_on = session.describe()
             say(f"running on {ran_on}")
-            outcomes = session.run(plan, keep, strict=strict)
+            rows = TASK_ROWS if task_rows is None else task_rows
+            outcomes = session.run(plan, keep, strict=strict, task_rows=rows)
         else:
             outcomes = _in_process(plan, keep, strict=strict, threads=threads)
         if plan.todo:

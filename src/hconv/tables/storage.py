@@ -375,6 +375,38 @@ def put(local_path: str, where: Place, rel: str) -> int:
     return size
 
 
+def exists(where: Place, rel: str) -> bool:
+    """Whether the file ``rel`` is under ``where``."""
+    if where.local:
+        return os.path.isfile(where.path(rel))
+    return where.fs.get_file_info(where.path(rel)).type == pafs.FileType.File
+
+
+def remove(where: Place, rel: str) -> None:
+    """Remove the file ``rel`` under ``where`` if it is there."""
+    try:
+        if where.local:
+            os.unlink(where.path(rel))
+        else:
+            where.fs.delete_file(where.path(rel))
+    except FileNotFoundError:
+        pass
+    except OSError as exc:
+        if exists(where, rel):
+            raise OutputError(f"{where.name(rel)}: could not be removed {store_failure(exc)}") from None
+
+
+def remove_run_objects(where: Place, run: str) -> list[str]:
+    """Remove the temporary objects (parts) of the run ``run`` under the object-storage place
+    ``where``: :func:`hconv.tables.tableio.remove_run_temporaries` for a prefix; their names."""
+    gone = []
+    for f in where.list():
+        if tableio.is_run_temporary(f.rel.rsplit("/", 1)[-1], run):
+            remove(where, f.rel)
+            gone.append(f.rel)
+    return gone
+
+
 def write_bytes(where: Place, rel: str, data: bytes) -> None:
     """Write a small file (the manifest) whole: locally through a temporary file, flushed to the
     disk and renamed; on object storage in one upload."""
