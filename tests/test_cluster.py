@@ -187,14 +187,85 @@ def test_convert_cluster_worker_killed_midfile_loses_nothing_and_leaves_no_tempo
     assert "3 workers (1 lost during the run; their files were converted again)" in err.decode()
 
 
+def _write_large(root: Path, rows: int, group: int) -> None:
+    """One Parquet file of ``rows`` rows in row groups of ``group`` (not a multiple of hconv's
+    batch, so that a part starts inside a row group), beside a small file."""
+    table = pa.table(make_scene(rows, seed=5, cond_max=1e6))
+    (root / "day=0").mkdir(parents=True)
+    pq.write_table(table, root / "day=0" / "big.parquet", row_group_size=group)
+    pq.write_table(table.slice(0, 1000), root / "day=0" / "small.parquet")
+
+
+def _tasks(client, run) -> list[tuple[str, str]]:
+    """(key, worker) of every task that ``run()`` ran on ``client``'s cluster."""
+    with distributed.get_task_stream(client=client) as stream:
+        run()
+    return [(t["key"], t["worker"]) for t in stream.data]
+
+
+def test_convert_cluster_split_file_is_bit_for_bit_the_one_process_run(scheduler, tmp_path):
+    data = tmp_path / "data"
+    _write_large(data, rows=400_000, group=50_000)
+    with distributed.Client(scheduler, set_as_default=False) as client:
+        ran = _tasks(client, lambda: hconv.convert_dataset(data, tmp_path / "out", cluster=client, task_rows=131072))
+    parts = [(k, w) for k, w in ran if "-part-" in k]
+    assert len(parts) == 3  # 131072 rows, 131072, and the 137856 left
+    assert len({w for _, w in parts}) == 2  # both workers converted parts
+    m = _same_as_one_process(tmp_path / "out", data, tmp_path)  # its record too: rows, statuses, worst row
+    assert [f["rows"] for f in m["files"]] == [400_000, 1000]
+
+
+def test_convert_cluster_task_rows_leaves_files_whole(scheduler, tmp_path):
+    data = tmp_path / "data"
+    _write_large(data, rows=140_000, group=50_000)
+    with distributed.Client(scheduler, set_as_default=False) as client:
+        for k, rows in enumerate([0, 140_000]):  # off; and a file not above the threshold
+            out = tmp_path / f"out{k}"
+            ran = _tasks(client, lambda: hconv.convert_dataset(data, out, cluster=client, task_rows=rows))  # noqa: B023
+            assert len(ran) == 2 and not [key for key, _ in ran if "-part-" in key]
+            _same_as_one_process(out, data, tmp_path)
+
+
+def test_convert_cluster_worker_killed_during_parts_loses_nothing(scheduler, tmp_path):
+    victim = _start_worker(scheduler, tmp_path, "victim")
+    try:
+        _wait_for_workers(scheduler, 3)
+        data = tmp_path / "data"
+        _write_large(data, rows=600_000, group=60_000)
+        out = tmp_path / "out"
+        driver = subprocess.Popen(
+            [sys.executable, "-m", "hconv", "convert", "data", "out", "--cluster", scheduler]
+            + ["--threads", "1", "--task-rows", "65536"],
+            cwd=tmp_path,
+            stderr=subprocess.PIPE,
+        )
+        # kill the victim while it writes a part: its temporary file names its pid
+        mark, deadline, killed = f".{victim.pid}-", time.time() + 60, False
+        while not killed and driver.poll() is None and time.time() < deadline:
+            found = out.rglob("*.part-*" + tableio.TEMP_SUFFIX) if out.exists() else []
+            killed = any(mark in p.name for p in found)
+            time.sleep(0.005)
+        assert killed, "the victim converted no part while the run lasted"
+        victim.kill()
+        _, err = driver.communicate(timeout=120)
+        assert driver.returncode == 0, err.decode()
+    finally:
+        _stop([victim])
+    _same_as_one_process(out, data, tmp_path)  # no part or temporary file is left either
+    assert "3 workers (1 lost during the run; their files were converted again)" in err.decode()
+
+
 def test_convert_cluster_s3_in_and_out_through_a_scheduler(scheduler, s3, tmp_path):
     import pyarrow.fs as pafs
 
     url, fs, bucket = s3
     data = tmp_path / "data"
     _write_dataset(data, files=3, rows=1000)
+    # and one file split in two parts, their part objects in conv/ and removed
+    pq.write_table(pa.table(make_scene(100_000, seed=6)), data / "day=1" / "big.parquet", row_group_size=50_000)
     pafs.copy_files(str(data), f"{bucket}/raw", source_filesystem=pafs.LocalFileSystem(), destination_filesystem=fs)
     args = (f"s3://{bucket}/raw/", f"s3://{bucket}/conv/", "--endpoint-url", url, "--cluster", scheduler)
+    args += ("--task-rows", "65536")
     proc = run_hconv("convert", *args, cwd=tmp_path)
     err = proc.stderr.decode()
     assert proc.returncode == 0, err
@@ -266,6 +337,11 @@ def test_convert_cluster_local_starts_its_workers_and_leaves_no_scratch_space(tm
             ("--cluster", "local", "--cluster-timeout", "0"),
             "--cluster-timeout must be a number of seconds above 0, got 0.0",
         ),
+        (
+            ("--cluster", "local", "--task-rows", "5"),
+            "--task-rows must be 0 (one task per file) or a whole number of rows, 65536 or more, got 5",
+        ),
+        (("--task-rows", "100000"), "--task-rows sets how --cluster splits large files; add that"),
     ],
 )
 def test_convert_cluster_bad_options_fail_in_one_line(args, message, tmp_path, capsys, monkeypatch):

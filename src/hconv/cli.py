@@ -646,6 +646,14 @@ def convert_cmd(
         metavar="SECONDS",
         help="how long a scheduler (and its first worker) may take to answer",
     ),
+    task_rows: int | None = typer.Option(
+        None,
+        "--task-rows",
+        metavar="N",
+        help="with --cluster: a Parquet file of more than N rows (in 2 row groups or more) is converted "
+        "by tasks of about N rows each, joined into the same output; 0: one task per file; "
+        "default: 4194304",
+    ),
 ) -> None:
     """Convert every row of a CSV or Parquet table, or of each file of a dataset; OUT gets the input
     columns, ω and diagnostics."""
@@ -655,14 +663,14 @@ def convert_cmd(
     kwargs: dict[str, Any] = dict(
         job=job, src_format=_value(from_), dst_format=_value(to), force=force, strict=strict, threads=threads
     )
-    if cluster is not None or workers is not None:
-        kwargs.update(cluster=cluster, workers=workers, cluster_timeout=cluster_timeout)
+    if cluster is not None or workers is not None or task_rows is not None:
+        kwargs.update(cluster=cluster, workers=workers, cluster_timeout=cluster_timeout, task_rows=task_rows)
     if dataset.is_dataset(src, dst):
         _convert_dataset(src, dst, kwargs, endpoint_url, quiet)
         return
     if endpoint_url is not None:
         raise UsageError("--endpoint-url is for s3:// URIs; IN and OUT are local")
-    if cluster is not None or workers is not None:
+    if cluster is not None or workers is not None or task_rows is not None:
         raise UsageError(
             f"{option('cluster')} converts a dataset's files; {src} is one file, converted here "
             f"(give its directory, or a glob, to use {option('cluster')})"

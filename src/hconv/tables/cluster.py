@@ -48,9 +48,20 @@ from typing import Any
 from hconv import errors
 from hconv.errors import HconvError, OutputError, UsageError, option
 from hconv.tables import tableio
-from hconv.tables.dataset import FileRecord, Plan, Task, convert_one
+from hconv.tables.dataset import (
+    FileRecord,
+    Part,
+    PartRecord,
+    Plan,
+    Task,
+    convert_one,
+    convert_part,
+    join_parts,
+    remove_parts,
+    split,
+)
 from hconv.tables.pipeline import available_cores, default_threads
-from hconv.tables.storage import Place, first_line
+from hconv.tables.storage import Place, first_line, remove_run_objects
 
 EXTRA = "pip install 'hconv[dask]'"
 #: --cluster's values besides "local": the address of a running Dask scheduler.
@@ -205,6 +216,7 @@ class Session:
         self.addresses: set[str] = set()
         self.dst: Place | None = None
         self.futures: list[Any] = []
+        self.split = False  #: whether a file was split into parts (whose files the run removes at its end)
 
     def describe(self) -> str:
         return f"{self.where}, {self.workers} worker" + ("s" if self.workers != 1 else "")
@@ -243,23 +255,41 @@ class Session:
         self.addresses = set(found)
 
     def run(
-        self, plan: Plan, keep: Callable[[FileRecord], None], *, strict: bool
+        self, plan: Plan, keep: Callable[[FileRecord], None], *, strict: bool, task_rows: int
     ) -> Iterator[tuple[Task, HconvError | None]]:
-        """Submit one task per file to convert; (task, its error or None) as each completes, its
-        record handed to ``keep`` first. KeyboardInterrupt stops the tasks (see the module)."""
+        """Submit one task per file to convert, or for a large Parquet file one per part and one
+        joining them (:func:`hconv.tables.dataset.split`, ``task_rows``); (task, its error or
+        None) as each file completes, its record handed to ``keep`` first. KeyboardInterrupt
+        stops the tasks (see the module)."""
         import distributed
 
         self.dst = plan.dst
         stop = distributed.Event(f"hconv-stop-{self.run_id}", client=self.client)
         args = (plan.src.place, plan.dst, plan.job, strict, self.threads, self.run_id, stop.name, _cli())
         by_key = {}
+        files = []  # the futures whose results are files' records: a whole file's, a join's
         for k, task in enumerate(plan.todo):
             key = f"hconv-{self.run_id}-{k}"
             by_key[key] = task
-            self.futures.append(self.client.submit(_convert_on_worker, task, *args, key=key, pure=False))
+            parts = split(task, plan.src.place, task_rows, self.run_id)
+            if not parts:
+                files.append(self.client.submit(_convert_on_worker, task, *args, key=key, pure=False))
+                continue
+            self.split = True
+            done = [
+                self.client.submit(_convert_on_worker, task, *args, part=p, key=f"{key}-part-{p.k}", pure=False)
+                for p in parts
+            ]
+            self.futures += done
+            files.append(
+                self.client.submit(
+                    _join_on_worker, task, parts, done, plan.dst, self.run_id, _cli(), key=key, pure=False
+                )
+            )
+        self.futures += files
         handled = set()
         try:
-            for future in distributed.as_completed(self.futures, loop=self.client.loop):
+            for future in distributed.as_completed(files, loop=self.client.loop):
                 task = by_key[future.key]
                 outcome = self._outcome(future, task, keep)
                 handled.add(future.key)
@@ -267,7 +297,7 @@ class Session:
         except KeyboardInterrupt:
             stop.set()
             # every task not handled yet, including those done but still queued in as_completed
-            waiting = [f for f in self.futures if f.key not in handled]
+            waiting = [f for f in files if f.key not in handled]
             with contextlib.suppress(Exception):  # a worker stops, finishes, or is lost: all fine now
                 for future in distributed.as_completed(waiting, timeout=STOP_WAIT_SECONDS, loop=self.client.loop):
                     self._outcome(future, by_key[future.key], keep)
@@ -306,6 +336,9 @@ class Session:
         _remove_run_temporaries(self.run_id)
         if self.dst is not None and self.dst.local:
             tableio.remove_run_temporaries(self.dst.root, self.run_id, recursive=True)
+        elif self.dst is not None and self.split:  # the parts a killed worker or a stopped run left in OUT
+            with contextlib.suppress(HconvError):
+                remove_run_objects(self.dst, self.run_id)
 
 
 class _Scratch:
@@ -359,9 +392,10 @@ def _convert_on_worker(
     run_id: str,
     stop_name: str,
     cli: bool,
-) -> FileRecord | HconvError | None:
-    """One file, on a worker: its record, its error (returned, not raised, so that Dask keeps no
-    traceback for a file hconv names), or None if the run was stopped first."""
+    part: Part | None = None,
+) -> FileRecord | PartRecord | HconvError | None:
+    """One file, or one ``part`` of it, on a worker: its record, its error (returned, not raised,
+    so that Dask keeps no traceback for a file hconv names), or None if the run was stopped first."""
     import distributed
 
     stop = distributed.Event(stop_name)
@@ -381,8 +415,30 @@ def _convert_on_worker(
     task = dataclasses.replace(task, overwrite=True)
     with errors.command_line() if cli else contextlib.nullcontext():
         try:
+            if part is not None:
+                return convert_part(
+                    task, part, src, dst, job, strict=strict, threads=threads, progress=check, run=run_id
+                )
             return convert_one(task, src, dst, job, strict=strict, threads=threads, progress=check, run=run_id)
         except HconvError as exc:
             return exc
         except _StopRequestedError:
             return None
+
+
+def _join_on_worker(
+    task: Task, parts: list[Part], done: list[PartRecord | HconvError | None], dst: Place, run_id: str, cli: bool
+) -> FileRecord | HconvError | None:
+    """A split file's parts joined into its output, on a worker, once every part is done: its
+    record; else (a part failed, or the run was stopped) the parts removed, and the first part's
+    error or None."""
+    task = dataclasses.replace(task, overwrite=True)  # as _convert_on_worker's
+    failed = [r for r in done if not isinstance(r, PartRecord)]
+    with errors.command_line() if cli else contextlib.nullcontext():
+        try:
+            if failed:
+                remove_parts(parts, dst)
+                return next((r for r in failed if r is not None), None)  # an error; else stopped
+            return join_parts(task, parts, [r for r in done if isinstance(r, PartRecord)], dst, run=run_id)
+        except HconvError as exc:
+            return exc
