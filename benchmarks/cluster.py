@@ -2,9 +2,11 @@
 ``hconv convert`` of the same dataset, on this machine: rows per second per worker with one and
 two Dask workers, on local disk and through a local S3-compatible server (moto, the ``test-s3``
 extra, if installed); the per-task overhead (many tiny files); Dask's own cost per task; and one
-large file, which a cluster converts as one task.
+large file of many row groups, converted as one task and split into parts (``--task-rows``), with
+what a part and the join cost in one process.
 
     python benchmarks/cluster.py --rows 2000000 --files 16 --s3-rows 400000
+    python benchmarks/cluster.py --rows 2000000 --split-only --task-rows 524288
 
 Each figure is one run of the real command in a fresh process (the figures are ratios within one
 run): the time its summary reports, from the plan to the manifest, which for a cluster includes
@@ -112,17 +114,74 @@ def compare(work: Path, src: str, dst: str, rows: int, env: dict | None = None, 
             cluster.close()
 
 
+def split(work: Path, rows: int, task_rows: int) -> None:
+    """One file of ``rows`` rows in 16 row groups: in one process, the whole file, its parts one
+    by one and their join; on 1 and 2 workers (warm), as one task and split into parts."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from hconv.tables import dataset, pipeline, storage, tableio
+    from hconv.tools.scene import make_scene
+
+    big = work / "split" / "big.parquet"
+    big.parent.mkdir(parents=True)
+    pq.write_table(pa.table(make_scene(rows, seed=1, cond_max=1e6)), big, row_group_size=-(-rows // 16))
+    task = dataset.Task(
+        storage.Listed("big.parquet", big.stat().st_size, None), "big.parquet", "parquet", "parquet", False
+    )
+    parts = dataset.split(task, storage.place(str(big.parent)), task_rows, "0")
+    print(f"one file of {rows:,} rows in 16 row groups; --task-rows {task_rows}: {len(parts)} parts")
+    t0 = time.perf_counter()
+    pipeline.convert_file(str(big), str(work / "whole.parquet"), threads=1, force=True)
+    whole = time.perf_counter() - t0
+    paths, each = [], []
+    for p in parts:
+        paths.append(str(work / f"part-{p.k}.parquet"))
+        t0 = time.perf_counter()
+        pipeline.convert_file(str(big), paths[-1], threads=1, force=True, rows=(p.start, p.stop))
+        each.append(time.perf_counter() - t0)
+    t0 = time.perf_counter()
+    tableio.join_parquet(paths, str(work / "joined.parquet"))
+    join = time.perf_counter() - t0
+    same = (work / "joined.parquet").read_bytes() == (work / "whole.parquet").read_bytes()
+    print(
+        f"  one process, --threads 1: whole {whole:.2f} s; parts {sum(each):.2f} s in all "
+        f"({sum(each) / whole:.2f}x the whole), {max(each):.2f} s the longest; join {join:.2f} s "
+        f"({join / whole:.2f}x the whole); joined file {'==' if same else '!='} whole file, byte for byte"
+    )
+    _, base = run([str(big.parent), str(work / "split-base")])
+    line("hconv convert (default threads)", rows, base, base)
+    for workers in (1, 2):
+        cluster = Cluster(workers, {})
+        try:
+            run([str(big.parent), str(work / f"warm-{workers}"), "--cluster", cluster.address, "--task-rows", "0"])
+            name = f"({workers} worker{'s' if workers > 1 else ''})"
+            for how, n in (("one task", 0), (f"{len(parts)} parts", task_rows)):
+                dst = str(work / f"split-{workers}-{n}")
+                _, reported = run(
+                    [str(big.parent), dst, "--cluster", cluster.address, "--threads", "1", "--task-rows", str(n)]
+                )
+                line(f"--cluster tcp:// {name}, {how}", rows, reported, base, workers)
+        finally:
+            cluster.close()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rows", type=int, default=2_000_000)
     ap.add_argument("--files", type=int, default=16)
     ap.add_argument("--tiny-files", type=int, default=400)
     ap.add_argument("--s3-rows", type=int, default=400_000)
+    ap.add_argument("--task-rows", type=int, default=524_288, help="parts' size for the large file's split")
+    ap.add_argument("--split-only", action="store_true", help="only the large file, whole and split")
     ap.add_argument("--dir", default=None, help="where to write the datasets (default: a temporary directory)")
     a = ap.parse_args()
     work = Path(tempfile.mkdtemp(prefix="hconv-bench-cluster-", dir=a.dir))
     print(f"this machine: {os.cpu_count()} cores; each figure is one run")
     try:
+        split(work, a.rows, a.task_rows)
+        if a.split_only:
+            return
         print(f"local disk, {a.rows:,} rows in {a.files} files")
         write_dataset(work / "data", a.rows, a.files)
         compare(work, str(work / "data"), "out", a.rows, tasks=True)
