@@ -651,8 +651,8 @@ def convert_cmd(
         "--task-rows",
         metavar="N",
         help="with --cluster: a Parquet file of more than N rows (in 2 row groups or more) is converted "
-        "by tasks of about N rows each, joined into the same output; 0: one task per file; "
-        "default: 4194304",
+        "by tasks of about N rows each, joined into the same output (the same bytes); "
+        "default 0: one task per file (the join costs most of a conversion: docs/scaling.md)",
     ),
 ) -> None:
     """Convert every row of a CSV or Parquet table, or of each file of a dataset; OUT gets the input

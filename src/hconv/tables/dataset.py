@@ -379,8 +379,9 @@ def convert_one(
 
 
 #: Splitting a large Parquet file into parts converted by separate tasks of a cluster run (see
-#: :func:`split`): by default, a file of more rows than this (figures: docs/scaling.md).
-TASK_ROWS = 4 * 1024 * 1024
+#: :func:`split`) is off by default: joining the parts costs most of what converting the file
+#: once does, so it pays only with many workers and a costly method (docs/scaling.md).
+TASK_ROWS = 0
 
 
 def check_task_rows(task_rows: object) -> None:
@@ -668,7 +669,7 @@ def convert_dataset(
     seconds to answer) or a ``distributed.Client``; ``threads`` is then each worker's;
     ``task_rows``: a Parquet file of more rows (and 2 row groups or more) is converted by several
     tasks of about this many rows each, and joined into the same output (:func:`split`; default
-    :data:`TASK_ROWS`, 0: one task per file). Raises
+    :data:`TASK_ROWS`: 0, one task per file). Raises
     :class:`DatasetError` after the run if a file failed, KeyboardInterrupt (with what was kept)
     if interrupted, and HconvError subclasses if the dataset cannot be read or written at all.
     """
