@@ -82,15 +82,26 @@ def _start_worker(address: str, tmp: Path, name: str) -> subprocess.Popen:
     )
 
 
-def _driver(scheduler: str, cwd: Path) -> subprocess.Popen:
+def _driver(scheduler: str, cwd: Path, *more: str) -> subprocess.Popen:
     """``hconv convert data out --cluster SCHEDULER`` started in ``cwd``, seeing Ctrl-C as from a
     terminal; one batch thread per task, so that a file takes long enough to be caught mid-way."""
     return subprocess.Popen(
-        [sys.executable, "-m", "hconv", "convert", "data", "out", "--cluster", scheduler, "--threads", "1"],
+        [sys.executable, "-m", "hconv", "convert", "data", "out", "--cluster", scheduler, "--threads", "1", *more],
         cwd=cwd,
         stderr=subprocess.PIPE,
         preexec_fn=terminal_signals,
     )
+
+
+def _kill_while_writing(victim: subprocess.Popen, driver: subprocess.Popen, out: Path, pattern: str) -> None:
+    """Kill ``victim`` once a temporary file it writes (its name holds its pid) matching
+    ``pattern`` appears in ``out``, while ``driver`` runs."""
+    mark, deadline, killed = f".{victim.pid}-", time.time() + 60, False
+    while not killed and driver.poll() is None and time.time() < deadline:
+        killed = any(mark in p.name for p in out.rglob(pattern)) if out.exists() else False
+        time.sleep(0.005)
+    assert killed, "the victim wrote nothing while the run lasted"
+    victim.kill()
 
 
 def _wait_for_workers(address: str, n: int) -> None:
@@ -170,13 +181,7 @@ def test_convert_cluster_worker_killed_midfile_loses_nothing_and_leaves_no_tempo
         _write_dataset(data, files=6, rows=50_000)
         out = tmp_path / "out"
         driver = _driver(scheduler, tmp_path)
-        # kill the victim while it writes an output: its temporary file names its pid
-        mark, deadline, killed = f".{victim.pid}-", time.time() + 60, False
-        while not killed and driver.poll() is None and time.time() < deadline:
-            killed = any(mark in p.name for p in out.rglob("*" + tableio.TEMP_SUFFIX)) if out.exists() else False
-            time.sleep(0.005)
-        assert killed, "the victim converted no file while the run lasted"
-        victim.kill()
+        _kill_while_writing(victim, driver, out, "*" + tableio.TEMP_SUFFIX)  # while it writes an output
         _, err = driver.communicate(timeout=120)
         assert driver.returncode == 0, err.decode()
     finally:
@@ -233,20 +238,8 @@ def test_convert_cluster_worker_killed_during_parts_loses_nothing(scheduler, tmp
         data = tmp_path / "data"
         _write_large(data, rows=600_000, group=60_000)
         out = tmp_path / "out"
-        driver = subprocess.Popen(
-            [sys.executable, "-m", "hconv", "convert", "data", "out", "--cluster", scheduler]
-            + ["--threads", "1", "--task-rows", "65536"],
-            cwd=tmp_path,
-            stderr=subprocess.PIPE,
-        )
-        # kill the victim while it writes a part: its temporary file names its pid
-        mark, deadline, killed = f".{victim.pid}-", time.time() + 60, False
-        while not killed and driver.poll() is None and time.time() < deadline:
-            found = out.rglob("*.part-*" + tableio.TEMP_SUFFIX) if out.exists() else []
-            killed = any(mark in p.name for p in found)
-            time.sleep(0.005)
-        assert killed, "the victim converted no part while the run lasted"
-        victim.kill()
+        driver = _driver(scheduler, tmp_path, "--task-rows", "65536")
+        _kill_while_writing(victim, driver, out, "*.part-*" + tableio.TEMP_SUFFIX)  # while it writes a part
         _, err = driver.communicate(timeout=120)
         assert driver.returncode == 0, err.decode()
     finally:

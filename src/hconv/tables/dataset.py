@@ -324,22 +324,10 @@ def convert_one(
     t0 = time.perf_counter()
     rel = task.input.rel
     name = src.name(rel)
-    etag = None
     with contextlib.ExitStack() as cleanup:
-        # Each temporary file is made and its removal registered with interrupts held, so that a
-        # Ctrl-C cannot fall between the two; the long work that fills it can be interrupted.
-        local_in = src.path(rel)
-        if not src.local:
-            with interrupts.held():
-                local_in = storage.stage(kind="fetch", run=run)
-                cleanup.callback(_remove, local_in)
-            etag = storage.fetch(src, rel, local_in)
+        local_in, etag = _local_input(src, rel, cleanup, run)
         target = dst.path(task.output)
-        if dst.local:
-            _make_folders(os.path.dirname(target), cleanup)
-        with interrupts.held():
-            staged = storage.stage(target if dst.local else None, run=run)
-            cleanup.callback(_remove, staged)
+        staged = _staged(dst, task.output, cleanup, run)
         tally = convert_file(
             local_in,
             staged,
@@ -473,21 +461,11 @@ def convert_part(
     second run of the same part (its worker died) writes the same part again."""
     t0 = time.perf_counter()
     rel = task.input.rel
-    etag = None
     with contextlib.ExitStack() as cleanup:
-        local_in = src.path(rel)
-        if not src.local:
-            # the whole object, for each part: reading row groups from the store is left to do
-            with interrupts.held():
-                local_in = storage.stage(kind="fetch", run=run)
-                cleanup.callback(_remove, local_in)
-            etag = storage.fetch(src, rel, local_in)
+        # the whole object, for each part: reading only its row groups from the store is not built
+        local_in, etag = _local_input(src, rel, cleanup, run)
         target = dst.path(part.rel)
-        if dst.local:
-            _make_folders(os.path.dirname(target), cleanup)
-        with interrupts.held():
-            staged = storage.stage(target if dst.local else None, run=run)
-            cleanup.callback(_remove, staged)
+        staged = _staged(dst, part.rel, cleanup, run)
         tally = convert_file(
             local_in,
             staged,
@@ -529,18 +507,8 @@ def join_parts(
     target = dst.path(task.output)
     with contextlib.ExitStack() as cleanup:
         if all(storage.exists(dst, p.rel) for p in parts):
-            local = [dst.path(p.rel) for p in parts]
-            if not dst.local:
-                local = []
-                for p in parts:
-                    with interrupts.held():
-                        fetched = storage.stage(kind="fetch", run=run)
-                        cleanup.callback(_remove, fetched)
-                    storage.fetch(dst, p.rel, fetched)
-                    local.append(fetched)
-            with interrupts.held():
-                staged = storage.stage(target if dst.local else None, run=run)
-                cleanup.callback(_remove, staged)
+            local = [_local_input(dst, p.rel, cleanup, run)[0] for p in parts]
+            staged = _staged(dst, task.output, cleanup, run)
             tableio.join_parquet(local, staged)
             with interrupts.held():
                 if dst.local:
@@ -584,6 +552,31 @@ def remove_parts(parts: list[Part], dst: Place) -> None:
     """Remove the part files of one output, those that are there."""
     for p in parts:
         storage.remove(dst, p.rel)
+
+
+def _local_input(src: Place, rel: str, cleanup: contextlib.ExitStack, run: str | None) -> tuple[str, str | None]:
+    """The file ``rel`` of ``src`` as a local path, fetched into a temporary file (removed by
+    ``cleanup``) from object storage; and its ETag there."""
+    if src.local:
+        return src.path(rel), None
+    # Each temporary file is made and its removal registered with interrupts held, so that a
+    # Ctrl-C cannot fall between the two; the long work that fills it can be interrupted.
+    with interrupts.held():
+        local = storage.stage(kind="fetch", run=run)
+        cleanup.callback(_remove, local)
+    return local, storage.fetch(src, rel, local)
+
+
+def _staged(dst: Place, rel: str, cleanup: contextlib.ExitStack, run: str | None) -> str:
+    """A temporary file (removed by ``cleanup``) to write ``rel`` of ``dst`` into before it is
+    committed: beside it (its missing folders made), or a local one for object storage."""
+    target = dst.path(rel)
+    if dst.local:
+        _make_folders(os.path.dirname(target), cleanup)
+    with interrupts.held():
+        staged = storage.stage(target if dst.local else None, run=run)
+        cleanup.callback(_remove, staged)
+    return staged
 
 
 def _commit(staged: str, target: str, overwrite: bool, shown: str) -> None:
