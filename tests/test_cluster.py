@@ -217,6 +217,7 @@ def test_convert_cluster_split_file_is_bit_for_bit_the_one_process_run(scheduler
     assert len(parts) == 3  # 131072 rows, 131072, and the 137856 left
     assert len({w for _, w in parts}) == 2  # both workers converted parts
     m = _same_as_one_process(tmp_path / "out", data, tmp_path)  # its record too: rows, statuses, worst row
+    assert "parts_run" not in m  # named only while parts may exist, for a killed driver's next run
     assert [f["rows"] for f in m["files"]] == [400_000, 1000]
 
 

@@ -499,3 +499,28 @@ def test_convert_dataset_bad_threads_fails_at_once_and_writes_nothing(tmp_path):
     proc = run_hconv("convert", "data", "out", "--threads", "0", cwd=tmp_path)
     assert proc.returncode == 2 and len(proc.stderr.decode().splitlines()) == 1
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("driver_ended", [True, False])
+def test_convert_dataset_removes_parts_of_a_run_whose_driver_was_killed(driver_ended, tmp_path):
+    """A cluster run splitting files (--task-rows) whose driver was killed outright leaves its
+    parts in OUT, hidden; its manifest names the run and the driver, and the next run removes
+    them once the driver has surely ended, never while it may still run."""
+    from hconv.tables import tableio
+
+    data = _dataset(tmp_path / "data")
+    out = tmp_path / "out"
+    dataset.convert_dataset(data, out)
+    pid, start, tag = tableio.maker().split("-")
+    driver = f"{pid}-{int(start) + 1}-{tag}" if driver_ended else tableio.maker()
+    m = _manifest(out)
+    m["parts_run"] = {"id": "0123abcd", "driver": driver}
+    (out / MANIFEST).write_text(json.dumps(m))
+    parts = [out / "date=2026-01-01" / tableio.part_name("part-0.parquet", "0123abcd", k) for k in range(2)]
+    other = out / "date=2026-01-01" / tableio.part_name("part-0.parquet", "99999999", 0)  # another run's
+    for p in [*parts, other]:
+        p.write_bytes(b"PAR1")
+    said: list[str] = []
+    dataset.convert_dataset(data, out, log=said.append)
+    assert [p.exists() for p in parts] == [not driver_ended] * 2 and other.exists()
+    assert ("removed 2 part files left by a run whose driver was killed" in said) is driver_ended, said

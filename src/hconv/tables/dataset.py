@@ -29,6 +29,7 @@ import dataclasses
 import datetime
 import json
 import os
+import re
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -702,6 +703,8 @@ def convert_dataset(
     # replaced, and claims the paths this run will write, so that a run killed outright leaves
     # outputs the next run knows as hconv's own.
     written = _written_before(plan) | {t.output for t in plan.todo}
+    _remove_orphan_parts(plan, say)
+    parts_run = None  #: while parts may exist: this run's tag and driver, in every manifest written
 
     def keep(rec: FileRecord) -> None:
         records[rec.input] = rec
@@ -716,10 +719,12 @@ def convert_dataset(
             say(f"running on {ran_on}")
             rows = TASK_ROWS if task_rows is None else task_rows
             outcomes = session.run(plan, keep, strict=strict, task_rows=rows)
+            if rows:
+                parts_run = {"id": session.run_id, "driver": tableio.maker()}
         else:
             outcomes = _in_process(plan, keep, strict=strict, threads=threads)
         if plan.todo:
-            _write_manifest(plan, records, failed, written, t0)
+            _write_manifest(plan, records, failed, written, t0, parts_run)
         last = time.monotonic()
         try:
             for k, (task, error) in enumerate(outcomes):
@@ -729,10 +734,10 @@ def convert_dataset(
                 if progress is not None:
                     progress(k + 1, len(plan.todo))
                 if time.monotonic() - last > CHECKPOINT_SECONDS:
-                    _write_manifest(plan, records, failed, written, t0)
+                    _write_manifest(plan, records, failed, written, t0, parts_run)
                     last = time.monotonic()
         except KeyboardInterrupt:
-            _write_manifest(plan, records, failed, written, t0)
+            _write_manifest(plan, records, failed, written, t0, parts_run)
             kept = len(records)
             raise KeyboardInterrupt(
                 f"interrupted; {kept} of {len(plan.inputs)} files are converted and listed in "
@@ -801,6 +806,23 @@ def _manifest(plan: Plan, records: dict[str, FileRecord], failed: dict[str, Hcon
     }
 
 
+def _remove_orphan_parts(plan: Plan, say: Callable[[str], None]) -> None:
+    """Remove the parts (:func:`split`) of an earlier run whose driver was killed outright, as its
+    manifest names them; left alone while that driver may still run (another host)."""
+    before = (plan.manifest_before or {}).get("parts_run")
+    if not isinstance(before, dict) or not tableio.maker_gone(str(before.get("driver", ""))):
+        return
+    run = str(before.get("id", ""))
+    if not re.fullmatch(r"[0-9a-f]+", run):
+        return
+    if plan.dst.local:
+        gone = tableio.remove_run_temporaries(plan.dst.root, run, recursive=True)
+    else:
+        gone = storage.remove_run_objects(plan.dst, run)
+    if gone:
+        say(f"removed {len(gone)} part file{'s' if len(gone) != 1 else ''} left by a run whose driver was killed")
+
+
 def _manifest_stale(plan: Plan, records: dict, failed: dict) -> bool:
     """Whether the manifest on disk says anything else than this run would write."""
     before = plan.manifest_before
@@ -811,8 +833,14 @@ def _manifest_stale(plan: Plan, records: dict, failed: dict) -> bool:
     return any(before.get(k) != now[k] for k in keys)
 
 
-def _write_manifest(plan: Plan, records: dict, failed: dict, written: set[str], t0: float) -> None:
+def _write_manifest(
+    plan: Plan, records: dict, failed: dict, written: set[str], t0: float, parts_run: dict | None = None
+) -> None:
     m = _manifest(plan, records, failed, written)
+    if parts_run is not None:
+        # A driver killed outright (kill -9, a lost machine) cannot remove the parts its tasks
+        # wrote; the next run, reading this, removes them once it can tell the driver has ended.
+        m["parts_run"] = parts_run
     m["written_at"] = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
     m["seconds"] = round(time.perf_counter() - t0, 3)
     storage.write_bytes(plan.dst, MANIFEST, (json.dumps(m, indent=1) + "\n").encode())

@@ -368,6 +368,21 @@ def _maker_gone(pid: int, start: int, tag: str) -> bool:
     return False  # it runs, but /proc hides it (mounted with hidepid)
 
 
+def maker() -> str:
+    """This process as :func:`maker_gone` can later tell whether it still runs: ``pid-start-tag``."""
+    return _maker()
+
+
+def maker_gone(made_by: str) -> bool:
+    """Whether the process :func:`maker` described as ``made_by`` has surely ended; False when
+    unsure (another host, or not such a description)."""
+    try:
+        pid, start, tag = made_by.split("-")
+        return _maker_gone(int(pid), int(start), tag)
+    except ValueError:
+        return False
+
+
 def remove_stale_temporaries(directory: str) -> list[str]:
     """Remove the temporary files in ``directory`` that hconv runs killed before they could clean
     up (SIGKILL, the OOM killer, a power cut), saying so on stderr; returns their paths.
