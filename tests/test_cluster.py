@@ -364,8 +364,8 @@ def test_convert_cluster_unreachable_scheduler_names_it_within_the_timeout(tmp_p
     seconds = time.perf_counter() - t0
     err = proc.stderr.decode().splitlines()
     assert proc.returncode == 2 and err[-1] == (
-        f"hconv: error: --cluster {address}: nothing listens there (connection refused); start one there "
-        "(dask scheduler), give its address, or raise --cluster-timeout"
+        f"hconv: error: --cluster {address}: nothing listens there (connection refused); start a scheduler "
+        "there (dask scheduler) or give the address of one"
     )
     assert seconds < 8
     assert not (tmp_path / "out").exists()
@@ -384,7 +384,7 @@ def test_convert_cluster_address_of_a_server_that_is_not_dask_fails_within_the_t
         seconds = time.perf_counter() - t0
     err = proc.stderr.decode().splitlines()
     assert proc.returncode == 2 and err[-1].startswith(
-        f"hconv: error: --cluster {address}: something accepts connections there but sent"
+        f"hconv: error: --cluster {address}: a server there accepted the connection but said nothing"
     ), err
     assert "Traceback" not in proc.stderr.decode() and "8786" in err[-1] and seconds < 8
     assert not (tmp_path / "out").exists()

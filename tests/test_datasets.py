@@ -524,3 +524,18 @@ def test_convert_dataset_removes_parts_of_a_run_whose_driver_was_killed(driver_e
     dataset.convert_dataset(data, out, log=said.append)
     assert [p.exists() for p in parts] == [not driver_ended] * 2 and other.exists()
     assert ("removed 2 part files left by a run whose driver was killed" in said) is driver_ended, said
+
+
+@pytest.mark.parametrize("length", [40, 200, 250])
+def test_stage_beside_a_long_name_or_its_part_fits_a_file_name(length, tmp_path):
+    """A cluster run's temporary file beside an output (or beside a part of a split file) added
+    the run's tag, the maker and a suffix to the whole name: past about 150 bytes of input name,
+    "File name too long"."""
+    from hconv.tables import tableio
+
+    name = "é" * (length // 2 - 4) + ".parquet"  # two bytes a character
+    for beside in (name, tableio.part_name(name, "0123abcd", 3)):
+        path = storage.stage(str(tmp_path / beside), run="0123abcd")
+        base = os.path.basename(path)
+        assert len(os.fsencode(base)) <= 255 and tableio.is_run_temporary(base, "0123abcd")
+        assert tableio.remove_run_temporaries(str(tmp_path), "0123abcd") == [path]

@@ -183,8 +183,11 @@ def _probe(address: str, timeout: float, fix: str) -> None:
         sock = socket.create_connection((host, int(port)), timeout=timeout)
     except TimeoutError:
         raise UsageError(f"{given}: no Dask scheduler answered within {timeout:g} s; {fix}") from None
-    except ConnectionRefusedError:
-        raise UsageError(f"{given}: nothing listens there (connection refused); {fix}") from None
+    except ConnectionRefusedError:  # waiting longer would not help: the fix is the address
+        raise UsageError(
+            f"{given}: nothing listens there (connection refused); start a scheduler there (dask scheduler) "
+            "or give the address of one"
+        ) from None
     except OSError as exc:
         raise UsageError(f"{given}: no Dask scheduler answered ({first_line(exc)}); {fix}") from None
     with sock:
@@ -193,9 +196,9 @@ def _probe(address: str, timeout: float, fix: str) -> None:
             first = sock.recv(8)
         except TimeoutError:
             raise UsageError(
-                f"{given}: something accepts connections there but sent nothing in {timeout:g} s, as a "
-                "Dask scheduler would at once (is it the dashboard's port? a scheduler listens on 8786 "
-                f"unless told otherwise); {fix}"
+                f"{given}: a server there accepted the connection but said nothing in {timeout:g} s; a "
+                "Dask scheduler speaks at once (is this the dashboard's port? a scheduler listens on "
+                f"8786 unless told otherwise); {fix}"
             ) from None
         except OSError as exc:
             why = first_line(exc)

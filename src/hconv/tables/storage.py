@@ -348,7 +348,10 @@ def stage(beside: str | None = None, kind: str = "stage", run: str | None = None
     if beside is None:
         fd, path = tableio.temporary_file(tableio.run_prefix(f"hconv-{kind}-", run))
     else:
-        prefix = tableio.run_prefix(f".{os.path.basename(beside)}.", run)
+        # the name cut, as the one-file writer cuts it: with the run's tag, the maker and the
+        # suffix, a long output name (or a part's, itself a long name) passed 255 bytes
+        name = os.fsdecode(os.fsencode(os.path.basename(beside))[:120])
+        prefix = tableio.run_prefix(f".{name}.", run)
         fd, path = tableio.temporary_file(prefix, os.path.dirname(beside) or ".")
     os.close(fd)
     return path

@@ -421,7 +421,7 @@ _PART_NAME = re.compile(r"^\..+\.run-[0-9a-f]+\.part-\d+\.hconv-tmp$")
 
 def part_name(name: str, run: str, k: int) -> str:
     """The name of part ``k`` of the output named ``name``, in the run ``run``."""
-    return f".{os.fsdecode(os.fsencode(name)[:160])}.run-{run}.part-{k:05d}{TEMP_SUFFIX}"
+    return f".{os.fsdecode(os.fsencode(name)[:120])}.run-{run}.part-{k:05d}{TEMP_SUFFIX}"
 
 
 def is_run_temporary(name: str, run: str) -> bool:
