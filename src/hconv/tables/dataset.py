@@ -38,7 +38,7 @@ import numpy as np
 
 from hconv import interrupts
 from hconv.errors import HconvError, OutputError, UsageError, option
-from hconv.solve import methods, status
+from hconv.solve import methods
 from hconv.tables import storage, tableio
 from hconv.tables.formats import EXTENSIONS, FORMATS
 from hconv.tables.job import Job, check_job
@@ -520,18 +520,9 @@ def join_parts(
         remove_parts(parts, dst)
     size = os.path.getsize(target) if dst.local else dst.fs.get_file_info(target).size
     tally = Tally("", "")
-    index = {s: k for k, s in enumerate(status.STATUSES)}
-    worst_row = None
     for part, r in zip(parts, records):
-        for s, n in r.statuses.items():
-            tally.per_status[index[s]] += n
-        for e, n in r.engines.items():
-            tally.engines[e] = tally.engines.get(e, 0) + n
-        # a later part's residual replaces only a larger one, as Tally.add keeps the first row of the worst
-        if r.worst_residual is not None and not r.worst_residual <= tally.worst_residual:
-            tally.worst_residual = r.worst_residual
-            worst_row = None if r.worst_row is None else part.start + r.worst_row
-        tally.rows += r.rows
+        row = None if r.worst_row is None else part.start + r.worst_row  # a part counts from its start
+        tally.add_counts(r.rows, r.statuses, r.engines, r.worst_residual, row)
     worst = tally.worst_residual
     return FileRecord(
         input=task.input.rel,
@@ -543,7 +534,7 @@ def join_parts(
         rows=tally.rows,
         statuses=tally.counts(),
         worst_residual=None if np.isnan(worst) else worst,
-        worst_row=worst_row,
+        worst_row=tally.worst_row,
         engines=dict(tally.engines),
         seconds=sum(r.seconds for r in records) + time.perf_counter() - t0,
     )
@@ -855,16 +846,10 @@ def _version() -> str:
 def _sum(job: Job, files: list[FileRecord]) -> tuple[Tally, FileRecord | None]:
     """The whole dataset's tally from its files' records, and the file with the worst residual."""
     tally = Tally(methods.get(job.method).name, job.unit)
-    index = {s: k for k, s in enumerate(status.STATUSES)}
     worst = None
     for r in files:
-        for s, n in r.statuses.items():
-            tally.per_status[index[s]] += n
-        for e, n in r.engines.items():
-            tally.engines[e] = tally.engines.get(e, 0) + n
-        if r.worst_residual is not None and not r.worst_residual <= tally.worst_residual:
-            tally.worst_residual, tally.worst_row, worst = r.worst_residual, r.worst_row, r
-        tally.rows += r.rows
+        if tally.add_counts(r.rows, r.statuses, r.engines, r.worst_residual, r.worst_row):
+            worst = r
     return tally, worst
 
 

@@ -58,6 +58,23 @@ class Tally:
                     self.worst_residual, self.worst_row = float(res[k]), self.rows + k + 1
         self.rows += table.num_rows
 
+    def add_counts(
+        self, rows: int, statuses: dict, engines: dict, worst_residual: float | None, worst_row: int | None
+    ) -> bool:
+        """Another tally's counts, as a record keeps them (a file's, a part's): rows per status,
+        rows per engine, and its worst residual and row where it is worse than any so far (the
+        first of equals kept, as :meth:`add` keeps it); whether it was."""
+        index = {s: k for k, s in enumerate(status.STATUSES)}
+        for s, n in statuses.items():
+            self.per_status[index[s]] += n
+        for e, n in engines.items():
+            self.engines[e] = self.engines.get(e, 0) + n
+        self.rows += rows
+        if worst_residual is not None and not worst_residual <= self.worst_residual:  # also while NaN
+            self.worst_residual, self.worst_row = worst_residual, worst_row
+            return True
+        return False
+
     def counts(self) -> dict[str, int]:
         return {status.STATUSES[k]: int(c) for k, c in enumerate(self.per_status) if c}
 
