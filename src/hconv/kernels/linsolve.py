@@ -204,7 +204,7 @@ def scale_sym(I: Sym3, s: np.ndarray) -> Sym3:
     return Sym3(I.xx * sx * sx, I.yy * sy * sy, I.zz * sz * sz, I.xy * sx * sy, I.xz * sx * sz, I.yz * sy * sz)
 
 
-def _in_safe_range(arrays: list[np.ndarray], dtype: DTypeLike, skip_nan: bool = False) -> bool:
+def in_safe_range(arrays: list[np.ndarray], dtype: DTypeLike, skip_nan: bool = False) -> bool:
     """True when every nonzero magnitude is within 2^±(maxexp/2.5): Dekker splits and their
     products can then neither overflow nor underflow, and no equilibration is needed. A NaN
     fails, unless ``skip_nan`` (rows without an answer); an infinity always fails."""
@@ -243,9 +243,9 @@ def solve_refined(I: Sym3, h: np.ndarray, steps: int | None = None, x0: np.ndarr
 
     Blocks whose magnitudes (I, h or ω) are extreme are solved equilibrated by powers of two.
     """
-    if _in_safe_range(list(I) + [h], h.dtype):
+    if in_safe_range(list(I) + [h], h.dtype):
         x = _refine(I, h, steps, x0)
-        if _in_safe_range([x], h.dtype, skip_nan=True):
+        if in_safe_range([x], h.dtype, skip_nan=True):
             return x
     s = pow2_scales(I)
     hs = h * s

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from hconv.kernels.inertia import Sym3, max_abs
-from hconv.kernels.linsolve import ldlt_factor
+from hconv.kernels.linsolve import LDLt, ldlt_factor
 
 
 def eigenvalues(I: Sym3) -> np.ndarray:
@@ -37,13 +37,7 @@ def eigenvalues(I: Sym3) -> np.ndarray:
     fast = fac.positive()
     hi, hi_err = _largest_root(I)
     tr = I.xx + I.yy + I.zz
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
-        # In units of λ₂, so that neither the determinant nor s² can leave the range.
-        inv = 1.0 / hi
-        s = (tr - hi) * inv
-        p = (fac.d1 * inv) * (fac.d2 * inv) * (fac.d3 * inv)
-        root = np.sqrt(np.maximum(s * s - 4.0 * p, 0.0))
-        lo = (2.0 * p / (s + root)) * hi
+    lo = smallest_root(fac, tr, hi)
     margin = np.abs(2.0 * hi - tr)
     fast &= np.isfinite(lo) & (lo > 0) & (margin > 1e-9 * tr + 4.0 * hi_err)
     lam[0], lam[2] = lo, hi
@@ -52,6 +46,18 @@ def eigenvalues(I: Sym3) -> np.ndarray:
     if slow.any():
         lam[:, slow] = np.linalg.eigvalsh(I.take(slow).matrices()).T
     return lam
+
+
+def smallest_root(fac: LDLt, tr: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The smallest principal moment of positive definite rows, from their LDLᵀ pivots ``fac``,
+    trace ``tr`` and largest moment ``hi`` (:func:`eigenvalues` says how); ``(N,)``."""
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
+        # In units of λ₂, so that neither the determinant nor s² can leave the range.
+        inv = 1.0 / hi
+        s = (tr - hi) * inv
+        p = (fac.d1 * inv) * (fac.d2 * inv) * (fac.d3 * inv)
+        root = np.sqrt(np.maximum(s * s - 4.0 * p, 0.0))
+        return (2.0 * p / (s + root)) * hi
 
 
 def _largest_root(I: Sym3) -> tuple[np.ndarray, np.ndarray]:
@@ -76,10 +82,17 @@ def _largest_root(I: Sym3) -> tuple[np.ndarray, np.ndarray]:
     s = np.ldexp(1.0, np.clip(np.frexp(np.where(big > 0, big, 1.0))[1], -1000, 1000))
     s[(big >= 1.0 / ROOT_RANGE) & (big <= ROOT_RANGE)] = 1.0
     if np.all(s == 1.0):  # the usual case: no pass over the six columns
-        a, b, c, d, e, f = I
-    else:
-        inv_s = 1.0 / s
-        a, b, c, d, e, f = (comp * inv_s for comp in I)
+        return largest_root(I)
+    inv_s = 1.0 / s
+    hi, err = largest_root(Sym3(*(comp * inv_s for comp in I)))
+    return hi * s, err * s
+
+
+def largest_root(I: Sym3) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_largest_root` for tensors whose entries all lie within ROOT_RANGE (not rescaled):
+    the largest moment and its error bound, ``(N,)`` each. No call to ``frexp`` or a reduction:
+    the arithmetic :func:`hconv.solve.rows.largest_root` does for one row."""
+    a, b, c, d, e, f = I
     q = (a + b + c) * (1.0 / 3.0)
     aq, bq, cq = a - q, b - q, c - q
     p = np.sqrt((aq * aq + bq * bq + cq * cq + 2.0 * (d * d + e * e + f * f)) * (1.0 / 6.0))
@@ -97,7 +110,7 @@ def _largest_root(I: Sym3) -> tuple[np.ndarray, np.ndarray]:
     hi = q + p * (1.0 + 2.0 * (u * t))
     eps = np.finfo(np.float64).eps
     err = p * np.minimum(np.sqrt(eps), 16.0 * eps / np.sqrt(np.maximum(1.0 - r * r, eps))) + 8.0 * eps * np.abs(q)
-    return hi * s, err * s
+    return hi, err
 
 
 #: The start for t(u) in :func:`_largest_root`: the degree-4 polynomial closest to t on [0, √2]

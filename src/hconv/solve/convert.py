@@ -21,7 +21,9 @@ Diagnostics per row:
 
 from __future__ import annotations
 
+import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,7 +34,7 @@ from hconv.kernels import frames, linsolve
 from hconv.kernels.inertia import Sym3, max_abs, pinv_moments, principal_frame
 from hconv.kernels.metrics import relative_error
 from hconv.kernels.spectrum import eigenvalues
-from hconv.solve import engines, forms, methods, options, rows, status
+from hconv.solve import engines, forms, methods, options, rows, status, vectorrows
 
 #: Rows per kernel block: small enough that a block's temporaries stay in cache.
 BLOCK_ROWS = 16384
@@ -223,10 +225,11 @@ def convert_columns(
     if degenerate != "error":
         deg = _Degenerate(np.full((n, 3), np.nan), np.zeros(n, dtype=np.int8))
     opts = _BlockOptions(m, dtype, form.diagonal, degenerate_rtol, extra_k)
+    covered = engines.covers(method, precision, degenerate, form.name, degenerate_rtol)
     start = time.perf_counter()
     with np.errstate(all="ignore"):  # every row that would warn gets a status instead
-        _convert_blocks(n, opts, form, I, H, r, w, cond, code, residual, deg)
-    if engines.covers(method, precision, degenerate, form.name, degenerate_rtol):
+        _convert_blocks(n, opts, form, I, H, r, w, cond, code, residual, deg, covered)
+    if covered:
         engines.spend(time.perf_counter() - start)  # auto's count of what numba would have saved
     axis, dim = (None, None) if deg is None else (deg.axis, deg.dim)
     return Result(w, residual, cond, code, m.unit, m.name, axis, dim)
@@ -245,8 +248,7 @@ def _convert_rows(
     code = np.empty(n, dtype=np.uint8)
     residual = np.empty(n if diagnostics else 0)
     fallback = np.zeros(n, dtype=bool)
-    k = extra_k + (m.error_k or {}).get(64, 0.0)
-    cond_limit = status.ILL_CONDITIONED_TOL / (k * float(np.finfo(np.float64).eps)) if k else np.inf
+    cond_limit = _cond_limit(m, extra_k)
     nine = rows.FORMS[form.name]
     if used == "numba":
         from hconv.solve import compiled  # numba's import: only here, when it runs
@@ -304,6 +306,12 @@ def _python_rows(
             residual[i] = res
 
 
+def _cond_limit(m: methods.Method, extra_k: float) -> float:
+    """cond above which a float64 answer of ``m`` on a full tensor is ``ill_conditioned``."""
+    k = extra_k + (m.error_k or {}).get(64, 0.0)
+    return status.ILL_CONDITIONED_TOL / (k * float(np.finfo(np.float64).eps)) if k else np.inf
+
+
 def error_k(method: str, precision: int, diagonal: bool, extra_k: float = 0.0) -> float:
     """K of the bound K·cond(I)·eps on an exact-family answer's error (``ill_conditioned``), with
     ``extra_k`` for what the caller rounded before (0 for the other methods: no such bound).
@@ -327,20 +335,100 @@ def _convert_blocks(
     code: np.ndarray,
     residual: np.ndarray | None,
     deg: _Degenerate | None,
+    covered: bool,
 ) -> None:
-    for lo in range(0, n, BLOCK_ROWS):
-        sl = slice(lo, min(n, lo + BLOCK_ROWS))
-        _convert_block(
-            opts,
-            *form.as_sym3(I[:, sl]),
-            H[:, sl],
-            None if r is None else r[:, sl],
-            w[sl],
-            cond[sl],
-            code[sl],
-            None if residual is None else residual[sl],
-            None if deg is None else _Degenerate(deg.axis[sl], deg.dim[sl]),
-        )
+    """Every block of rows: by :mod:`hconv.solve.vectorrows` when the run is ``covered`` (the
+    rows it leaves by :func:`_convert_block`), else by :func:`_convert_block`; on
+    :func:`block_threads` threads (numpy lets go of the GIL inside each operation on a block, so
+    the blocks of one call share the cores)."""
+    common = covered and COMMON_PATH
+    size = COMMON_BLOCK_ROWS if common else BLOCK_ROWS
+    cond_limit = _cond_limit(opts.m, opts.extra_k)
+
+    def one(lo: int) -> None:
+        sl = slice(lo, min(n, lo + size))
+        with np.errstate(all="ignore"):  # errstate is the thread's own
+            if common:
+                res = None if residual is None else residual[sl]
+                _convert_common(opts, form, I[:, sl], H[:, sl], w[sl], cond[sl], code[sl], res, cond_limit)
+                return
+            _convert_block(
+                opts,
+                *form.as_sym3(I[:, sl]),
+                H[:, sl],
+                None if r is None else r[:, sl],
+                w[sl],
+                cond[sl],
+                code[sl],
+                None if residual is None else residual[sl],
+                None if deg is None else _Degenerate(deg.axis[sl], deg.dim[sl]),
+            )
+
+    starts = range(0, n, size)
+    threads = block_threads(len(starts))
+    if threads == 1:
+        for lo in starts:
+            one(lo)
+        return
+    pool = ThreadPoolExecutor(threads, thread_name_prefix="hconv-blocks")
+    try:
+        for _ in pool.map(one, starts):  # re-raises a block's exception here
+            pass
+    finally:
+        # on an exception or Ctrl-C, the blocks not yet started never start
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+#: The numpy engine converts the runs the row engines cover by :mod:`hconv.solve.vectorrows`
+#: (False: every row by the general block converter, which tests compare it with).
+COMMON_PATH = True
+#: Rows per block there: it holds fewer temporaries per row than the general converter, and
+#: larger blocks mean fewer numpy calls, so less waiting on the GIL when blocks run on threads.
+COMMON_BLOCK_ROWS = 65536
+#: Most threads one call's blocks run on: beyond a few, the Python between numpy's operations
+#: (which holds the GIL) sets the pace.
+MAX_BLOCK_THREADS = 4
+
+
+def block_threads(blocks: int) -> int:
+    """Threads for a call of ``blocks`` blocks: one per core (at most :data:`MAX_BLOCK_THREADS`)
+    when called from the main thread, else 1: a call from another thread is already part of
+    its caller's parallelism (the file pipeline's batch threads, a Dask worker's task)."""
+    if blocks < 2 or threading.current_thread() is not threading.main_thread():
+        return 1
+    return max(1, min(blocks, MAX_BLOCK_THREADS, engines.available_cores()))
+
+
+def _convert_common(
+    opts: _BlockOptions,
+    form: forms.Form,
+    I: np.ndarray,
+    H: np.ndarray,
+    w_out: np.ndarray,
+    cond_out: np.ndarray,
+    code_out: np.ndarray,
+    res_out: np.ndarray | None,
+    cond_limit: float,
+) -> None:
+    """One block of a run the row engines cover: :mod:`hconv.solve.vectorrows` converts it, and
+    the general :func:`_convert_block` the rows that module leaves."""
+    sym, asym = form.as_sym3(I)
+    Hc = np.ascontiguousarray(H)
+    b = vectorrows.convert_block(sym, asym, Hc, opts.m.name == "refined", res_out is not None, cond_limit)
+    w_out[:] = b.w.T
+    cond_out[:] = b.cond
+    code_out[:] = b.code
+    if res_out is not None:
+        res_out[:] = b.residual
+    rest = np.flatnonzero(b.fallback)
+    if rest.size:
+        k = rest.size
+        w, cond, code = np.empty((k, 3)), np.empty(k), np.empty(k, dtype=np.uint8)
+        res = None if res_out is None else np.empty(k)
+        _convert_block(opts, sym.take(rest), asym[rest], Hc[:, rest], None, w, cond, code, res, None)
+        w_out[rest], cond_out[rest], code_out[rest] = w, cond, code
+        if res_out is not None:
+            res_out[rest] = res
 
 
 @dataclass(frozen=True)

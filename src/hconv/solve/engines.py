@@ -52,6 +52,14 @@ _spent = 0.0
 _ready: bool | None = None
 
 
+def available_cores() -> int:
+    """The cores this process may run on."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
 def numba_installed() -> bool:
     """True when numba can be imported (without importing it)."""
     return importlib.util.find_spec("numba") is not None

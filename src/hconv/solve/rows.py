@@ -61,7 +61,7 @@ COMPILED = (
     "_dot_row",
     "refine_step",
     "relative_error",
-    "_goes_on",
+    "goes_on",
     "numbers",
     "verdict",
     "_numbers_chunk",
@@ -88,20 +88,23 @@ INLINE = (
     "verdict",
     "refine_step",
     "relative_error",
-    "_goes_on",
+    "goes_on",
 )
 
 _EPS = float(np.finfo(np.float64).eps)
-_MAX = float(np.finfo(np.float64).max)
+MAX = float(np.finfo(np.float64).max)
 _SPLIT = splitter(np.float64)
-_SINGULAR = SINGULAR_RTOL_EPS * _EPS
+#: A row is singular when its smallest |moment| is at most this times its largest.
+SINGULAR_LIMIT = SINGULAR_RTOL_EPS * _EPS
 #: ω below this magnitude is on the grid of subnormal numbers (status inaccurate): the numpy engine's test.
-_GRID = float(np.finfo(np.float64).smallest_subnormal) / ILL_CONDITIONED_TOL
-#: The double-double residual's safe range, :func:`hconv.kernels.linsolve._in_safe_range`'s.
-_SAFE = float(2.0 ** (np.finfo(np.float64).maxexp // 2.5))
+GRID = float(np.finfo(np.float64).smallest_subnormal) / ILL_CONDITIONED_TOL
+#: The double-double residual's safe range, :func:`hconv.kernels.linsolve.in_safe_range`'s.
+SAFE = float(2.0 ** (np.finfo(np.float64).maxexp // 2.5))
 _SQRT_EPS = math.sqrt(_EPS)
-_TINY = _EPS * _EPS
-_STOP = STOP_TOL * STOP_TOL * _TINY
+#: A refinement correction (relative, squared) at or below this has nothing left to find; one
+#: predicted at or below STOP ends the refinement of its row (linsolve._refine's rule, per row).
+TINY = _EPS * _EPS
+STOP = STOP_TOL * STOP_TOL * TINY
 _S0, _S1, _S2, _S3, _S4 = ROOT_START
 
 OK = CODE["ok"]
@@ -178,7 +181,7 @@ def largest_root(xx: float, yy: float, zz: float, xy: float, xz: float, yz: floa
 def _safe(v: float) -> bool:
     """True when |v| is 0 or within the double-double residual's safe range."""
     m = abs(v)
-    return (m == 0.0) | ((m < _SAFE) & (m > 1.0 / _SAFE))  # no branch: verdict's loop runs it
+    return (m == 0.0) | ((m < SAFE) & (m > 1.0 / SAFE))  # no branch: verdict's loop runs it
 
 
 def _split(a: float) -> tuple[float, float]:
@@ -289,7 +292,7 @@ def refine_on(
         return x0, x1, x2
     pred = c * c
     for _ in range(1, MAX_REFINE_STEPS):
-        if not (pred > _STOP and c > _TINY):
+        if not (pred > STOP and c > TINY):
             break
         prev = c
         x0, x1, x2, c = refine_step(xx, yy, zz, xy, xz, yz, f, h0, h1, h2, x0, x1, x2)
@@ -324,7 +327,7 @@ def relative_error(x0: float, x1: float, x2: float, r0: float, r1: float, r2: fl
     """:func:`hconv.kernels.metrics.relative_error` for one row; no branch."""
     d0, d1, d2 = x0 - r0, x1 - r1, x2 - r2
     unit = max(max(abs(r0), abs(r1)), abs(r2))
-    unit = unit if (unit > 0) & (unit <= _MAX) else 1.0
+    unit = unit if (unit > 0) & (unit <= MAX) else 1.0
     d0, d1, d2, r0, r1, r2 = d0 / unit, d1 / unit, d2 / unit, r0 / unit, r1 / unit, r2 / unit
     num = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
     den = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
@@ -332,9 +335,9 @@ def relative_error(x0: float, x1: float, x2: float, r0: float, r1: float, r2: fl
     return ratio if den > 0 else (0.0 if num == 0 else num * math.inf)
 
 
-def _goes_on(c: float) -> bool:
+def goes_on(c: float) -> bool:
     """True when :func:`refine_on` takes another step after a first step whose correction was c."""
-    return (c < 0.25) & (c * c > _STOP) & (c > _TINY)
+    return (c < 0.25) & (c * c > STOP) & (c > TINY)
 
 
 def numbers(
@@ -391,10 +394,10 @@ def verdict(
     finite = (xx + yy + zz + xy + xz + yz + h0 + h1 + h2) * 0.0 == 0.0
     big = max(max(max(abs(xx), abs(yy)), max(abs(zz), abs(xy))), max(abs(xz), abs(yz)))
     usable = finite & (big >= 1.0 / ROOT_RANGE) & (big <= ROOT_RANGE)
-    usable &= (min(min(d1, d2), d3) > 0) & (abs(l32) <= _MAX)  # positive definite: LDLᵀ is stable
+    usable &= (min(min(d1, d2), d3) > 0) & (abs(l32) <= MAX)  # positive definite: LDLᵀ is stable
     # where the closed form cannot decide, the numpy engine asks LAPACK
     tr = xx + yy + zz
-    usable &= (abs(lo) <= _MAX) & (lo > 0) & (abs(2.0 * hi - tr) > 1e-9 * tr + 4.0 * hi_err)
+    usable &= (abs(lo) <= MAX) & (lo > 0) & (abs(2.0 * hi - tr) > 1e-9 * tr + 4.0 * hi_err)
     mid = tr - hi - lo
     a0, a1, a2 = abs(lo), abs(mid), abs(hi)
     top = max(a0, a2)
@@ -402,11 +405,11 @@ def verdict(
     cond = top / (small if small > 0 else 1.0) if small > 0 else math.inf
     code = ILL_CONDITIONED if cond > cond_limit else OK
     code = NOT_PHYSICAL if hi - mid - lo > TRIANGLE_RTOL * (a0 + a1 + a2) else code
-    singular = small <= _SINGULAR * top
+    singular = small <= SINGULAR_LIMIT * top
     code = SINGULAR if singular else code
     # overflow, or ω on the grid of subnormal numbers (inaccurate): the numpy engine's rules
     wmax = max(max(abs(w0), abs(w1)), abs(w2))
-    w_ok = ((w0 + w1 + w2) * 0.0 == 0.0) & ((wmax == 0) | (wmax >= _GRID))
+    w_ok = ((w0 + w1 + w2) * 0.0 == 0.0) & ((wmax == 0) | (wmax >= GRID))
     state = (NO_ANSWER if singular else (ANSWER if w_ok else FALLBACK)) if usable else FALLBACK
     safe = _safe(xx) & _safe(yy) & _safe(zz) & _safe(xy) & _safe(xz) & _safe(yz) & _safe(h0) & _safe(h1) & _safe(h2)
     return cond, float(code), state, 1.0 if safe else 0.0
@@ -449,7 +452,7 @@ def decide(
     if refined:
         w0, w1, w2 = refine_on(xx, yy, zz, xy, xz, yz, f, h0, h1, h2, step[0], step[1], step[2], step[3])
         wmax = max(max(abs(w0), abs(w1)), abs(w2))
-        if not ((w0 + w1 + w2) * 0.0 == 0.0 and (wmax == 0 or wmax >= _GRID)):
+        if not ((w0 + w1 + w2) * 0.0 == 0.0 and (wmax == 0 or wmax >= GRID)):
             return no
     res = nan
     if diagnostics:
@@ -555,7 +558,7 @@ def _step_chunk(a: np.ndarray, m: int, src: int, dst: int) -> None:
         usable = (a[(_VERDICT + 2) * CHUNK + j] == ANSWER) & (a[(_VERDICT + 3) * CHUNK + j] == 1.0)
         k = dst * CHUNK + j
         a[k], a[k + CHUNK], a[k + 2 * CHUNK], a[k + 3 * CHUNK] = x0, x1, x2, c
-        a[k + 4 * CHUNK] = 1.0 if usable & _goes_on(c) else 0.0
+        a[k + 4 * CHUNK] = 1.0 if usable & goes_on(c) else 0.0
 
 
 def _on_chunk(a: np.ndarray, m: int, at: int) -> None:
@@ -583,7 +586,7 @@ def _on_chunk(a: np.ndarray, m: int, at: int) -> None:
             a[k + CHUNK] = y1 if on else x1
             a[k + 2 * CHUNK] = y2 if on else x2
             a[k + 3 * CHUNK] = c_next if on else c
-            a[k + 4 * CHUNK] = 1.0 if on & (ratio < 0.25) & (c_next * ratio > _STOP) & (c_next > _TINY) else 0.0
+            a[k + 4 * CHUNK] = 1.0 if on & (ratio < 0.25) & (c_next * ratio > STOP) & (c_next > TINY) else 0.0
 
 
 def _finish_chunk(a: np.ndarray, m: int, refined: bool, diagnostics: bool) -> None:
@@ -600,7 +603,7 @@ def _finish_chunk(a: np.ndarray, m: int, refined: bool, diagnostics: bool) -> No
     for j in range(m):
         w0, w1, w2 = a[w_at * CHUNK + j], a[(w_at + 1) * CHUNK + j], a[(w_at + 2) * CHUNK + j]
         wmax = max(max(abs(w0), abs(w1)), abs(w2))
-        final = ((w0 + w1 + w2) * 0.0 == 0.0) & ((wmax == 0) | (wmax >= _GRID))
+        final = ((w0 + w1 + w2) * 0.0 == 0.0) & ((wmax == 0) | (wmax >= GRID))
         res = math.nan
         if diagnostics:
             r0, r1, r2 = a[r_at * CHUNK + j], a[(r_at + 1) * CHUNK + j], a[(r_at + 2) * CHUNK + j]

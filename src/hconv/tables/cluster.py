@@ -47,6 +47,7 @@ from typing import Any
 
 from hconv import errors
 from hconv.errors import HconvError, OutputError, UsageError, option
+from hconv.solve.engines import available_cores
 from hconv.tables import tableio
 from hconv.tables.dataset import (
     FileRecord,
@@ -60,7 +61,7 @@ from hconv.tables.dataset import (
     remove_parts,
     split,
 )
-from hconv.tables.pipeline import available_cores, default_threads
+from hconv.tables.pipeline import default_threads
 from hconv.tables.storage import Place, first_line, remove_run_objects
 
 EXTRA = "pip install 'hconv[dask]'"

@@ -9,7 +9,6 @@ import contextlib
 import dataclasses
 import functools
 import itertools
-import os
 import queue
 import signal
 import threading
@@ -152,17 +151,9 @@ R = TypeVar("R")
 MAX_THREADS = 4
 
 
-def available_cores() -> int:
-    """The cores this process may run on."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except (AttributeError, OSError):
-        return os.cpu_count() or 1
-
-
 def default_threads() -> int:
     """The cores this process may run on, at most :data:`MAX_THREADS`."""
-    return min(MAX_THREADS, available_cores())
+    return min(MAX_THREADS, engines.available_cores())
 
 
 def ordered_map(fn: Callable[[T], R], items: Iterable[T], threads: int) -> Generator[R, None, None]:
