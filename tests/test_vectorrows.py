@@ -131,7 +131,8 @@ def test_convert_block_residual_of_refined_sees_an_early_stop(rng, monkeypatch):
 
 
 def test_convert_blocks_threads_give_the_same_bits(rng, monkeypatch):
-    n = 3 * convert.COMMON_BLOCK_ROWS + 17
+    monkeypatch.setattr(convert, "THREADED_BLOCK_ROWS", 1000)
+    n = 3 * convert.THREADED_BLOCK_ROWS + 17
     I, H = physical_bodies(rng, n), rng.normal(size=(n, 3))
     I[5, 0, 0] = np.nan  # a row for the general converter inside a threaded block
     monkeypatch.setattr(convert.engines, "available_cores", lambda: 2)
@@ -163,7 +164,8 @@ def test_block_threads_one_off_the_main_thread(monkeypatch):
 def test_convert_blocks_stop_at_a_block_that_fails(rng, monkeypatch):
     """An exception in one block (Ctrl-C arrives as one) stops the call: the blocks not yet
     started never start."""
-    n = 40 * convert.COMMON_BLOCK_ROWS
+    monkeypatch.setattr(convert, "THREADED_BLOCK_ROWS", 1000)
+    n = 40 * convert.THREADED_BLOCK_ROWS
     I, H = physical_bodies(rng, 2)[np.zeros(n, int)], np.ones((n, 3))
     monkeypatch.setattr(convert.engines, "available_cores", lambda: 2)
     calls = []

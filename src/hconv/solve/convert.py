@@ -342,7 +342,8 @@ def _convert_blocks(
     :func:`block_threads` threads (numpy lets go of the GIL inside each operation on a block, so
     the blocks of one call share the cores)."""
     common = covered and COMMON_PATH
-    size = COMMON_BLOCK_ROWS if common else BLOCK_ROWS
+    threads = block_threads(-(-n // THREADED_BLOCK_ROWS))
+    size = BLOCK_ROWS if threads == 1 else THREADED_BLOCK_ROWS
     cond_limit = _cond_limit(opts.m, opts.extra_k)
 
     def one(lo: int) -> None:
@@ -365,7 +366,6 @@ def _convert_blocks(
             )
 
     starts = range(0, n, size)
-    threads = block_threads(len(starts))
     if threads == 1:
         for lo in starts:
             one(lo)
@@ -382,9 +382,9 @@ def _convert_blocks(
 #: The numpy engine converts the runs the row engines cover by :mod:`hconv.solve.vectorrows`
 #: (False: every row by the general block converter, which tests compare it with).
 COMMON_PATH = True
-#: Rows per block there: it holds fewer temporaries per row than the general converter, and
-#: larger blocks mean fewer numpy calls, so less waiting on the GIL when blocks run on threads.
-COMMON_BLOCK_ROWS = 65536
+#: Rows per block when a call's blocks run on threads: fewer numpy calls than BLOCK_ROWS, so
+#: less waiting on the GIL, which each call takes between its operations (docs/engines.md).
+THREADED_BLOCK_ROWS = 65536
 #: Most threads one call's blocks run on: beyond a few, the Python between numpy's operations
 #: (which holds the GIL) sets the pace.
 MAX_BLOCK_THREADS = 4
