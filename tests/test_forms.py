@@ -252,11 +252,16 @@ def test_form_as_sym3_solves_to_the_matrix_answer(name, rng):
 def test_form_nine_numbers_flag_asymmetry_relative_to_the_largest_entry():
     from hconv.solve import forms
 
-    M = np.tile(np.diag([1e6, 2e6, 3e6]), (3, 1, 1))
+    M = np.tile(np.diag([1e6, 2e6, 3e6]), (5, 1, 1))
     M[1, 0, 2] += 1e-7  # 1e-13 of the largest entry: within SYMMETRY_RTOL
     M[2, 2, 1] += 1e-5  # 3e-12 of it: beyond
+    # the largest entry off the diagonal: 1e-13 of it is symmetric, 3e-12 is not, though both
+    # are far beyond the tolerance of the diagonal alone
+    M[3:, 0, 1] = M[3:, 1, 0] = 1e8
+    M[3, 0, 1] += 1e-5
+    M[4, 0, 1] += 3e-4
     I, asym = forms.get("full9").as_sym3(_form_values("full9", M))
-    assert asym.tolist() == [False, False, True] and I.yz[2] == 0.5e-5
+    assert asym.tolist() == [False, False, True, False, True] and I.yz[2] == 0.5e-5
 
 
 def test_forms_from_array_reads_the_stacked_layouts():

@@ -185,10 +185,16 @@ def _sym3_of_nine(I: np.ndarray) -> tuple[Sym3, np.ndarray]:
     |Iij − Iji| > SYMMETRY_RTOL · max|I| on that row."""
     skew = np.abs(I[1] - I[3])
     with np.errstate(invalid="ignore"):
-        scale = max_abs(I)  # row by row: a reduction over the strided axis of an (N, 3, 3) stack is slow
         np.maximum(skew, np.abs(I[2] - I[6]), out=skew)
         np.maximum(skew, np.abs(I[5] - I[7]), out=skew)
-        asym = skew > SYMMETRY_RTOL * scale
+        # The largest entry is at least the largest diagonal one, so a row whose skew is within
+        # tolerance of that is symmetric: only the others (and NaN rows) need all nine.
+        doubt = ~(skew <= SYMMETRY_RTOL * max_abs([I[0], I[4], I[8]]))
+        asym = np.zeros(skew.shape, dtype=bool)
+        if doubt.any():
+            rows = np.flatnonzero(doubt)
+            # row by row: a reduction over the strided axis of an (N, 3, 3) stack is slow
+            asym[rows] = skew[rows] > SYMMETRY_RTOL * max_abs(I[:, rows])
     return Sym3(
         I[0].copy(), I[4].copy(), I[8].copy(), 0.5 * (I[1] + I[3]), 0.5 * (I[2] + I[6]), 0.5 * (I[5] + I[7])
     ), asym

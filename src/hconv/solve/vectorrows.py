@@ -183,6 +183,11 @@ def _refine_from(split: linsolve.SplitSym, H: np.ndarray, fac: linsolve.LDLt, x:
     for _ in range(1, linsolve.MAX_REFINE_STEPS):
         if not on.any():
             break
+        if on.all():  # at high cond every row goes on: no gathering
+            x, c_next = _step(split, H, fac, x)
+            on = _again(c_next, c_next / c)
+            c = c_next
+            continue
         at = np.flatnonzero(on)
         fa = linsolve.LDLt(*(f[at] for f in fac))
         sa = linsolve.SplitSym(split.entries.take(at), tuple(h[at] for h in split.hi), tuple(lo[at] for lo in split.lo))
@@ -190,5 +195,11 @@ def _refine_from(split: linsolve.SplitSym, H: np.ndarray, fac: linsolve.LDLt, x:
         ratio = c_next / c[at]
         x[:, at] = y
         c[at] = c_next
-        on[at] = (ratio < 0.25) & (c_next * ratio > rows.STOP) & (c_next > rows.TINY)
+        on[at] = _again(c_next, ratio)
     return x
+
+
+def _again(c: np.ndarray, ratio: np.ndarray) -> np.ndarray:
+    """Whether a row takes another step after one whose correction was ``c``, ``ratio`` times
+    the one before (:func:`hconv.solve.rows.refine_on`'s rule)."""
+    return (ratio < 0.25) & (c * ratio > rows.STOP) & (c > rows.TINY)
