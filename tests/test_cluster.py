@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import socket
 import subprocess
@@ -230,6 +231,23 @@ def test_convert_cluster_task_rows_leaves_files_whole(scheduler, tmp_path):
             ran = _tasks(client, lambda: hconv.convert_dataset(data, out, cluster=client, task_rows=rows))  # noqa: B023
             assert len(ran) == 2 and not [key for key, _ in ran if "-part-" in key]
             _same_as_one_process(out, data, tmp_path)
+
+
+def test_convert_cluster_summary_says_how_many_files_were_split(scheduler, tmp_path):
+    data = tmp_path / "data"
+    _write_large(data, rows=140_000, group=50_000)
+    (data / "day=1").mkdir()
+    shutil.copy(data / "day=0" / "big.parquet", data / "day=1" / "big.parquet")
+    proc = run_hconv("convert", "data", "out", "--cluster", scheduler, "--task-rows", "65536", cwd=tmp_path)
+    err = proc.stderr.decode()
+    assert proc.returncode == 0, err
+    # each big file: 65536 rows and the 74464 left; the small one whole
+    assert "\n# split 2 files into 4 parts (--task-rows 65536)\n" in err
+    # no file above the threshold: nothing split, nothing said
+    proc = run_hconv("convert", "data", "whole", "--cluster", scheduler, "--task-rows", "140000", cwd=tmp_path)
+    err = proc.stderr.decode()
+    assert proc.returncode == 0, err
+    assert "converted on the Dask scheduler" in err and "# split" not in err
 
 
 def test_convert_cluster_worker_killed_during_parts_loses_nothing(scheduler, tmp_path):

@@ -1,6 +1,7 @@
 """The recipes of docs/recipes.md: each is a file in docs/recipes/, quoted word for word in the doc,
 and each, run as a user runs it on the real engine, writes what ``hconv convert`` writes for the
-same files: the same rows in the same order, every value to the bit, the statuses, and ω's unit.
+same files: the same rows in the same order, every value to the bit, the statuses, and ω's unit;
+and prints one line naming what it wrote and the rows there.
 
 Each test skips when its engine is not installed (``pip install -e '.[recipes]'``; Spark also
 needs Java); CI installs every engine, so none skips there. The Ray and Spark tests, 5 to 25 s
@@ -79,10 +80,10 @@ def _read(path: Path) -> pa.Table:
     return pa.concat_tables([pq.read_table(f) for f in files])
 
 
-def _run(recipe: str, dataset: Path, cwd: Path) -> tuple[str, Path]:
+def _run(recipe: str, dataset: Path, cwd: Path) -> tuple[str, str, Path]:
     """Run the command docs/recipes/RECIPE's docstring shows, word for word, as a user does from a
     clone's root with the dataset in data/ (here ``cwd``, with ``docs`` and ``data`` linked in);
-    its stderr and stdout, and its output (the command's last argument, in ``cwd``)."""
+    its stdout, its output as the command names it (its last argument) and that output's path."""
     command = re.search(rf"^ +python (docs/recipes/{re.escape(recipe)} .*)$", (RECIPES / recipe).read_text(), re.M)
     assert command, f"{recipe}: its docstring shows no 'python docs/recipes/{recipe} ...' command"
     for name, target in (("docs", ROOT / "docs"), ("data", dataset)):
@@ -92,7 +93,14 @@ def _run(recipe: str, dataset: Path, cwd: Path) -> tuple[str, Path]:
         [sys.executable, *shlex.split(command.group(1))], capture_output=True, cwd=cwd, timeout=600, text=True
     )
     assert proc.returncode == 0, f"{recipe} failed:\n{proc.stdout}\n{proc.stderr}"
-    return proc.stdout + proc.stderr, cwd / shlex.split(command.group(1))[-1]
+    dst = shlex.split(command.group(1))[-1]
+    return proc.stdout, dst, cwd / dst
+
+
+def assert_says_what_it_wrote(stdout: str, dst: str, got: pa.Table, more: str = "") -> None:
+    """The one line a recipe prints on success: its output as the command names it, and the rows
+    that ``got``, read back from there, holds."""
+    assert stdout.splitlines() == [f"wrote {dst}: {got.num_rows} rows{more}"]
 
 
 def _plain(column: pa.ChunkedArray) -> pa.ChunkedArray:
@@ -139,8 +147,9 @@ def _sorted(table: pa.Table) -> pa.Table:
 
 def test_duckdb_recipe_writes_what_hconv_convert_writes(dataset, reference, tmp_path):
     _engine("duckdb")
-    _, omega = _run("duckdb_hconv.py", dataset, tmp_path)
+    said, dst, omega = _run("duckdb_hconv.py", dataset, tmp_path)
     got = _read(omega)
+    assert_says_what_it_wrote(said, dst, got)
     assert_same_rows(got, reference)
     assert got.schema.equals(reference.schema, check_metadata=True)
     assert_same_units(omega, reference)
@@ -148,8 +157,9 @@ def test_duckdb_recipe_writes_what_hconv_convert_writes(dataset, reference, tmp_
 
 def test_polars_recipe_writes_what_hconv_convert_writes(dataset, reference, tmp_path):
     _engine("polars")
-    _, omega = _run("polars_hconv.py", dataset, tmp_path)
+    said, dst, omega = _run("polars_hconv.py", dataset, tmp_path)
     got = _read(omega)
+    assert_says_what_it_wrote(said, dst, got)
     assert_same_rows(got, reference)
     assert_same_units(omega, reference)
     assert got.schema.field("status").type == reference.schema.field("status").type
@@ -158,10 +168,11 @@ def test_polars_recipe_writes_what_hconv_convert_writes(dataset, reference, tmp_
 
 def test_dask_recipe_writes_what_hconv_convert_writes_in_files_that_sort(dataset, reference, tmp_path):
     _engine("dask.dataframe")
-    _, omega = _run("dask_hconv.py", dataset, tmp_path)
+    said, dst, omega = _run("dask_hconv.py", dataset, tmp_path)
     names = sorted(p.name for p in omega.glob("*.parquet"))
     assert names == [f"part-{k:05d}.parquet" for k in range(FILES)]
     got = _read(omega)
+    assert_says_what_it_wrote(said, dst, got)
     assert_same_rows(got, reference)
     assert_same_units(omega, reference)
     assert got.schema.field("status").type == reference.schema.field("status").type
@@ -171,8 +182,9 @@ def test_dask_recipe_writes_what_hconv_convert_writes_in_files_that_sort(dataset
 @pytest.mark.engines_slow
 def test_ray_data_recipe_writes_hconv_converts_rows(dataset, reference, tmp_path):
     _engine("ray.data")
-    _, omega = _run("ray_data_hconv.py", dataset, tmp_path)
+    said, dst, omega = _run("ray_data_hconv.py", dataset, tmp_path)
     got = _read(omega)
+    assert_says_what_it_wrote(said, dst, got)
     # Ray does not promise the order (the recipe says so): the same rows, in any order
     assert_same_rows(_sorted(got), _sorted(reference))
     assert got.schema.equals(reference.schema, check_metadata=True)
@@ -182,10 +194,10 @@ def test_ray_data_recipe_writes_hconv_converts_rows(dataset, reference, tmp_path
 @pytest.mark.engines_slow
 def test_ray_tasks_recipe_writes_what_hconv_convert_writes_file_by_file(dataset, reference, tmp_path):
     _engine("ray")
-    out, omega = _run("ray_tasks_hconv.py", dataset, tmp_path)
-    assert f"{reference.num_rows} rows in {FILES} files" in out
+    said, dst, omega = _run("ray_tasks_hconv.py", dataset, tmp_path)
     assert sorted(p.name for p in omega.iterdir()) == sorted(p.name for p in dataset.iterdir())
     got = _read(omega)
+    assert_says_what_it_wrote(said, dst, got, f" in {FILES} files")
     assert_same_rows(got, reference)
     assert got.schema.equals(reference.schema, check_metadata=True)
     assert_same_units(omega, reference)
@@ -194,8 +206,9 @@ def test_ray_tasks_recipe_writes_what_hconv_convert_writes_file_by_file(dataset,
 @pytest.mark.engines_slow
 def test_spark_recipe_writes_hconv_converts_rows_in_order_with_the_units_in_sparks_schema(dataset, reference, tmp_path):
     _engine("pyspark.sql")
-    _, omega = _run("spark_hconv.py", dataset, tmp_path)
+    said, dst, omega = _run("spark_hconv.py", dataset, tmp_path)
     got = _read(omega)
+    assert_says_what_it_wrote(said, dst, got)
     assert_same_rows(got, reference)
     assert got.schema.field("status").type == pa.string()
     assert not got.schema.field("wx").metadata  # pyarrow reads Spark's files bare ...
@@ -243,9 +256,10 @@ def test_recipes_doc_try_block_runs_word_for_word_from_a_clones_root(tmp_path):
             env={**os.environ, "PATH": path},
         )
         assert proc.returncode == 0, f"{line}\n{proc.stdout}\n{proc.stderr}"
-    omega = tmp_path / shlex.split(lines[-1])[-1]
-    got = pq.read_table(omega)
-    assert got.num_rows == 6000 and hconv.units_of(omega)["wx"] == "rad/s"
+    dst = shlex.split(lines[-1])[-1]
+    got = pq.read_table(tmp_path / dst)
+    assert got.num_rows == 6000 and hconv.units_of(tmp_path / dst)["wx"] == "rad/s"
+    assert_says_what_it_wrote(proc.stdout, dst, got)
 
 
 def test_recipes_docstring_commands_write_distinct_outputs():

@@ -9,6 +9,7 @@ import sys
 import dask.dataframe as dd
 import pandas as pd
 import pyarrow as pa
+import pyarrow.dataset as ds
 
 import hconv
 
@@ -35,3 +36,5 @@ result.to_parquet(
     write_index=False,
     **hconv.parquet_write_options(schema),
 )
+# counted in the files' footers: len(result) would read and convert everything again
+print(f"wrote {dst}: {ds.dataset(dst).count_rows()} rows")

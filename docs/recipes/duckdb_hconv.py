@@ -25,3 +25,4 @@ schema = hconv.output_schema(reader.schema, job=job)
 with pq.ParquetWriter(dst, schema, **hconv.parquet_write_options(schema)) as writer:
     for batch in reader:
         writer.write_table(hconv.convert_table(batch, job=job))
+print(f"wrote {dst}: {pq.read_metadata(dst).num_rows} rows")

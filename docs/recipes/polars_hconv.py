@@ -24,3 +24,4 @@ with pq.ParquetWriter(dst, schema, **hconv.parquet_write_options(schema)) as wri
     # in the files' order: maintain_order=True is collect_batches' default
     for frame in frames.collect_batches(chunk_size=65536):
         writer.write_table(hconv.convert_table(frame.to_arrow(), job=job))
+print(f"wrote {dst}: {pq.read_metadata(dst).num_rows} rows")

@@ -7,6 +7,7 @@ for a recipe that keeps it).
 
 import sys
 
+import pyarrow.dataset as ds
 import ray
 import ray.data
 
@@ -23,3 +24,5 @@ frames = ray.data.read_parquet(src)
 schema = hconv.output_schema(frames.schema().base_schema, job=job)
 result = frames.map_batches(lambda batch: hconv.convert_table(batch, job=job), batch_format="pyarrow", batch_size=None)
 result.write_parquet(dst, arrow_parquet_args_fn=lambda: {"schema": schema, **hconv.parquet_write_options(schema)})
+# counted in the files' footers: result.count() would read and convert everything again
+print(f"wrote {dst}: {ds.dataset(dst).count_rows()} rows")

@@ -23,11 +23,11 @@ def convert(path: str, out: str, job: hconv.Job) -> int:
         with pq.ParquetWriter(out, schema, **hconv.parquet_write_options(schema)) as writer:
             for batch in data.iter_batches(65536):
                 writer.write_table(hconv.convert_table(batch, job=job, source=path))
-    return data.metadata.num_rows
+    return pq.read_metadata(out).num_rows
 
 
 ray.init(include_dashboard=False)
 os.makedirs(dst, exist_ok=True)
 names = sorted(name for name in os.listdir(src) if name.endswith(".parquet"))
 rows = ray.get([convert.remote(os.path.join(src, name), os.path.join(dst, name), job) for name in names])
-print(f"{sum(rows)} rows in {len(names)} files to {dst}")
+print(f"wrote {dst}: {sum(rows)} rows in {len(names)} files")

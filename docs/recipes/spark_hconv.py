@@ -50,4 +50,6 @@ def omega(batches):
 order = ["_metadata.file_name", "_metadata.row_index"]  # file names must sort: part-02, not part-2
 result = frames.orderBy(*order).mapInArrow(omega, StructType([as_spark(f) for f in schema]))
 result.write.parquet(dst)
+# counted in the files' footers: result.count() would read and convert everything again
+print(f"wrote {dst}: {spark.read.parquet(dst).count()} rows")
 spark.stop()

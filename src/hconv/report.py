@@ -22,6 +22,7 @@ from rich.padding import Padding
 from rich.table import Table
 from rich.text import Text
 
+from hconv.errors import option
 from hconv.solve.methods import METHODS
 
 if TYPE_CHECKING:
@@ -246,6 +247,9 @@ def dataset_summary(result: DatasetResult, console: Console | None = None, asked
     note(console, f"files: {', '.join(parts)}; {result.manifest} says the dataset is {state}")
     if result.ran_on:
         note(console, f"converted on {result.ran_on}")
+    if result.split_files:  # a run's time follows its tasks, here more than its files
+        files = f"{result.split_files:,} file" + ("s" if result.split_files != 1 else "")
+        note(console, f"split {files} into {result.split_parts:,} parts ({option('task_rows', result.task_rows)})")
     if result.converted:
         _engine_note(console, tally, asked)
     rate = f", {result.rows_converted / result.seconds:,.0f} rows/s" if result.seconds > 0 and done else ""

@@ -220,7 +220,8 @@ class Session:
         self.addresses: set[str] = set()
         self.dst: Place | None = None
         self.futures: list[Any] = []
-        self.split = False  #: whether a file was split into parts (whose files the run removes at its end)
+        self.split_files = 0  #: files split into parts (whose files the run removes at its end)
+        self.parts = 0  #: the parts those files were split into
 
     def describe(self) -> str:
         return f"{self.where}, {self.workers} worker" + ("s" if self.workers != 1 else "")
@@ -279,7 +280,8 @@ class Session:
             if not parts:
                 files.append(self.client.submit(_convert_on_worker, task, *args, key=key, pure=False))
                 continue
-            self.split = True
+            self.split_files += 1
+            self.parts += len(parts)
             done = [
                 self.client.submit(_convert_on_worker, task, *args, part=p, key=f"{key}-part-{p.k}", pure=False)
                 for p in parts
@@ -340,7 +342,7 @@ class Session:
         _remove_run_temporaries(self.run_id)
         if self.dst is not None and self.dst.local:
             tableio.remove_run_temporaries(self.dst.root, self.run_id, recursive=True)
-        elif self.dst is not None and self.split:  # the parts a killed worker or a stopped run left in OUT
+        elif self.dst is not None and self.split_files:  # the parts a killed worker or a stopped run left in OUT
             with contextlib.suppress(HconvError):
                 remove_run_objects(self.dst, self.run_id)
 

@@ -145,6 +145,9 @@ class DatasetResult:
     rows_converted: int  #: rows converted by this run
     seconds: float
     ran_on: str | None = None  #: the Dask cluster the files were converted on, if any
+    split_files: int = 0  #: files this run converted in parts on the cluster (:func:`split`)
+    split_parts: int = 0  #: the parts those files were split into
+    task_rows: int = 0  #: the rows per part the run asked for (0: every file whole)
 
     @property
     def complete(self) -> bool:
@@ -702,13 +705,14 @@ def convert_dataset(
         converted.append(rec.input)
 
     ran_on = None
+    split_files = split_parts = 0
+    rows = TASK_ROWS if task_rows is None else task_rows
     with contextlib.ExitStack() as stack:
         if cluster is not None and plan.todo:
             # connected (and the workers' hconv checked) before anything is written
             session = stack.enter_context(dask_cluster.connect(cluster, workers, cluster_timeout, threads))
             ran_on = session.describe()
             say(f"running on {ran_on}")
-            rows = TASK_ROWS if task_rows is None else task_rows
             outcomes = session.run(plan, keep, strict=strict, task_rows=rows)
             if rows:
                 parts_run = {"id": session.run_id, "driver": tableio.maker()}
@@ -737,10 +741,12 @@ def convert_dataset(
             ) from None
         if ran_on is not None:
             ran_on = session.describe_end()
+            split_files, split_parts = session.split_files, session.parts
     if plan.todo or plan.refused or _manifest_stale(plan, records, failed):
         _write_manifest(plan, records, failed, written, t0)
     result = _result(plan, records, failed, converted, t0)
     result.ran_on = ran_on
+    result.split_files, result.split_parts, result.task_rows = split_files, split_parts, rows
     if failed:
         codes = [exc.exit_code for exc in failed.values()]
         raise DatasetError(
