@@ -3,10 +3,16 @@
 from __future__ import annotations
 
 import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
 
 from helpers import run_hconv
 
 import hconv
+from hconv.tools import bench
 
 
 def test_bench_command_small_run_writes_tables_json_and_chart(tmp_path):
@@ -53,3 +59,32 @@ def test_bench_rejects_rows_below_one_as_usage_error():
         assert (
             proc.returncode == 2 and "--rows" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
         )
+
+
+_LEFT_BY_KILL = """
+from hconv.tools import bench
+folder = bench.temporary_folder()
+open(folder.name + "/in.parquet", "wb").close()
+print(folder.name, flush=True)  # only now: the test kills this process once it reads the name
+input()
+"""
+
+
+def test_remove_stale_folders_removes_killed_runs_keeps_live_ones(tmp_path, monkeypatch):
+    """A bench run killed outright leaves its folder; the next run's start removes it, but never
+    the folder of a run still going, nor a folder it cannot tell is a bench run's."""
+    env = dict(os.environ, TMPDIR=str(tmp_path))
+    with subprocess.Popen(
+        [sys.executable, "-c", _LEFT_BY_KILL], stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env, text=True
+    ) as killed:
+        left = killed.stdout.readline().strip()
+        killed.send_signal(signal.SIGKILL)
+    assert killed.wait(timeout=60) == -signal.SIGKILL and os.path.isfile(os.path.join(left, "in.parquet"))
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    live, other = bench.temporary_folder(), tmp_path / "hconv-bench-datasets-x"
+    other.mkdir()
+    said: list[str] = []
+    with live:
+        assert bench.remove_stale_folders(said.append) == [left]
+        assert not os.path.exists(left) and os.path.isdir(live.name) and other.is_dir()
+        assert said == [f"removed {left}, left by a bench run that was killed"]

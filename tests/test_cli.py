@@ -636,6 +636,21 @@ def test_commands_on_a_narrow_terminal_cut_nothing(tmp_path, args, width):
             assert any(name in ln for ln in lines), name
 
 
+@pytest.mark.parametrize("width", [80, 60])
+def test_convert_progress_tells_long_names_apart_on_a_narrow_terminal(tmp_path, width):
+    """Two files whose long names differ only at their end: every frame of the progress bar keeps
+    the end of the name it converts and fits the terminal (cut at the end, both looked alike)."""
+    names = [f"spacecraft-attitude-flight-recorder-2024-06-01T12-00-00Z-ground-station-run-000{k}.csv" for k in (1, 2)]
+    for name, other in (names, names[::-1]):
+        (tmp_path / name).write_bytes((EXAMPLES / "scene.csv").read_bytes())
+        code, shown = run_on_terminal("convert", name, "out.csv", "--force", columns=width, cwd=tmp_path)
+        assert code == 0, shown
+        lines = shown.splitlines()
+        assert max(len(ln) for ln in lines) <= width, max(lines, key=len)
+        frames = [ln for ln in lines if ln.startswith("converting ")]
+        assert frames and all(name[-12:] in ln and other[-12:] not in ln for ln in frames), shown
+
+
 def test_methods_in_a_pipe_is_tab_separated_text():
     proc = run_hconv("methods")
     lines = proc.stdout.decode().splitlines()

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from rich.cells import cell_len
-from rich.console import Console
+from rich.console import Console, ConsoleOptions, RenderResult
 from rich.padding import Padding
 from rich.table import Table
 from rich.text import Text
@@ -256,31 +256,75 @@ def dataset_summary(result: DatasetResult, console: Console | None = None, asked
     note(console, f"time {result.seconds:.3f} s ({result.rows_converted:,} rows converted{rate})")
 
 
+#: cells beside the bar on its line: the gaps, the percentage ("100%") and the time left ("0:00:03")
+_BESIDE_BAR = 14
+#: the narrowest bar worth keeping the description beside it on one line
+_MIN_BAR = 10
+
+
+def _elide_middle(text: str, width: int) -> str:
+    """``text`` in at most ``width`` cells: whole if it fits, else its start and its end either
+    side of "…". The end keeps two thirds, because what tells a file from its neighbours (a
+    counter, a date, the extension) is most often at the end of its name."""
+    if cell_len(text) <= width:
+        return text
+    if width < 2:
+        return "…"[:width]
+    tail_room = (width - 1) * 2 // 3
+    head, tail = "", ""
+    for ch in text:
+        if cell_len(head + ch) > width - 1 - tail_room:
+            break
+        head += ch
+    for ch in reversed(text):
+        if cell_len(ch + tail) > tail_room:
+            break
+        tail = ch + tail
+    return f"{head}…{tail}"
+
+
 class ProgressBar:
-    """A transient rich progress bar; call it as ``bar(done, total)``."""
+    """A transient rich progress bar; call it as ``bar(done, total)``.
+
+    The description goes before the bar when both fit on a line, else on a line of its own above
+    it, shortened in the middle only when it is wider than the terminal: a long file name cut at
+    its end looked the same for every file of a series."""
 
     def __init__(self, description: str, console: Console | None = None):
+        from rich.live import Live
         from rich.progress import BarColumn, Progress, TaskProgressColumn, TimeRemainingColumn
 
-        self._p = Progress(
-            "[progress.description]{task.description}",
-            BarColumn(),
-            TaskProgressColumn(),
-            TimeRemainingColumn(),
-            console=console or Console(stderr=True),
-            transient=True,
-        )
+        console = console or Console(stderr=True)
+        self._description = description
+        self._bar = BarColumn()
+        # never started: it keeps the task's counts and times and draws its row, laid out here
+        self._p = Progress(self._bar, TaskProgressColumn(), TimeRemainingColumn(), console=console)
         self._task = self._p.add_task(description, total=None)
+        self._live = Live(self, console=console, transient=True, refresh_per_second=10)
 
     def __call__(self, done: int, total: int | None) -> None:
         self._p.update(self._task, completed=done, total=total)
 
     def __enter__(self) -> ProgressBar:
-        self._p.start()
+        self._live.start(refresh=True)
         return self
 
     def __exit__(self, *exc: object) -> None:
-        self._p.stop()
+        self._live.stop()
+
+    def __rich_console__(self, console: Console, options: ConsoleOptions) -> RenderResult:
+        """Laid out anew for the width of each refresh: the terminal may be resized meanwhile."""
+        width = options.max_width
+        beside = width - cell_len(self._description) - 1 - _BESIDE_BAR
+        if beside >= _MIN_BAR:
+            self._bar.bar_width = min(40, beside)
+            line = Table.grid(padding=(0, 1))
+            line.add_row(Text(self._description), self._p.make_tasks_table(self._p.tasks))
+            yield line
+        else:
+            self._bar.bar_width = max(1, min(40, width - _BESIDE_BAR))
+            yield Text(_elide_middle(self._description, width), no_wrap=True)
+            yield self._p.make_tasks_table(self._p.tasks)
 
 
 def envelope(m: Method) -> str:

@@ -14,6 +14,8 @@ import functools
 import importlib.util
 import os
 import platform
+import re
+import shutil
 import statistics
 import subprocess
 import sys
@@ -388,7 +390,7 @@ def cold_start(repeats: int = 3) -> dict:
     for name, (engine, cache) in cases.items():
         runs = []
         for _ in range(repeats if cache is None else 1):  # a compile takes seconds: once
-            with tempfile.TemporaryDirectory(prefix="hconv-cold-") as tmp:
+            with temporary_folder("cold-") as tmp:
                 env = dict(os.environ)
                 env.pop("HCONV_ENGINE", None)
                 if cache:
@@ -468,6 +470,45 @@ def user_targets(user: dict) -> list[list]:
     return rows
 
 
+#: A bench run's temporary folder, ``hconv-bench.<maker>.<kind>…``: it names the process that made
+#: it, so that a later run can remove it once that process is gone (killed outright, it could not).
+_FOLDER = re.compile(r"^hconv-bench\.([^.]+)\.")
+
+
+def temporary_folder(kind: str = "") -> tempfile.TemporaryDirectory[str]:
+    """A temporary folder for this bench run, named as :func:`remove_stale_folders` recognises."""
+    from hconv.tables import tableio
+
+    return tempfile.TemporaryDirectory(prefix=f"hconv-bench.{tableio.maker()}.{kind}")
+
+
+def remove_stale_folders(log: Callable[[str], None] = lambda s: None) -> list[str]:
+    """Remove the temporary folders of bench runs killed outright (kill -9, the OOM killer), which
+    stayed in the temporary directory, saying so through ``log``; returns their paths. A folder
+    whose run still goes, or may (made on another host sharing the directory), is left alone."""
+    from hconv.tables import tableio
+
+    removed: list[str] = []
+    try:
+        entries = list(os.scandir(tempfile.gettempdir()))
+    except OSError:
+        return removed  # making this run's folder will say what is wrong with the directory
+    for entry in entries:
+        m = _FOLDER.match(entry.name)
+        if not m or not tableio.maker_gone(m.group(1)):
+            continue
+        try:
+            if not entry.is_dir(follow_symlinks=False):
+                continue
+        except OSError:
+            continue
+        shutil.rmtree(entry.path, ignore_errors=True)  # another run may be removing it too
+        if not os.path.lexists(entry.path):
+            log(f"removed {entry.path}, left by a bench run that was killed")
+            removed.append(entry.path)
+    return removed
+
+
 def run(
     rows: int = 2_000_000,
     repeats: int = 3,
@@ -479,6 +520,7 @@ def run(
     from hconv.tables import pipeline
     from hconv.tools import generate
 
+    remove_stale_folders(log)
     res = Result(rows=rows, machine=describe_machine())
     log("what users call: hconv.convert against numpy.linalg.solve")
     res.user = user_calls(rows, repeats, seed)
@@ -493,7 +535,7 @@ def run(
     log("accuracy")
     res.accuracy = accuracy(seed=seed)
     hconv_cmd = [sys.executable, "-m", "hconv"]
-    with tempfile.TemporaryDirectory(prefix="hconv-bench-") as tmp:
+    with temporary_folder() as tmp:
         log("compiled-loop yardstick")
         compiled, exact_fresh = yardstick(I, H, tmp, repeats)
         src, dst = os.path.join(tmp, "in.parquet"), os.path.join(tmp, "out.parquet")
