@@ -16,7 +16,7 @@ import pyarrow as pa
 import pytest
 
 from hconv.kernels.metrics import relative_error
-from hconv.tools.scene import rotate_tensors
+from hconv.tools.scene import cylinder_moments, rotate_tensors
 
 EPS = np.finfo(np.float64).eps
 
@@ -99,6 +99,66 @@ def physical_bodies(rng: np.random.Generator, n: int) -> np.ndarray:
     c = rng.uniform(0.05, 1.0, (n, 3))
     moments = np.stack([c[:, 1] + c[:, 2], c[:, 0] + c[:, 2], c[:, 0] + c[:, 1]], axis=1)
     return rotate_tensors(random_rotations(rng, n), moments)
+
+
+def hard_bodies(rng: np.random.Generator, shape: str = "(N,3,3)") -> tuple[np.ndarray, np.ndarray]:
+    """A stack that holds every status and every hard case, with H; ``(n, 3, 3)`` (or, with
+    ``shape="(N,6)"``, the six numbers) and ``(n, 3)``."""
+    n = 40
+    parts = [
+        physical_bodies(rng, n),
+        *(spd_bodies(rng, n, c) for c in (1e2, 1e6, 1e9, 1e12, 1e14, 1e16)),  # ill_conditioned, singular
+        slender_bodies(rng, n, 1e6),
+        slender_bodies(rng, n, 1e12),  # physical, so ill_conditioned shows (not_physical would win)
+        rotate_tensors(
+            random_rotations(rng, n), cylinder_moments(1.0, rng.uniform(0.01, 1, n), rng.uniform(0.01, 2, n))
+        ),
+        rotate_tensors(random_rotations(rng, n), np.tile([1.0, 1.0, 1.0], (n, 1))),  # spheres
+        rotate_tensors(random_rotations(rng, n), np.tile([1.0, 1.0, 2.0], (n, 1))),  # plates: the triangle's edge
+        rotate_tensors(random_rotations(rng, n), np.tile([1.0, 1.0, 3.0], (n, 1))),  # not_physical
+        rotate_tensors(random_rotations(rng, n), np.tile([-1.0, 2.0, 3.0], (n, 1))),  # not_positive_definite
+        physical_bodies(rng, n) * 1e150,
+        physical_bodies(rng, n) * 1e-150,
+        physical_bodies(rng, n) * 2.0**130,  # just beyond the closed form's unscaled range
+        np.zeros((n, 3, 3)),
+    ]
+    I = np.concatenate(parts)
+    H = rng.normal(size=(I.shape[0], 3))
+    H[-3 * n : -2 * n] *= 1e150
+    H[-2 * n : -n] *= 1e-150
+    I[0, 0, 1] = np.nan  # invalid_input
+    I[1, 2, 2] = np.inf
+    H[2, 1] = np.nan
+    I[3, 0, 1] += 0.5  # not_symmetric
+    H[4] = 0.0  # ω = 0 exactly
+    I[5], H[5] = np.diag([1e-300, 1e-300, 1e-300]), 1e10  # ω beyond the range: overflow
+    H[6] = 1e-320  # ω on the subnormal grid: inaccurate
+    if shape == "(N,6)":
+        I = I.reshape(-1, 9)[:, [0, 4, 8, 1, 2, 5]]
+        I[3, 3] += 0.5  # the planted asymmetry has no six-number spelling: another finite body
+    return I, H
+
+
+def same_bits(a: np.ndarray | None, b: np.ndarray | None) -> bool:
+    return a is None and b is None or np.array_equal(a, b, equal_nan=True)
+
+
+def assert_same_answers(got, ref, method: str) -> None:
+    """Two conversions of the same rows agree as docs/engines.md promises: statuses, cond and
+    ``exact``'s ω bit for bit; ``refined``'s ω and the residual within 2 eps (each is within a
+    rounding of I⁻¹H, whoever decided when refinement stops)."""
+    assert np.array_equal(got.status_code, ref.status_code)
+    assert same_bits(got.cond, ref.cond)
+    if method == "exact":
+        assert same_bits(got.w, ref.w)
+    else:
+        ok = np.isfinite(ref.w).all(axis=1)
+        assert np.array_equal(ok, np.isfinite(got.w).all(axis=1))
+        assert rel_err(got.w[ok], ref.w[ok]).max() <= 2 * np.finfo(float).eps
+    if ref.residual is not None:
+        measured = np.isfinite(ref.residual)
+        assert np.array_equal(measured, np.isfinite(got.residual))
+        assert np.all(np.abs(got.residual - ref.residual)[measured] <= 2 * np.finfo(float).eps)
 
 
 def six(I: np.ndarray) -> np.ndarray:
