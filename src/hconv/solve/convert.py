@@ -17,6 +17,11 @@ Diagnostics per row:
   it compares their number (in m²/s) with I⁻¹H (in rad/s).
 * ``cond``: the 2-norm condition number of I, |moment|max / |moment|min.
 * ``status``: see :mod:`hconv.solve.status`.
+
+The numpy engine converts in blocks of rows: a run the row engines cover by
+:mod:`hconv.solve.vectorrows` (the row code's arithmetic, a block at a time), every other run,
+and the rows that module leaves, by :func:`_convert_block`; a call from the main thread shares
+its blocks among the cores (:func:`block_threads`). docs/engines.md has the why and the figures.
 """
 
 from __future__ import annotations
@@ -38,6 +43,15 @@ from hconv.solve import engines, forms, methods, options, rows, status, vectorro
 
 #: Rows per kernel block: small enough that a block's temporaries stay in cache.
 BLOCK_ROWS = 16384
+#: The numpy engine converts the runs the row engines cover by :mod:`hconv.solve.vectorrows`
+#: (False: every row by the general block converter, which tests compare it with).
+COMMON_PATH = True
+#: Rows per block when a call's blocks run on threads: fewer numpy calls than BLOCK_ROWS, so
+#: less waiting on the GIL, which each call takes between its operations (docs/engines.md).
+THREADED_BLOCK_ROWS = 65536
+#: Most threads one call's blocks run on: beyond a few, the Python between numpy's operations
+#: (which holds the GIL) sets the pace.
+MAX_BLOCK_THREADS = 4
 
 
 @dataclass(frozen=True)
@@ -377,17 +391,6 @@ def _convert_blocks(
     finally:
         # on an exception or Ctrl-C, the blocks not yet started never start
         pool.shutdown(wait=True, cancel_futures=True)
-
-
-#: The numpy engine converts the runs the row engines cover by :mod:`hconv.solve.vectorrows`
-#: (False: every row by the general block converter, which tests compare it with).
-COMMON_PATH = True
-#: Rows per block when a call's blocks run on threads: fewer numpy calls than BLOCK_ROWS, so
-#: less waiting on the GIL, which each call takes between its operations (docs/engines.md).
-THREADED_BLOCK_ROWS = 65536
-#: Most threads one call's blocks run on: beyond a few, the Python between numpy's operations
-#: (which holds the GIL) sets the pace.
-MAX_BLOCK_THREADS = 4
 
 
 def block_threads(blocks: int) -> int:
