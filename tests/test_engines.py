@@ -15,7 +15,7 @@ import pytest
 
 import hconv
 from hconv.errors import UsageError
-from hconv.solve import engines
+from hconv.solve import engines, rows
 
 NUMBA = importlib.util.find_spec("numba") is not None
 ROOT = Path(__file__).resolve().parents[1]
@@ -109,6 +109,20 @@ def test_compiled_ready_reads_the_marker_and_its_files(fresh):
     path.write_text("{not json")
     engines.forget_ready()
     assert not engines.compiled_ready()
+
+
+def test_marker_path_is_another_for_a_copy_of_the_same_row_code(fresh, monkeypatch):
+    """A fresh clone or environment beside a compiled one has compiled nothing: numba caches
+    beside each copy of rows.py, so the marker of one copy must not speak for another (a trial
+    found auto compiling for 13 s in a fresh clone that another checkout's marker called ready)."""
+    here = engines.marker_path()
+    copy = fresh / "elsewhere" / "rows.py"
+    copy.parent.mkdir()
+    copy.write_bytes(Path(rows.__file__).read_bytes())
+    with monkeypatch.context() as m:
+        m.setattr(rows, "__file__", str(copy))
+        assert engines.marker_path() != here
+    assert engines.marker_path() == here
 
 
 @pytest.mark.skipif(not NUMBA, reason="needs hconv[fast]")

@@ -100,14 +100,17 @@ def spend(seconds: float) -> None:
 
 
 def marker_path() -> Path:
-    """Where hconv notes that numba has compiled this very row code: one file per version of
-    hconv's row code, numba and Python, in the user's cache directory."""
+    """Where hconv notes that numba has compiled this very row code: one file per copy of hconv's
+    row code (its text and its place), numba and Python, in the user's cache directory."""
     import hashlib  # here, not at the top: `hconv one` never needs them (30 ms)
     import importlib.metadata
 
-    source = Path(rows.__file__).read_bytes()
+    here = Path(rows.__file__).resolve()
+    source = here.read_bytes()
     numba_version = importlib.metadata.version("numba") if numba_installed() else "none"
-    key = hashlib.sha256(source + f"{numba_version} {sys.version}".encode()).hexdigest()[:16]
+    # the file's place too: numba caches beside each copy of the source, so another checkout or
+    # environment with the same rows.py has compiled nothing for this one
+    key = hashlib.sha256(source + f"{here} {numba_version} {sys.version}".encode()).hexdigest()[:16]
     base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
     return base / "hconv" / f"compiled-{key}.json"
 
