@@ -8,7 +8,9 @@ import signal
 import subprocess
 import sys
 import tempfile
+import time
 
+import pytest
 from helpers import run_hconv
 
 import hconv
@@ -88,3 +90,33 @@ def test_remove_stale_folders_removes_killed_runs_keeps_live_ones(tmp_path, monk
         assert bench.remove_stale_folders(said.append) == [left]
         assert not os.path.exists(left) and os.path.isdir(live.name) and other.is_dir()
         assert said == [f"removed {left}, left by a bench run that was killed"]
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the parent-death signal is Linux's")
+def test_child_dies_when_the_bench_is_killed():
+    """A bench killed outright must not leave its children running: its cold-start child went on
+    compiling for seconds and wrote into a folder the next run had removed (a newcomer trial)."""
+    code = (
+        "import sys\n"
+        "from hconv.tools import bench\n"
+        "bench._child([sys.executable, '-c', 'import os, time; print(os.getpid(), flush=True); time.sleep(60)'])\n"
+    )
+    parent = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+    child = int(parent.stdout.readline())
+    os.kill(parent.pid, signal.SIGKILL)
+    parent.wait()
+    deadline = time.monotonic() + 5  # the kernel's signal takes a moment to land
+    while _running(child) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    if _running(child):
+        os.kill(child, signal.SIGKILL)
+        raise AssertionError("the child outlived the killed bench")
+
+
+def _running(pid: int) -> bool:
+    """Alive and not a zombie waiting for whoever adopted it to reap it."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False

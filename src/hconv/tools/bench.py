@@ -16,6 +16,7 @@ import os
 import platform
 import re
 import shutil
+import signal
 import statistics
 import subprocess
 import sys
@@ -23,6 +24,7 @@ import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -223,11 +225,31 @@ def yardstick(I: Sym3, H: np.ndarray, tmp: str, repeats: int) -> tuple[float | N
     got: dict = {"compiled": [], "exact": []}
     for _ in range(repeats):
         for which in got:
-            out = subprocess.run(
-                [sys.executable, "-c", _YARDSTICK, path, which], check=True, capture_output=True, text=True
-            )
+            out = _child([sys.executable, "-c", _YARDSTICK, path, which], check=True, capture_output=True, text=True)
             got[which].append(float(out.stdout.strip().splitlines()[-1]))
     return statistics.median(got["compiled"]), statistics.median(got["exact"])
+
+
+def _child(args: list, **kwargs: Any) -> subprocess.CompletedProcess:
+    """``subprocess.run`` for a child that must not outlive this process: a bench killed outright
+    left its cold-start child compiling for seconds, writing into a folder the next run had
+    removed. Not for the commands the bench times by the clock (a fork with this hook copies the
+    bench's page tables first, where a plain spawn does not)."""
+    return subprocess.run(args, preexec_fn=_die_with_parent, **kwargs)
+
+
+def _die_with_parent() -> None:
+    """In the child, before it runs: the kernel kills it when its parent ends (Linux; elsewhere
+    nothing), and it ends at once if the parent has already gone."""
+    parent = os.getppid()
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        return
+    if os.getppid() != parent:
+        os._exit(1)
 
 
 def _command(args: list) -> Callable[[], object]:
@@ -236,11 +258,17 @@ def _command(args: list) -> Callable[[], object]:
 
 def _peak_rss_mb(args: list) -> float:
     """Peak RSS of a command, measured from a fresh wrapper process whose only child it is."""
-    code = (
-        "import resource, subprocess, sys; subprocess.run(sys.argv[1:], check=True, capture_output=True);"
+    code = (  # the measured command dies with its wrapper, as the wrapper with the bench (_child)
+        "import ctypes, resource, signal, subprocess, sys\n"
+        "def die():\n"
+        "    try:\n"
+        "        ctypes.CDLL(None).prctl(1, signal.SIGKILL)\n"
+        "    except (OSError, AttributeError):\n"
+        "        pass\n"
+        "subprocess.run(sys.argv[1:], check=True, capture_output=True, preexec_fn=die)\n"
         "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)"
     )
-    out = subprocess.run([sys.executable, "-c", code, *args], check=True, capture_output=True, text=True)
+    out = _child([sys.executable, "-c", code, *args], check=True, capture_output=True, text=True)
     return int(out.stdout.strip()) / 1024.0
 
 
@@ -395,9 +423,8 @@ def cold_start(repeats: int = 3) -> dict:
                 env.pop("HCONV_ENGINE", None)
                 if cache:
                     env["NUMBA_CACHE_DIR"] = tmp
-                proc = subprocess.run(
-                    [sys.executable, "-c", _COLD, "100", engine], capture_output=True, text=True, env=env, check=True
-                )
+                args = [sys.executable, "-c", _COLD, "100", engine]
+                proc = _child(args, capture_output=True, text=True, env=env, check=True)
             runs.append([float(x) for x in proc.stdout.split()[:3]])
         imp, first, second = (statistics.median(r[k] for r in runs) for k in range(3))
         out[name] = {"import_s": imp, "first_call_s": first, "second_call_s": second}
