@@ -204,9 +204,41 @@ def test_convert_one_body_of_the_wrong_shape_names_its_shape():
         hconv.convert(np.ones(2), np.ones(3))
 
 
+def test_convert_stacked_h_with_another_shape_of_i_says_what_it_needs():
+    """A newcomer trial: a scalar I gave IndexError, and one body's (6,) or (3, 3) beside a stack
+    of H was counted as 6 or 3 tensors ("but H holds 1 vectors")."""
+    cases = [
+        (
+            np.ones((5, 3)),
+            2.0,
+            r"^Expected I to have shape \(5, 3\), \(5, 6\) or \(5, 3, 3\) for H of shape \(5, 3\), got \(\)$",
+        ),
+        (
+            np.ones((5, 3)),
+            np.ones(6),
+            r"got \(6,\); \(3,\), \(6,\) and \(3, 3\) are one body's, for H of shape \(3,\)$",
+        ),
+        (np.ones((1, 3)), np.eye(3), r"^I holds 3 tensors but H holds 1 vector; a \(3, 3\) I is one body's tensor"),
+        (np.ones((2, 3)), np.ones((1, 6)), r"^I holds 1 tensor but H holds 2 vectors$"),
+        (
+            [[1, 2, 3], [1, 2]],
+            np.ones((2, 6)),
+            r"^H must be a rectangular array of numbers: its rows differ in length$",
+        ),
+    ]
+    for H, I, message in cases:
+        with pytest.raises(ValueError, match=message):
+            hconv.convert(H, I)
+
+
 @pytest.mark.parametrize(
     "H, I, message",
     [
+        (
+            np.ones((2, 3), dtype=bool),
+            np.ones((2, 3)),
+            r"^H must hold real numbers, got booleans \(dtype bool\); ",
+        ),
         (
             np.ones((2, 3), dtype=complex),
             np.ones((2, 3)),
@@ -225,7 +257,7 @@ def test_convert_one_body_of_the_wrong_shape_names_its_shape():
             r"^I must hold real numbers, got Python objects \(dtype object\); ",
         ),
     ],
-    ids=["complex", "str", "object"],
+    ids=["bool", "complex", "str", "object"],
 )
 def test_convert_complex_or_text_input_is_refused_naming_the_argument(H, I, message):
     """Before: complex H lost its imaginary part with only numpy's ComplexWarning; text was parsed."""

@@ -89,7 +89,7 @@ class Result:
 def _as_float(name: str, a: ArrayLike) -> np.ndarray:
     try:
         given = np.asarray(a)
-        if given.dtype.kind not in "biuf":  # float64 would drop an imaginary part, or parse text
+        if given.dtype.kind not in "iuf":  # float64 would drop an imaginary part, parse text, count truths
             raise UsageError(
                 f"{name} must hold real numbers, got {_dtype_text(given.dtype)}; {_dtype_fix(name, given.dtype)}"
             )
@@ -97,11 +97,17 @@ def _as_float(name: str, a: ArrayLike) -> np.ndarray:
     except UsageError:
         raise
     except (TypeError, ValueError) as exc:
+        if "inhomogeneous" in str(exc):  # numpy's words for nested sequences of unequal lengths
+            raise ValueError(f"{name} must be a rectangular array of numbers: its rows differ in length") from None
         raise ValueError(f"{name} must be numeric: {exc}") from None
 
 
+def _count(k: int, noun: str) -> str:
+    return f"{k} {noun}" + ("" if k == 1 else "s")
+
+
 def _dtype_text(dtype: np.dtype) -> str:
-    kinds = {"c": "complex", "U": "text", "S": "bytes", "O": "Python objects"}
+    kinds = {"b": "booleans", "c": "complex", "U": "text", "S": "bytes", "O": "Python objects"}
     return f"{kinds.get(dtype.kind, 'values')} (dtype {dtype})"
 
 
@@ -157,8 +163,14 @@ def convert(
     if H.ndim != 2 or H.shape[1] != 3:
         raise ValueError(f"Expected H to have shape (3,) or (N, 3), got {H.shape}")
     n = H.shape[0]
+    if I.ndim not in (2, 3) or I.shape[1:] not in ((3,), (6,), (3, 3)):
+        one = "; (3,), (6,) and (3, 3) are one body's, for H of shape (3,)" if I.shape in ((3,), (6,), (3, 3)) else ""
+        raise ValueError(
+            f"Expected I to have shape ({n}, 3), ({n}, 6) or ({n}, 3, 3) for H of shape {H.shape}, got {I.shape}{one}"
+        )
     if I.shape[0] != n:
-        raise ValueError(f"I holds {I.shape[0]} tensors but H holds {n} vectors")
+        one = "; a (3, 3) I is one body's tensor, for H of shape (3,)" if I.shape == (3, 3) else ""
+        raise ValueError(f"I holds {_count(I.shape[0], 'tensor')} but H holds {_count(n, 'vector')}{one}")
     if r is not None:
         r = _as_float("r", r)
         if r.shape != (n, 3):
