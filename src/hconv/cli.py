@@ -611,7 +611,7 @@ def convert_cmd(
         help="overwrite OUT if it exists; for a dataset, convert every file again and overwrite "
         "files hconv did not write (it never deletes one)",
     ),
-    quiet: bool = typer.Option(False, "--quiet", "-q", help="no summary on stderr"),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar or summary on stderr"),
     strict: bool = typer.Option(False, "--strict", help="fail (exit 5, nothing written) if any row's status is not ok"),
     threads: int | None = typer.Option(
         None,

@@ -313,8 +313,10 @@ class ProgressBar:
         self._live.stop()
 
     def __rich_console__(self, console: Console, options: ConsoleOptions) -> RenderResult:
-        """Laid out anew for the width of each refresh: the terminal may be resized meanwhile."""
-        width = options.max_width
+        """Laid out anew for the width of each refresh: the terminal may be resized meanwhile.
+        One column is left free: a line that fills the last one wraps early on some terminals,
+        and the redraw then climbs a line too few."""
+        width = options.max_width - 1
         beside = width - cell_len(self._description) - 1 - _BESIDE_BAR
         if beside >= _MIN_BAR:
             self._bar.bar_width = min(40, beside)
