@@ -9,12 +9,15 @@ import subprocess
 import sys
 import tempfile
 import time
+from pathlib import Path
 
 import pytest
 from helpers import run_hconv
 
 import hconv
 from hconv.tools import bench
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_bench_command_small_run_writes_tables_json_and_chart(tmp_path):
@@ -90,6 +93,35 @@ def test_remove_stale_folders_removes_killed_runs_keeps_live_ones(tmp_path, monk
         assert bench.remove_stale_folders(said.append) == [left]
         assert not os.path.exists(left) and os.path.isdir(live.name) and other.is_dir()
         assert said == [f"removed {left}, left by a bench run that was killed"]
+
+
+_SCRIPT_LEFT_BY_KILL = """
+import sys, tempfile
+from hconv.tools import bench
+folder = tempfile.mkdtemp(prefix=bench.folder_prefix("datasets-"), dir=sys.argv[1])
+print(folder, flush=True)
+input()
+"""
+
+
+def test_remove_stale_folders_of_a_benchmark_script_in_its_own_directory(tmp_path):
+    """benchmarks/datasets.py and cluster.py name their folders with folder_prefix, in --dir or
+    the temporary directory: one left by a script killed outright is removed there too (before,
+    their own names were never matched)."""
+    with subprocess.Popen(
+        [sys.executable, "-c", _SCRIPT_LEFT_BY_KILL, str(tmp_path)],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    ) as killed:
+        left = killed.stdout.readline().strip()
+        killed.send_signal(signal.SIGKILL)
+    killed.wait(timeout=60)
+    assert os.path.dirname(left) == str(tmp_path) and os.path.isdir(left)
+    assert bench.remove_stale_folders(where=str(tmp_path)) == [left] and not os.path.exists(left)
+    for script in ("datasets.py", "cluster.py"):  # the scripts do name theirs so, and clean first
+        text = (ROOT / "benchmarks" / script).read_text()
+        assert "bench.folder_prefix(" in text and "bench.remove_stale_folders(print, a.dir)" in text
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the parent-death signal is Linux's")

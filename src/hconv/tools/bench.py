@@ -504,20 +504,27 @@ _FOLDER = re.compile(r"^hconv-bench\.([^.]+)\.")
 
 def temporary_folder(kind: str = "") -> tempfile.TemporaryDirectory[str]:
     """A temporary folder for this bench run, named as :func:`remove_stale_folders` recognises."""
+    return tempfile.TemporaryDirectory(prefix=folder_prefix(kind))
+
+
+def folder_prefix(kind: str = "") -> str:
+    """The start of a bench folder's name, ``hconv-bench.<maker>.<kind>``, for this process (the
+    scripts in benchmarks/ name theirs so too)."""
     from hconv.tables import tableio
 
-    return tempfile.TemporaryDirectory(prefix=f"hconv-bench.{tableio.maker()}.{kind}")
+    return f"hconv-bench.{tableio.maker()}.{kind}"
 
 
-def remove_stale_folders(log: Callable[[str], None] = lambda s: None) -> list[str]:
-    """Remove the temporary folders of bench runs killed outright (kill -9, the OOM killer), which
-    stayed in the temporary directory, saying so through ``log``; returns their paths. A folder
-    whose run still goes, or may (made on another host sharing the directory), is left alone."""
+def remove_stale_folders(log: Callable[[str], None] = lambda s: None, where: str | None = None) -> list[str]:
+    """Remove the folders of bench runs killed outright (kill -9, the OOM killer), which stayed in
+    ``where`` (default: the temporary directory), saying so through ``log``; returns their paths.
+    A folder whose run still goes, or may (made on another host sharing the directory), is left
+    alone."""
     from hconv.tables import tableio
 
     removed: list[str] = []
     try:
-        entries = list(os.scandir(tempfile.gettempdir()))
+        entries = list(os.scandir(where or tempfile.gettempdir()))
     except OSError:
         return removed  # making this run's folder will say what is wrong with the directory
     for entry in entries:
