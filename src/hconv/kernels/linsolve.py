@@ -36,6 +36,9 @@ class LDLt(NamedTuple):
             ok &= np.isfinite(self.l32)
             return ok
 
+    def take(self, rows: slice | np.ndarray) -> LDLt:
+        return LDLt(*(f[rows] for f in self))
+
 
 def ldlt_factor(I: Sym3) -> LDLt:
     """Square-root-free Cholesky, written out for 3×3 so it vectorises over rows (~25 flops/row).
@@ -111,6 +114,9 @@ class SplitSym(NamedTuple):
     entries: Sym3
     hi: tuple
     lo: tuple
+
+    def take(self, rows: slice | np.ndarray) -> SplitSym:
+        return SplitSym(self.entries.take(rows), tuple(h[rows] for h in self.hi), tuple(lo[rows] for lo in self.lo))
 
 
 def split_sym(I: Sym3) -> SplitSym:

@@ -144,7 +144,7 @@ def _refine(
     sub = slice(None) if every else np.flatnonzero(go)
     Ig = I if every else I.take(sub)
     Hg = H if every else np.ascontiguousarray(H[:, sub])
-    fg = fac if every else linsolve.LDLt(*(f[sub] for f in fac))
+    fg = fac if every else fac.take(sub)
     split = linsolve.split_sym(Ig)
     wg = w if every else np.ascontiguousarray(w[:, sub])
     x = _refine_from(split, Hg, fg, wg)
@@ -189,9 +189,7 @@ def _refine_from(split: linsolve.SplitSym, H: np.ndarray, fac: linsolve.LDLt, x:
             c = c_next
             continue
         at = np.flatnonzero(on)
-        fa = linsolve.LDLt(*(f[at] for f in fac))
-        sa = linsolve.SplitSym(split.entries.take(at), tuple(h[at] for h in split.hi), tuple(lo[at] for lo in split.lo))
-        y, c_next = _step(sa, np.ascontiguousarray(H[:, at]), fa, np.ascontiguousarray(x[:, at]))
+        y, c_next = _step(split.take(at), np.ascontiguousarray(H[:, at]), fac.take(at), np.ascontiguousarray(x[:, at]))
         ratio = c_next / c[at]
         x[:, at] = y
         c[at] = c_next

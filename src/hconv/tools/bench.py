@@ -235,10 +235,10 @@ def _child(args: list, **kwargs: Any) -> subprocess.CompletedProcess:
     left its cold-start child compiling for seconds, writing into a folder the next run had
     removed. Not for the commands the bench times by the clock (a fork with this hook copies the
     bench's page tables first, where a plain spawn does not)."""
-    return subprocess.run(args, preexec_fn=_die_with_parent, **kwargs)
+    return subprocess.run(args, preexec_fn=die_with_parent, **kwargs)
 
 
-def _die_with_parent() -> None:
+def die_with_parent() -> None:
     """In the child, before it runs: the kernel kills it when its parent ends (Linux; elsewhere
     nothing), and it ends at once if the parent has already gone."""
     parent = os.getppid()
@@ -259,13 +259,9 @@ def _command(args: list) -> Callable[[], object]:
 def _peak_rss_mb(args: list) -> float:
     """Peak RSS of a command, measured from a fresh wrapper process whose only child it is."""
     code = (  # the measured command dies with its wrapper, as the wrapper with the bench (_child)
-        "import ctypes, resource, signal, subprocess, sys\n"
-        "def die():\n"
-        "    try:\n"
-        "        ctypes.CDLL(None).prctl(1, signal.SIGKILL)\n"
-        "    except (OSError, AttributeError):\n"
-        "        pass\n"
-        "subprocess.run(sys.argv[1:], check=True, capture_output=True, preexec_fn=die)\n"
+        "import resource, subprocess, sys\n"
+        "from hconv.tools.bench import die_with_parent\n"
+        "subprocess.run(sys.argv[1:], check=True, capture_output=True, preexec_fn=die_with_parent)\n"
         "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)"
     )
     out = _child([sys.executable, "-c", code, *args], check=True, capture_output=True, text=True)
