@@ -140,13 +140,10 @@ def _refine(
     as given), the residual (with ``diagnostics``) and where both are final; ``(3, n)``,
     ``(n,)`` or None, ``(n,)``. Other rows come back as given, residual NaN."""
     n = H.shape[1]
-    every = bool(go.all())
-    sub = slice(None) if every else np.flatnonzero(go)
-    Ig = I if every else I.take(sub)
-    Hg = H if every else np.ascontiguousarray(H[:, sub])
-    fg = fac if every else fac.take(sub)
+    sub = slice(None) if go.all() else np.flatnonzero(go)  # all rows: views, no copies
+    Ig, fg = I.take(sub), fac.take(sub)
+    Hg, wg = np.ascontiguousarray(H[:, sub]), np.ascontiguousarray(w[:, sub])
     split = linsolve.split_sym(Ig)
-    wg = w if every else np.ascontiguousarray(w[:, sub])
     x = _refine_from(split, Hg, fg, wg)
     ans = x if refined else wg
     ref = _refine_from(split, Hg, fg, x) if refined and diagnostics else x
@@ -158,10 +155,7 @@ def _refine(
         residual = np.full(n, np.nan)
         residual[sub] = relative_error(ans, ref)
     if refined:
-        if every:
-            w = ans
-        else:
-            w[:, sub] = ans
+        w[:, sub] = ans
     return w, residual, final
 
 
