@@ -253,8 +253,7 @@ def convert_columns(
     opts = _BlockOptions(m, dtype, form.diagonal, degenerate_rtol, extra_k)
     covered = engines.covers(method, precision, degenerate, form.name, degenerate_rtol)
     start = time.perf_counter()
-    with np.errstate(all="ignore"):  # every row that would warn gets a status instead
-        _convert_blocks(n, opts, form, I, H, r, w, cond, code, residual, deg, covered)
+    _convert_blocks(n, opts, form, I, H, r, w, cond, code, residual, deg, covered)
     if covered:
         engines.spend(time.perf_counter() - start)  # auto's count of what numba would have saved
     axis, dim = (None, None) if deg is None else (deg.axis, deg.dim)
@@ -374,7 +373,8 @@ def _convert_blocks(
 
     def one(lo: int) -> None:
         sl = slice(lo, min(n, lo + size))
-        with np.errstate(all="ignore"):  # errstate is the thread's own
+        # every row that would warn gets a status instead; set here, as errstate is per thread
+        with np.errstate(all="ignore"):
             if common:
                 res = None if residual is None else residual[sl]
                 _convert_common(opts, form, I[:, sl], H[:, sl], w[sl], cond[sl], code[sl], res, cond_limit)
