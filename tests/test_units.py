@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
+from fractions import Fraction
 
 import numpy as np
 import pyarrow as pa
@@ -133,3 +136,169 @@ def test_convert_omega_unit_refused_for_document_methods():
         "one", "--H", "1,0,0", "--I", "2,2,2", "--r", "1,1,0", "--method", "document", "--omega-unit", "deg/s"
     )
     assert proc.returncode == 2 and b"m^2/s" in proc.stderr
+
+
+# Numbers that carry a unit or a mask, handed to hconv.convert (issue 24). Before the fix numpy
+# made bare numbers of all of them: a pint Quantity kept its magnitude (with only pint's
+# UnitStrippedWarning), astropy-, unyt- and xarray-style arrays and masked arrays silently.
+
+G_CM2 = Fraction(1, 10**7)  # 1 g·cm² = 1e-3 kg · (1e-2 m)² in kg·m², exactly
+
+
+def _ureg():
+    import pint
+
+    return pint.UnitRegistry()
+
+
+def _frac(a) -> np.ndarray:
+    return np.array([[Fraction(x) for x in row] for row in np.atleast_2d(a)], dtype=object)
+
+
+def test_convert_pint_quantities_are_read_in_their_own_units():
+    """The issue's example: before, ω = [1, 1, 1] (the magnitudes divided, units dropped)."""
+    ureg = _ureg()
+    res = hconv.convert([1, 2, 3] * ureg("g*cm**2/s"), [1, 2, 3] * ureg("kg*m**2"))
+    assert str(res.w.units) == "radian / second" and res.unit == "rad/s" and res.status == "ok"
+    # H_i / I_i = 1e-7·i / i; pint's factor for g·cm² (a file's too) is 1e-3·1e-4, one rounding off
+    assert res.w.magnitude.tolist() == pytest.approx([float(G_CM2)] * 3, rel=1e-15)
+    assert (res.w + 1 * ureg("rad/s")).magnitude[0] == 1 + 1e-7  # the caller's registry: pint mixes no others
+
+
+def test_convert_pint_tensor_and_offset_in_their_own_units(rng):
+    ureg = _ureg()
+    I = physical_bodies(rng, 8)  # (N, 3, 3) in kg·m²
+    I_g_mm2 = I * 1e10  # the numbers a g·mm² export holds
+    H = rng.normal(size=(8, 3))
+    res = hconv.convert(H * ureg("g*cm**2/s"), six(I_g_mm2) * ureg("g*mm**2"))
+    # Independent: each number times its exact factor to SI, in rationals, then a 50-digit solve.
+    H_si = (_frac(H) * G_CM2).astype(float)
+    I_si = (_frac(I_g_mm2.reshape(-1, 9)) * Fraction(1, 10**9)).astype(float).reshape(-1, 3, 3)
+    assert rel_err(res.w.to("rad/s").magnitude, mp_solve(I_si, H_si)).max() < 1e-14
+    # The document method reads r too: ω_i = (r_j² + r_k²) / I_i · H_i, in m²/s.
+    doc = hconv.convert(
+        [1, 1, 1] * ureg("g*cm**2/s"), [2, 3, 4] * ureg("g*cm**2"), [1, 2, 3] * ureg("mm"), method="document"
+    )
+    r2 = [Fraction(k, 1000) ** 2 for k in (1, 2, 3)]
+    want = [(r2[1] + r2[2]) / 2, (r2[0] + r2[2]) / 3, (r2[0] + r2[1]) / 4]  # the 1e-7 of H and I cancel
+    assert doc.w.units == ureg("m**2/s").units
+    assert doc.w.magnitude.tolist() == pytest.approx([float(x) for x in want], rel=1e-15)
+
+
+@pytest.mark.parametrize(
+    "name, wrong, message",
+    [
+        ("H", "kg*m**2", r"^H: 'kg \* m \*\* 2' is not a unit of angular momentum \(kg\*m\*\*2/s\)$"),
+        ("I", "kg*m**2/s", r"^I: 'kg \* m \*\* 2 / s' is not a unit of inertia \(kg\*m\*\*2\)$"),
+        ("r", "s", r"^r: 's' is not a unit of length \(m\)$"),
+    ],
+    ids=["H", "I", "r"],
+)
+def test_convert_pint_unit_of_another_quantity_is_refused_naming_the_argument(name, wrong, message):
+    ureg = _ureg()
+    units_given = {"H": "kg*m**2/s", "I": "kg*m**2", "r": "m", name: wrong}
+    H, I, r = ([1, 2, 3] * ureg(units_given[k]) for k in "HIr")
+    with pytest.raises(UsageError, match=message):
+        hconv.convert(H, I, r, method="document")
+
+
+def test_convert_masked_entries_are_invalid_input_rows():
+    H = np.ma.masked_array([[1.0, 2.0, 3.0], [1e300, 2.0, 3.0], [4.0, 4.0, 4.0]], mask=[[0] * 3, [1, 0, 0], [0] * 3])
+    res = hconv.convert(H, np.full((3, 3), 2.0))
+    assert res.status.tolist() == ["ok", "invalid_input", "ok"]
+    assert np.isnan(res.w[1]).all() and res.w[2].tolist() == [2.0, 2.0, 2.0]
+    assert H.data[1, 0] == 1e300 and H.mask[1, 0]  # the caller's array untouched
+    # in a Quantity too, and a masked I
+    I = np.ma.masked_array([[2.0] * 3] * 3, mask=[[0] * 3, [0] * 3, [0, 0, 1]])
+    res = hconv.convert(H.data * _ureg()("g*cm**2/s"), I * _ureg()("g*cm**2"))
+    assert res.status.tolist() == ["ok", "ok", "invalid_input"]
+
+
+def test_convert_list_of_quantities_or_masked_arrays_is_refused():
+    ureg = _ureg()
+    with pytest.raises(UsageError, match=r"^H holds pint Quantities, whose units numpy would drop; "):
+        hconv.convert([[1, 2, 3] * ureg("g*cm**2/s"), [4, 5, 6] * ureg("g*cm**2/s")], np.ones((2, 3)))
+    masked = np.ma.masked_array([1.0, 2.0, 3.0], mask=[0, 1, 0])
+    with pytest.raises(UsageError, match=r"^I holds masked arrays, whose masks numpy would drop; "):
+        hconv.convert(np.ones((2, 3)), ([1.0, 1.0, 1.0], masked))
+
+
+def _stand_in(module: str, name: str, attribute: str) -> type:
+    """An ndarray subclass standing in for a unit library's array type: of that library's module
+    and class name, carrying its unit in the same attribute (astropy.units.Quantity: ``unit``;
+    unyt's unyt_array: ``units``). Neither library is installed here (astropy alone is ~10 MB,
+    with pyerfa), and hconv knows them only by those names and attributes."""
+
+    class StandIn(np.ndarray):
+        def __new__(cls, values, unit):
+            obj = np.asarray(values, dtype=float).view(cls)
+            setattr(obj, attribute, unit)
+            return obj
+
+        def __array_finalize__(self, obj):
+            setattr(self, attribute, getattr(obj, attribute, None))
+
+    StandIn.__module__, StandIn.__name__, StandIn.__qualname__ = module, name, name
+    return StandIn
+
+
+@pytest.mark.parametrize(
+    "module, name, attribute, text",
+    [
+        ("astropy.units.quantity", "Quantity", "unit", "astropy's Quantity in g cm2 / s"),
+        ("unyt.array", "unyt_array", "units", "unyt's unyt_array in g cm2 / s"),
+    ],
+    ids=["astropy", "unyt"],
+)
+def test_convert_array_of_another_unit_library_is_refused(module, name, attribute, text):
+    cls = _stand_in(module, name, attribute)
+    H = cls([[1.0, 2.0, 3.0]], "g cm2 / s")
+    assert np.asarray(H).tolist() == [[1.0, 2.0, 3.0]]  # what numpy would have read
+    with pytest.raises(
+        UsageError,
+        match=rf"^H is {text}, which hconv does not read; pass a pint Quantity or plain numbers in "
+        r"kg\*m\*\*2/s \(e\.g\. H\.to_value\('kg\*m\*\*2/s'\)\)$",
+    ):
+        hconv.convert(H, np.ones((1, 3)))
+
+
+class _DataArray:
+    """Stands in for xarray.DataArray (not installed: it needs pandas): its module and class
+    name, ``attrs``, ``values``, ``data`` and ``__array__``, which hands numpy the bare numbers."""
+
+    def __init__(self, data, units: str | None = None):
+        self.data = data
+        self.attrs = {} if units is None else {"units": units}
+
+    @property
+    def values(self):
+        return np.asarray(self.data)
+
+    def __array__(self, dtype=None, copy=None):
+        return np.asarray(self.data, dtype=dtype)
+
+
+_DataArray.__module__ = "xarray.core.dataarray"
+
+
+def test_convert_xarray_units_attribute_is_read():
+    res = hconv.convert(np.array([[1.0, 2.0, 3.0]]), _DataArray(np.array([[1.0, 2.0, 4.0]]), units="g*cm**2"))
+    want = [float(Fraction(h) / (Fraction(i) * G_CM2)) for h, i in ((1, 1), (2, 2), (3, 4))]
+    assert res.w[0].tolist() == pytest.approx(want, rel=1e-15) and type(res.w) is np.ndarray
+    # pint-xarray keeps the unit in the data: that Quantity is read
+    res = hconv.convert(_DataArray([1.0, 2.0, 3.0] * _ureg()("g*cm**2/s")), [1.0, 2.0, 3.0])
+    assert res.w.magnitude.tolist() == pytest.approx([float(G_CM2)] * 3, rel=1e-15)
+    with pytest.raises(UsageError, match=r"^I.attrs\['units'\]: 'kg\*m\*\*2/s' is not a unit of inertia"):
+        hconv.convert(np.ones((1, 3)), _DataArray(np.ones((1, 3)), units="kg*m**2/s"))
+
+
+def test_convert_plain_numbers_load_no_pint():
+    """pint is found by its classes' modules, never imported to look: hconv.convert on numbers,
+    masked arrays and lists (and hconv one, tests/test_cli.py) starts without it."""
+    code = (
+        "import sys, numpy as np, hconv\n"
+        "hconv.convert([[1, 2, 3]], np.ma.masked_array(np.ones((1, 3)), mask=[[0, 1, 0]]))\n"
+        "print('pint' in sys.modules)"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=60)
+    assert proc.stdout.decode().split() == ["False"], proc.stderr.decode()

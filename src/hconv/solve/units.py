@@ -5,12 +5,28 @@ hconv computes in SI: H [kg·m²/s], I [kg·m²], r [m], m [kg], v [m/s], ω [ra
 ω can be written in another unit (``--omega-unit``). SI spellings are recognised without pint;
 anything else goes through pint, a dependency that is imported only then, so a run in SI (and
 ``hconv one``'s start-up) never pays for it. Only multiplicative units are accepted (no offsets such as °C).
+
+Numbers handed to ``hconv.convert`` may carry their unit, and numpy would drop it without a word
+(``np.asarray`` of a pint Quantity keeps the magnitude; astropy's Quantity and unyt's arrays are
+ndarray subclasses, read as bare numbers). The rule, applied by :func:`hconv.solve.convert.convert`:
+
+* a pint Quantity is read in its own unit (:func:`pint_factor`: its registry's factor to SI, the
+  same number a file's column in that unit is multiplied by); a unit of another quantity is a
+  UsageError naming the argument;
+* an xarray DataArray with a ``units`` attribute is read in that unit, as ``--unit`` would read it
+  (:func:`factor`); one that wraps a pint Quantity (pint-xarray) is that Quantity;
+* any other number that carries a unit (astropy, unyt, an ndarray subclass with a ``unit`` or
+  ``units``) is refused (:func:`foreign`): pass a pint Quantity or plain numbers in SI.
+
+All of these are told apart by their classes' modules and attributes, so hconv imports none of
+these libraries (nor pint, when no Quantity is passed).
 """
 
 from __future__ import annotations
 
 import functools
 import re
+import sys
 from typing import Any
 
 import numpy as np
@@ -77,26 +93,85 @@ def factor(quantity: str, unit: str, where: str = "unit") -> float:
     if _normal(unit) in _SI_SPELLINGS[quantity]:
         return 1.0
     ureg = _registry()
-    import pint
-
     try:
-        q = ureg.Quantity(1.0, unit)
-        value = q.to(SI[quantity] or "dimensionless").magnitude
-    except pint.errors.DimensionalityError:
-        raise UsageError(
-            f"{where}: {unit!r} is not a unit of {QUANTITY[quantity]} ({SI[quantity] or 'no unit'})"
-        ) from None
-    except pint.errors.OffsetUnitCalculusError:
-        raise UsageError(f"{where}: {unit!r} has an offset; give a unit without one") from None
+        one = ureg.Quantity(1.0, unit)
     except Exception as exc:  # pint raises several kinds for text it cannot parse
         raise UsageError(
             f"{where}: pint does not understand the unit {unit!r} ({type(exc).__name__}); "
             "write it like g*cm**2 or lb*ft**2/s"
         ) from None
+    return _to_si(quantity, one, repr(unit), where)
+
+
+def _to_si(quantity: str, one: Any, unit: str, where: str) -> float:
+    """The magnitude of pint Quantity ``one`` (1 of ``unit``) in the SI unit of ``quantity``."""
+    import pint  # loaded already: ``one`` is its Quantity
+
+    try:
+        value = one.to(SI[quantity] or "dimensionless").magnitude
+    except pint.errors.DimensionalityError:
+        raise UsageError(
+            f"{where}: {unit} is not a unit of {QUANTITY[quantity]} ({SI[quantity] or 'no unit'})"
+        ) from None
+    except pint.errors.OffsetUnitCalculusError:
+        raise UsageError(f"{where}: {unit} has an offset; give a unit without one") from None
     value = float(value)
     if not (np.isfinite(value) and value > 0):
-        raise UsageError(f"{where}: {unit!r} gives a factor of {value}; give a positive unit")
+        raise UsageError(f"{where}: {unit} gives a factor of {value}; give a positive unit")
     return value
+
+
+def _package(cls: type) -> str:
+    return cls.__module__.partition(".")[0]
+
+
+def is_pint(value: object) -> bool:
+    """Whether ``value`` is a pint Quantity, told without importing pint: none exists before pint
+    is loaded, and its classes come from pint's modules."""
+    return (
+        "pint" in sys.modules
+        and any(_package(c) == "pint" for c in type(value).__mro__)
+        and hasattr(value, "magnitude")
+        and hasattr(value, "units")
+    )
+
+
+def pint_factor(quantity: str, value: Any, where: str) -> float:
+    """The factor from pint Quantity ``value``'s unit to the SI unit of ``quantity``: computed in
+    the Quantity's own registry (which may define units hconv's does not) as :func:`factor` does
+    in hconv's; UsageError naming ``where`` for a unit of another quantity."""
+    unit = value.units
+    return _to_si(quantity, type(value)(1.0, unit), f"{format(unit, '~')!r}", where)
+
+
+def is_xarray(value: object) -> bool:
+    """Whether ``value`` is an xarray object (told by its class's module, without importing xarray)."""
+    return _package(type(value)) == "xarray"
+
+
+def labelled_unit(value: object) -> str | None:
+    """The ``units`` attribute of an xarray DataArray (None for anything else, or without one)."""
+    if not is_xarray(value):
+        return None
+    unit = getattr(value, "attrs", {}).get("units")
+    return None if unit is None else str(unit)
+
+
+def foreign(value: object) -> str | None:
+    """What ``value`` is, e.g. ``"astropy's Quantity in g cm2 / s"``, when it carries a unit that
+    hconv does not read (anything but pint's, and an xarray DataArray's ``units``); None for
+    anything else. Found without importing those libraries: their packages' names, or an
+    ndarray subclass's ``unit`` or ``units``."""
+    cls = type(value)
+    package = _package(cls)
+    if package in ("pint", "xarray") or not (isinstance(value, np.ndarray) or package in ("astropy", "unyt")):
+        return None
+    unit = getattr(value, "unit", None)
+    if unit is None:
+        unit = getattr(value, "units", None)
+    if unit is None:
+        return None
+    return f"{package}'s {cls.__name__} in {unit}"
 
 
 def omega_factor(unit: str) -> float:
