@@ -11,7 +11,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
-from helpers import mp_solve, physical_bodies, rel_err, run_hconv, six, vec, w_of
+from helpers import mp_solve, need, physical_bodies, rel_err, run_hconv, six, vec, w_of
 
 import hconv
 from hconv.errors import UsageError
@@ -262,34 +262,18 @@ def test_convert_array_of_another_unit_library_is_refused(module, name, attribut
         hconv.convert(H, np.ones((1, 3)))
 
 
-class _DataArray:
-    """Stands in for xarray.DataArray (not installed: it needs pandas): its module and class
-    name, ``attrs``, ``values``, ``data`` and ``__array__``, which hands numpy the bare numbers."""
-
-    def __init__(self, data, units: str | None = None):
-        self.data = data
-        self.attrs = {} if units is None else {"units": units}
-
-    @property
-    def values(self):
-        return np.asarray(self.data)
-
-    def __array__(self, dtype=None, copy=None):
-        return np.asarray(self.data, dtype=dtype)
-
-
-_DataArray.__module__ = "xarray.core.dataarray"
-
-
 def test_convert_xarray_units_attribute_is_read():
-    res = hconv.convert(np.array([[1.0, 2.0, 3.0]]), _DataArray(np.array([[1.0, 2.0, 4.0]]), units="g*cm**2"))
+    xr = need("xarray")
+    res = hconv.convert(
+        np.array([[1.0, 2.0, 3.0]]), xr.DataArray(np.array([[1.0, 2.0, 4.0]]), attrs={"units": "g*cm**2"})
+    )
     want = [float(Fraction(h) / (Fraction(i) * G_CM2)) for h, i in ((1, 1), (2, 2), (3, 4))]
     assert res.w[0].tolist() == pytest.approx(want, rel=1e-15) and type(res.w) is np.ndarray
     # pint-xarray keeps the unit in the data: that Quantity is read
-    res = hconv.convert(_DataArray([1.0, 2.0, 3.0] * _ureg()("g*cm**2/s")), [1.0, 2.0, 3.0])
+    res = hconv.convert(xr.DataArray([1.0, 2.0, 3.0] * _ureg()("g*cm**2/s")), [1.0, 2.0, 3.0])
     assert res.w.magnitude.tolist() == pytest.approx([float(G_CM2)] * 3, rel=1e-15)
     with pytest.raises(UsageError, match=r"^I.attrs\['units'\]: 'kg\*m\*\*2/s' is not a unit of inertia"):
-        hconv.convert(np.ones((1, 3)), _DataArray(np.ones((1, 3)), units="kg*m**2/s"))
+        hconv.convert(np.ones((1, 3)), xr.DataArray(np.ones((1, 3)), attrs={"units": "kg*m**2/s"}))
 
 
 def test_convert_plain_numbers_load_no_pint():

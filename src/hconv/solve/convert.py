@@ -157,8 +157,8 @@ def _refuse_units_numpy_drops(name: str, a: object) -> None:
 def _held(items: list | tuple) -> str | None:
     """What the first item of nested ``items`` that carries a unit or a mask is, and the fix;
     None when there is none. Looked at a nesting level at a time, by the set of the items' types,
-    which is quick for plain numbers (the common case: 1e6 rows of three floats took 0.14-0.25 s,
-    ``np.asarray`` on them 0.21-0.34 s, on a loaded machine)."""
+    which costs plain numbers (the common case) less than ``np.asarray`` on them
+    (docs/measurements.md)."""
     level, kinds = items, set(map(type, items))
     while True:
         for x in level if kinds - _PLAIN else ():
