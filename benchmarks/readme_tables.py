@@ -1,4 +1,4 @@
-"""Print the README's benchmark tables (Markdown) from a `hconv bench --json` file.
+"""Print the benchmark tables of docs/bench.md (Markdown) from a `hconv bench --json` file.
 
 python benchmarks/readme_tables.py docs/bench.json
 """

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Reproduce the README's benchmark figures and charts with one command, from the repository root:
+# Reproduce the benchmark figures and charts of docs/bench.md with one command, from the repository root:
 #   bash benchmarks/run.sh
 # It installs the bench extra (matplotlib, numba) into .venv, then runs the full benchmark
 # (2M rows, 3 repeats, peak memory on 20M rows; about 5 minutes and 4 GB of temporary disk) and

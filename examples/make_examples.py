@@ -1,8 +1,8 @@
-"""Write the small example files in examples/data that the README's scene examples use.
+"""Write the small example files in examples/data that the scene examples of docs/scenes.md use.
 
     python examples/make_examples.py
 
-Every file is deterministic (fixed seed) and holds bodies whose ω is known, so each README
+Every file is deterministic (fixed seed) and holds bodies whose ω is known, so each example
 command can be checked by eye against the `w_true_*` columns.
 """
 

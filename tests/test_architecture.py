@@ -1,10 +1,12 @@
-"""The package's structure as a contract: the layers (import-linter) and no reaching into
-another module's private names. (``hconv one`` staying free of pyarrow and rich is tested in
-test_cli.py, and declared in pyproject.toml's contract too.)"""
+"""The package's structure as a contract: the layers (import-linter), no reaching into another
+module's private names, and docs/architecture.md, the one description of the structure, naming
+every module and only modules that exist. (``hconv one`` staying free of pyarrow and rich is
+tested in test_cli.py, and declared in pyproject.toml's contract too.)"""
 
 from __future__ import annotations
 
 import ast
+import re
 import shutil
 import subprocess
 import sys
@@ -13,6 +15,7 @@ from pathlib import Path
 import pytest
 
 SRC = Path(__file__).resolve().parent.parent / "src" / "hconv"
+ARCHITECTURE = SRC.parent.parent / "docs" / "architecture.md"
 
 
 def _modules():
@@ -71,3 +74,29 @@ def test_layers_contract_holds():
     proc = subprocess.run([exe], capture_output=True, text=True, cwd=SRC.parent.parent, timeout=120)
     assert proc.returncode == 0, proc.stdout[-2000:]
     assert "0 broken" in proc.stdout
+
+
+def _module_table(text: str) -> list[str]:
+    """The modules listed in architecture.md's "Modules" table, as paths under src/hconv/."""
+    section = text.split("\n## Modules\n", 1)[1].split("\n## ", 1)[0]
+    return re.findall(r"^\| `([\w/]+\.py)` \|", section, re.M)
+
+
+def test_architecture_module_table_lists_every_module_once_and_no_other():
+    listed = _module_table(ARCHITECTURE.read_text(encoding="utf-8"))
+    real = sorted(path.relative_to(SRC).as_posix() for path in SRC.rglob("*.py"))
+    assert sorted(set(listed)) == sorted(listed), "a module is listed twice"
+    assert sorted(listed) == real
+
+
+def test_architecture_names_only_modules_that_exist():
+    """Every ``kernels/x.py``, ``solve/x.py``, ``tables/x.py`` or ``tools/x.py`` the page names,
+    in any section, is a module."""
+    named = set(re.findall(r"\b((?:kernels|solve|tables|tools)/\w+\.py)", ARCHITECTURE.read_text(encoding="utf-8")))
+    assert named and sorted(name for name in named if not (SRC / name).is_file()) == []
+
+
+def test_module_table_reads_a_planted_table():
+    text = "\n## Modules\n\n| module | what |\n|---|---|\n| `cli.py` | x |\n| `solve/rows.py` | y |\n"
+    text += "\n## Next\n\n| `a.py` | z |\n"
+    assert _module_table(text) == ["cli.py", "solve/rows.py"]

@@ -304,7 +304,7 @@ def exact_states(rng, about, r_size, v_size, m, I_size, w_size, rotated=False):
 
 
 def point_change_bound(cols, H_C):
-    """ε_C = ‖δ‖ / ‖H_C‖ as the README states it, from the float64 inputs: component i of H_C
+    """ε_C = ‖δ‖ / ‖H_C‖ as docs/scenes.md states it, from the float64 inputs: component i of H_C
     is known to eps·(½|H_P,i| + 3/2·(|r_j|·m·|v_k| + |r_k|·m·|v_j|) + ½|H_C,i|)."""
     H = np.column_stack([cols["Hx"], cols["Hy"], cols["Hz"]])
     r = np.abs(np.column_stack([cols["rx"], cols["ry"], cols["rz"]]))

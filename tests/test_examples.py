@@ -1,4 +1,4 @@
-"""The README's scene examples, run as a user would on the shipped files, checked against the
+"""The scene examples of docs/scenes.md, run as a user would on the shipped files, checked against the
 true ω stored in each file (w_true_*), which was chosen before H was computed."""
 
 from __future__ import annotations

@@ -269,6 +269,6 @@ def test_convert_complex_or_text_input_is_refused_naming_the_argument(H, I, mess
 
 def test_methods_eigen_failure_text_speaks_of_error_size_not_speed():
     """Before: 'about 5× faster than LDLᵀ's', which reads as speed; the measured worst K is 2.8
-    for eigen against 0.43 for exact's LDLᵀ (README, the envelope)."""
+    for eigen against 0.43 for exact's LDLᵀ (docs/methods.md, the envelope)."""
     fails = hconv.METHODS["eigen"].fails
     assert "faster" not in fails and "about 6 times LDLᵀ's at the same cond" in fails

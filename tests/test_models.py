@@ -1070,11 +1070,10 @@ def test_mujoco_refuses_at_load_what_hconv_flags_but_not_a_placeholder(tmp_path,
 
 
 def test_readme_bodies_walkthrough_runs_as_written(tmp_path):
-    """The README's sh block and Python block for hconv bodies, run from a folder holding examples/."""
+    """docs/models.md's sh block and Python block, run from a folder holding examples/."""
     if shutil.which("awk") is None:
         pytest.skip("the walkthrough uses awk")
-    readme = (EXAMPLES.parent.parent / "README.md").read_text()
-    section = readme[readme.index("### A robot model's inertias") :]
+    section = (EXAMPLES.parent.parent / "docs" / "models.md").read_text()
     sh = section[section.index("```sh\n") + 6 :].split("```", 1)[0]
     py = section[section.index("```python\n") + 10 :].split("```", 1)[0]
     (tmp_path / "examples").symlink_to(EXAMPLES.parent)

@@ -593,7 +593,7 @@ def test_format_of_empty_path_says_it_is_empty(args, message, tmp_path, capsys, 
 
 def test_csv_writer_csv_to_csv_text_columns_come_out_byte_for_byte(tmp_path):
     """Before: one value needing quotes made every text value of its batch quoted (1 -> "1",
-    02134 -> "02134"), though the README promises them back exactly as they went in."""
+    02134 -> "02134"), though docs/input.md promises them back exactly as they went in."""
     from hconv.tables.pipeline import convert_file
 
     rows = ['1,02134,plain text,"a,b",,"say ""hi""",007', '2,00501,x y,z,,"line\nbreak",1e3']
