@@ -1101,6 +1101,29 @@ def test_show_lists_bodies_whose_names_do_not_fit(tmp_path):
     assert long in text.splitlines() and "not_physical" in text
 
 
+def test_show_more_bodies_than_a_table_shows_is_tab_separated_on_a_terminal(tmp_path, monkeypatch):
+    """rich laid a table out at milliseconds a row: a model of a million bodies took an hour."""
+    monkeypatch.setattr(modelview, "MAX_TABLE", 2)
+    m = model(tmp_path, "b.xml", mjcf("<body name='a'/><body name='b'/><body name='c'/>"))
+    buf = io.StringIO()
+    modelview.show(m, Console(file=buf, width=80, force_terminal=True, color_system=None))
+    lines = buf.getvalue().splitlines()
+    assert lines[2] == "# more bodies than a table shows (2): tab-separated text"
+    assert [line.split("\t")[0] for line in lines[3:]] == ["body", "a", "b", "c"]
+
+
+@pytest.mark.parametrize("terminal", [False, True])
+def test_show_escapes_a_tab_or_newline_in_a_name(tmp_path, terminal):
+    """A name with &#9; or &#10; split its row into columns or lines of their own."""
+    m = model(tmp_path, "n.urdf", urdf('<link name="a&#9;b&#10;c"/>', '<link name="d"/>'))
+    buf = io.StringIO()
+    modelview.show(m, Console(file=buf, width=120, force_terminal=terminal, color_system=None))
+    text = buf.getvalue()
+    assert "a\\tb\\nc" in text and "\tb" not in text and "\nc" not in text
+    if not terminal:
+        assert [line.count("\t") for line in text.splitlines() if not line.startswith("#")] == [6, 6, 6]
+
+
 # --- the command -----------------------------------------------------------------------------
 
 
