@@ -31,6 +31,7 @@ import itertools
 import os
 import re
 import stat
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from xml.parsers import expat
@@ -374,12 +375,16 @@ def expand_includes(root: Node, model: Path, shown: str, budget: Budget | None =
     work: list[tuple[Node, tuple[Path, ...]]] = [(root, (model.resolve(),))]
     while work:
         node, chain = work.pop()
-        pending = [(c, chain) for c in node.children]
         kept = []
-        k = 0
-        while k < len(pending):
-            child, ch = pending[k]
-            k += 1
+        # the children, each include replaced in place by the included file's: iterators on a
+        # stack, not insertions into a list, which took time quadratic in the includes
+        pending: list[tuple[Iterator[Node], tuple[Path, ...]]] = [(iter(node.children), chain)]
+        while pending:
+            children, ch = pending[-1]
+            child = next(children, None)
+            if child is None:
+                pending.pop()
+                continue
             if child.tag != "include":
                 kept.append(child)
                 work.append((child, ch))
@@ -402,8 +407,7 @@ def expand_includes(root: Node, model: Path, shown: str, budget: Budget | None =
             seen[target] = name
             _check_included(child, name, target, shown)
             sub = read(target, name, budget)
-            inner = (*ch, target)  # one tuple for all its children: a file of many is not a tuple each
-            pending[k:k] = [(c, inner) for c in sub.children]
+            pending.append((iter(sub.children), (*ch, target)))
         node.children = kept
 
 
