@@ -817,12 +817,22 @@ def test_read_mjcf_include_symlink_loop_is_one_line_naming_the_link(tmp_path):
     )
 
 
-@pytest.mark.parametrize("kind", ["directory", "fifo", "device"])
-def test_read_mjcf_include_of_what_is_not_a_file_names_the_include_without_blocking(tmp_path, kind):
+@pytest.mark.parametrize("kind", ["directory", "fifo", "device", "unreadable"])
+def test_read_mjcf_include_of_what_is_not_a_file_names_the_include_without_blocking(tmp_path, kind, monkeypatch):
     """Before, the message named only the included path ("parts: is a directory"), not the
-    include to fix."""
+    include to fix. Unreadable: permission denied, made so for root too (whom it never denies)."""
     target = tmp_path / "parts"
-    if kind == "directory":
+    if kind == "unreadable":
+        target.write_text("<mujoco/>")
+        os_open = os.open
+
+        def denied(path, *args, **kwargs):
+            if os.fspath(path) == str(target):
+                raise PermissionError(13, "Permission denied", str(path))
+            return os_open(path, *args, **kwargs)
+
+        monkeypatch.setattr(os, "open", denied)
+    elif kind == "directory":
         target.mkdir()
     elif kind == "fifo":
         os.mkfifo(target)
@@ -836,7 +846,10 @@ def test_read_mjcf_include_of_what_is_not_a_file_names_the_include_without_block
     with pytest.raises(InputError) as e:
         models.read_model(main)
     msg = str(e.value)
-    want = "which is a directory" if kind == "directory" else "which is not a regular file (a pipe or a device)"
+    want = {
+        "directory": "which is a directory",
+        "unreadable": "which cannot be read: Permission denied; check its permissions",
+    }.get(kind, "which is not a regular file (a pipe or a device)")
     assert msg.startswith(f"{main}, line 3, <include> names 'parts'") and want in msg and "\n" not in msg
 
 

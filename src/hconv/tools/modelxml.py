@@ -434,6 +434,12 @@ def _check_included(node: Node, name: str, target: Path, shown: str) -> None:
             f"names {quote(name)}{at}, which is not a regular file (a pipe or a device)",
             "include a file that holds the MJCF",
         )
+    try:
+        os.close(os.open(target, os.O_RDONLY | os.O_NONBLOCK))
+    except OSError as exc:
+        raise error(
+            node, f"names {quote(name)}{at}, which cannot be read: {exc.strerror or exc}", "check its permissions"
+        ) from None
 
 
 def _include_target(node: Node, name: str, folder: Path) -> Path:
