@@ -111,8 +111,8 @@ class Budget:
             raise error(
                 node,
                 f"gets the name {quote(name)} ({len(name):,} characters), which brings the body names "
-                f"hconv makes from the nesting to more than {self.names_allowed():,} characters, four "
-                "times the model's size",
+                f"hconv makes from the nesting to more than {self.names_allowed():,} characters (four "
+                "times the model's size, and 1 MiB)",
                 "nest models or unnamed bodies less deeply, or name the bodies",
             )
         return name
