@@ -372,13 +372,15 @@ def expand_includes(root: Node, model: Path, shown: str, budget: Budget | None =
     budget = budget or Budget(shown)
     folder = model.resolve().parent
     seen = {model.resolve(): shown}
-    work: list[tuple[Node, tuple[Path, ...]]] = [(root, (model.resolve(),))]
+    # the files an element is read from, innermost first: (file, (its includer, (...))), one
+    # pair per include, so that a chain of includes is not a tuple copied at each
+    work: list[tuple[Node, _Chain]] = [(root, (model.resolve(), None))]
     while work:
         node, chain = work.pop()
         kept = []
         # the children, each include replaced in place by the included file's: iterators on a
         # stack, not insertions into a list, which took time quadratic in the includes
-        pending: list[tuple[Iterator[Node], tuple[Path, ...]]] = [(iter(node.children), chain)]
+        pending: list[tuple[Iterator[Node], _Chain]] = [(iter(node.children), chain)]
         while pending:
             children, ch = pending[-1]
             child = next(children, None)
@@ -393,12 +395,19 @@ def expand_includes(root: Node, model: Path, shown: str, budget: Budget | None =
             if not name or not name.strip():
                 raise error(child, "has no attribute file", 'name the file to include: <include file="parts.xml"/>')
             target = _include_target(child, name, folder)
-            if target in ch:
-                cycle = " → ".join([seen[c] for c in ch[ch.index(target) :]] + [name])
-                raise error(
-                    child, f"includes {quote(name)} again inside itself ({clip(cycle)}): a cycle", "remove the include"
-                )
-            if target in seen:
+            if target in seen:  # read before: a cycle when it is one of the files this include is in
+                files: list[Path] = []
+                link: _Chain | None = ch
+                while link is not None and not (files and files[-1] == target):
+                    files.append(link[0])
+                    link = link[1]
+                if files[-1] == target:
+                    cycle = " → ".join([seen[c] for c in reversed(files)] + [name])
+                    raise error(
+                        child,
+                        f"includes {quote(name)} again inside itself ({clip(cycle)}): a cycle",
+                        "remove the include",
+                    )
                 raise error(
                     child,
                     f"includes {quote(name)}, which {quote(seen[target])} already brought in",
@@ -407,8 +416,11 @@ def expand_includes(root: Node, model: Path, shown: str, budget: Budget | None =
             seen[target] = name
             _check_included(child, name, target, shown)
             sub = read(target, name, budget)
-            pending.append((iter(sub.children), (*ch, target)))
+            pending.append((iter(sub.children), (target, ch)))
         node.children = kept
+
+
+_Chain = tuple[Path, "_Chain | None"]
 
 
 def _check_included(node: Node, name: str, target: Path, shown: str) -> None:
