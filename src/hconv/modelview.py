@@ -23,7 +23,7 @@ from hconv import report
 from hconv.tools.models import Body, Model
 
 _HEADERS = ("body", "m kg", "I1 kg·m²", "I2 kg·m²", "I3 kg·m²", "status")
-#: The most bodies shown as a table on a terminal (a robot has tens to hundreds).
+#: The most bodies shown as a table on a terminal (a robot has tens to hundreds; docs/measurements.md).
 MAX_TABLE = 2000
 
 

@@ -43,7 +43,8 @@ from hconv.errors import InputError
 MAX_BYTES = 64 << 20
 #: The most elements a model, with all it includes, may have. A robot has tens to thousands; a
 #: large simulated world some ten thousand. Each element costs memory (a Node, its attributes;
-#: a body's numbers), so this is what bounds a model of tiny elements (``<a/>``, 4 bytes each).
+#: a body's numbers), so this is what bounds a model of tiny elements (``<a/>``, 4 bytes each);
+#: the figures are in docs/measurements.md.
 MAX_ELEMENTS = 1_000_000
 #: The deepest nesting of elements a file may have. tinyxml2, which MuJoCo and libsdformat parse
 #: with, stops at 100 or 500 levels (by version); a real model nests tens deep.
