@@ -57,9 +57,9 @@ _EXTERNAL_DTD = (
     "has a DOCTYPE that names an external DTD, which hconv never reads (so any entity it defines "
     "would be lost): remove the DOCTYPE"
 )
+_TOKEN = re.compile(r"\S+")
 # One way to match each number: ``\d+\.?\d*`` had as many as there are digits, and took minutes
 # to refuse a long run of digits that ends in a letter.
-_TOKEN = re.compile(r"\S+")
 _NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
 
 
@@ -342,8 +342,9 @@ def read(path: Path, shown: str, budget: Budget | None = None) -> Node:
         with open(fd, "rb") as f:
             st = os.fstat(fd)
             _check_kind(st, shown)  # what was opened, which is what is read
-            data = f.read(st.st_size + 1)  # + 1: a file that grew since is still cut at MAX_BYTES
-            data += f.read(MAX_BYTES + 1 - len(data)) if len(data) > st.st_size else b""
+            data = f.read(st.st_size + 1)  # its size, and a byte more to see whether it grew since
+            if len(data) > st.st_size:  # it did: on to the limit, beyond which add_bytes refuses it
+                data += f.read(MAX_BYTES + 1 - len(data))
     except OSError as exc:
         raise InputError(f"{shown}: cannot read it ({exc.strerror or exc}); check its permissions") from None
     budget.add_bytes(len(data), shown)
