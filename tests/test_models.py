@@ -501,6 +501,12 @@ def test_read_urdf_duplicate_link_names_are_a_note(tmp_path):
     assert "link 'a' is given 2 times (lines 3, 5); URDF requires unique link names" in m.notes[0]
 
 
+def test_read_urdf_a_link_name_given_many_times_is_a_note_of_one_line(tmp_path):
+    """Before, the note listed every line: a name given a million times, a note of 7 MB."""
+    m = model(tmp_path, "dup.urdf", urdf(*['<link name="a"/>'] * 8))
+    assert "link 'a' is given 8 times (lines 3, 4, 5, 6, 7, … (8 in all)); URDF requires" in m.notes[0]
+
+
 def test_check_no_inertial_in_every_format(tmp_path):
     assert by_name(model(tmp_path, "a.urdf", urdf('<link name="l"/>')))["l"].status == "no_inertial"
     assert by_name(model(tmp_path, "a.sdf", "<sdf><model name='m'><link name='l'/></model></sdf>"))["l"].status == (
