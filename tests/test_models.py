@@ -6,9 +6,11 @@ untrusted input, the round trip into hconv convert, and MuJoCo itself where it i
 from __future__ import annotations
 
 import io
+import itertools
 import math
 import os
 import shutil
+import string
 import subprocess
 import sys
 import time
@@ -499,6 +501,12 @@ def test_read_urdf_duplicate_link_names_are_a_note(tmp_path):
     assert "link 'a' is given 2 times (lines 3, 5); URDF requires unique link names" in m.notes[0]
 
 
+def test_read_urdf_a_link_name_given_many_times_is_a_note_of_one_line(tmp_path):
+    """Before, the note listed every line: a name given a million times, a note of 7 MB."""
+    m = model(tmp_path, "dup.urdf", urdf(*['<link name="a"/>'] * 8))
+    assert "link 'a' is given 8 times (lines 3, 4, 5, 6, 7, … (8 in all)); URDF requires" in m.notes[0]
+
+
 def test_check_no_inertial_in_every_format(tmp_path):
     assert by_name(model(tmp_path, "a.urdf", urdf('<link name="l"/>')))["l"].status == "no_inertial"
     assert by_name(model(tmp_path, "a.sdf", "<sdf><model name='m'><link name='l'/></model></sdf>"))["l"].status == (
@@ -752,11 +760,279 @@ def test_read_refuses_a_file_beyond_the_size_limit(tmp_path, monkeypatch):
         models.read_model(path)
 
 
-def test_read_deep_nesting_needs_no_recursion(tmp_path):
-    depth = 5000
+def test_read_deep_nesting_to_the_limit_needs_no_recursion_and_beyond_it_is_one_line(tmp_path):
+    """<mujoco>, <worldbody>, bodies and the last one's <inertial>: MAX_DEPTH elements deep; one more is refused, as
+    tinyxml2 (MuJoCo's and libsdformat's parser) refuses it, at the line of the element too deep."""
     inertial = "<inertial pos='0 0 0' mass='1' diaginertia='1 1 1'/>"
-    text = mjcf("<body>" + inertial + "".join("<body>" + inertial for _ in range(depth)) + "</body>" * (depth + 1))
-    assert len(model(tmp_path, "deep.xml", text).bodies) == depth + 1
+
+    def nested(bodies):
+        return mjcf("".join("<body>" + inertial + "\n" for _ in range(bodies)) + "</body>" * bodies)
+
+    depth = modelxml.MAX_DEPTH - 3
+    assert len(model(tmp_path, "deep.xml", nested(depth)).bodies) == depth
+    with pytest.raises(InputError) as e:
+        model(tmp_path, "deeper.xml", nested(depth + 1))
+    msg = str(e.value)
+    assert f"deeper.xml, line {depth + 1}: nests elements more than {modelxml.MAX_DEPTH} deep" in msg
+    assert "\n" not in msg
+
+
+# --- hostile files: bounded time, memory and output ------------------------------------------
+
+#: The memory bound README states for reading a model ("A robot model's inertias"): 40 bytes per
+#: byte of the model, 2 KiB per element, and 1 MiB. Measured here as the peak of Python's
+#: allocations while reading (tracemalloc: numpy's arrays included), on the shapes that cost most:
+#: the most per byte is an element of many short attributes (` abc=''`, 8 bytes), some 220 bytes
+#: each in expat's tables and Python's dict; the most per element an unnamed MJCF body, 1.8 KiB.
+MEMORY_PER_BYTE, MEMORY_PER_ELEMENT, MEMORY_BASE = 40, 2048, 1 << 20
+
+
+def peak_reading(path: Path) -> tuple[int, str]:
+    """The peak of Python's allocations while ``read_model(path)`` runs, and its error ("" if none)."""
+    import tracemalloc
+
+    tracemalloc.start()
+    try:
+        try:
+            models.read_model(path)
+            said = ""
+        except InputError as e:
+            said = str(e)
+        return tracemalloc.get_traced_memory()[1], said
+    finally:
+        tracemalloc.stop()
+
+
+def assert_within_memory_bound(path: Path) -> str:
+    text = path.read_text()
+    elements = text.count("<") - text.count("</")  # a start tag each: generated files have no comments
+    bound = MEMORY_PER_BYTE * len(text) + MEMORY_PER_ELEMENT * elements + MEMORY_BASE
+    peak, said = peak_reading(path)
+    assert peak <= bound, f"{path.name}: {peak / 1e6:.1f} MB > {bound / 1e6:.1f} MB ({said[:200]})"
+    return said
+
+
+def test_read_mjcf_include_symlink_loop_is_one_line_naming_the_link(tmp_path):
+    """Before: "internal error: RuntimeError: Symlink loop from ...", exit 1."""
+    main = tmp_path / "m.xml"
+    main.write_text("<mujoco><worldbody>\n<include file='a.xml'/></worldbody></mujoco>")
+    os.symlink("b.xml", tmp_path / "a.xml")
+    os.symlink("a.xml", tmp_path / "b.xml")
+    proc = run_hconv("bodies", str(main))
+    err = proc.stderr.decode()
+    assert proc.returncode == 3 and err.count("\n") == 1, err
+    assert err.startswith(
+        f"hconv: error: {main}, line 2, <include> names 'a.xml' ({tmp_path / 'a.xml'}), a symbolic link that leads "
+        "back to itself (a loop); point the link at the file"
+    )
+
+
+@pytest.mark.parametrize("kind", ["directory", "fifo", "device", "unreadable"])
+def test_read_mjcf_include_of_what_is_not_a_file_names_the_include_without_blocking(tmp_path, kind, monkeypatch):
+    """Before, the message named only the included path ("parts: is a directory"), not the
+    include to fix. Unreadable: permission denied, made so for root too (whom it never denies)."""
+    target = tmp_path / "parts"
+    if kind == "unreadable":
+        target.write_text("<mujoco/>")
+        os_open = os.open
+
+        def denied(path, *args, **kwargs):
+            if os.fspath(path) == str(target):
+                raise PermissionError(13, "Permission denied", str(path))
+            return os_open(path, *args, **kwargs)
+
+        monkeypatch.setattr(os, "open", denied)
+    elif kind == "directory":
+        target.mkdir()
+    elif kind == "fifo":
+        os.mkfifo(target)
+    else:
+        try:
+            os.mknod(target, 0o600 | __import__("stat").S_IFCHR, os.makedev(1, 5))  # as /dev/zero
+        except PermissionError:
+            pytest.skip("making a device needs root")
+    main = tmp_path / "m.xml"
+    main.write_text("<mujoco><worldbody>\n\n<include file='parts'/></worldbody></mujoco>")
+    with pytest.raises(InputError) as e:
+        models.read_model(main)
+    msg = str(e.value)
+    want = {
+        "directory": "which is a directory",
+        "unreadable": "which cannot be read: Permission denied; check its permissions",
+    }.get(kind, "which is not a regular file (a pipe or a device)")
+    assert msg.startswith(f"{main}, line 3, <include> names 'parts'") and want in msg and "\n" not in msg
+
+
+def test_read_mjcf_include_counts_toward_the_size_limit(tmp_path, monkeypatch):
+    """Each file within MAX_BYTES, the model with its includes beyond it: before, read whole."""
+    (tmp_path / "m.xml").write_text("<mujoco><worldbody><include file='a.xml'/></worldbody></mujoco>")
+    (tmp_path / "a.xml").write_text("<mujoco><body name='b'/><body name='c'/></mujoco>")
+    monkeypatch.setattr(modelxml, "MAX_BYTES", 100)
+    with pytest.raises(InputError) as e:
+        models.read_model(tmp_path / "m.xml")
+    assert str(e.value).startswith(f"a.xml: brings the model {tmp_path / 'm.xml'} with its includes to ")
+    assert "larger than any model hconv reads" in str(e.value)
+
+
+def test_read_refuses_more_elements_than_the_limit_with_its_includes(tmp_path, monkeypatch):
+    monkeypatch.setattr(modelxml, "MAX_ELEMENTS", 10)
+    (tmp_path / "m.xml").write_text("<mujoco><worldbody><include file='a.xml'/></worldbody></mujoco>")
+    (tmp_path / "a.xml").write_text("<mujoco>\n" + "<body/>\n" * 8 + "</mujoco>")
+    with pytest.raises(InputError) as e:
+        models.read_model(tmp_path / "m.xml")
+    assert str(e.value) == (
+        f"a.xml, line 8: brings the model {tmp_path / 'm.xml'} to more than 10 elements, more than any model "
+        "hconv reads; is it a model?"
+    )
+
+
+def test_read_sdf_nested_2000_deep_is_refused_in_bounded_memory(tmp_path):
+    """20,000 nested <model>s (2.8 MB) took 1.5 GB: each link's name is the names of all the
+    models around it (m0::m1::...::l). Nesting deeper than tinyxml2 reads is refused now."""
+    n = 2000
+    inertial = "<inertial><mass>1</mass><inertia><ixx>1</ixx><iyy>1</iyy><izz>1</izz></inertia></inertial>"
+    path = tmp_path / "nested.sdf"
+    path.write_text(
+        "<sdf version='1.9'>\n"
+        + "".join(f"<model name='m{k}'><link name='l'>{inertial}</link>\n" for k in range(n))
+        + "</model>" * n
+        + "</sdf>"
+    )
+    said = assert_within_memory_bound(path)
+    assert said == (
+        f"{path}, line {modelxml.MAX_DEPTH - 3}: nests elements more than {modelxml.MAX_DEPTH} deep, deeper than any "
+        "model (MuJoCo and libsdformat refuse it too); is it a model?"
+    )
+
+
+@pytest.mark.parametrize(
+    "name, text",
+    [
+        (  # names as long as the file allows, nested as deep as it allows: 90 MB of names before
+            "scoped.sdf",
+            "<sdf>"
+            + "".join(f"<model name='{k:04}{'m' * 2000}'><link name='l'/>" for k in range(300))
+            + "</model>" * 300
+            + "</sdf>",
+        ),
+        (  # an unnamed body is named by its parent's path: 100 MB of names from 64 kB before
+            "unnamed.xml",
+            f"<mujoco><worldbody><body name='{'b' * 50_000}'>" + "<body/>" * 2000 + "</body></worldbody></mujoco>",
+        ),
+    ],
+)
+def test_read_body_names_made_by_nesting_are_bounded_by_the_file(tmp_path, name, text):
+    path = tmp_path / name
+    path.write_text(text)
+    said = assert_within_memory_bound(path)
+    assert "which brings the body names hconv makes from the nesting to more than" in said, said
+    assert len(said) < 500 and "…" in said and "\n" not in said
+
+
+def test_read_a_long_value_is_refused_in_bounded_memory_and_quoted_short(tmp_path):
+    """A 60 MB attribute of numbers took 1.9 GB and 50 s, and its one-line error repeated the
+    whole attribute (63 MB of stderr). Now one more number than it takes is read."""
+    path = tmp_path / "long.urdf"
+    path.write_text(urdf(f'<link name="a"><inertial><mass value="{"1 " * 1_000_000}"/></inertial></link>'))
+    said = assert_within_memory_bound(path)
+    assert said.startswith(f"{path}, line 3, <mass> attribute value holds more than 1 numbers ('1 1 1 ")
+    assert "…" in said and len(said) < 300, said[:300]
+
+
+@pytest.mark.parametrize(
+    "value, says",
+    [
+        ("x" * 100_000, "holds 'xxxxxxxx"),  # not a number
+        ("1" * 100_000, "holds 11111111"),  # beyond a float
+        ("1 2" + " 3" * 100_000, "holds more than 3 numbers"),
+    ],
+)
+def test_read_quotes_at_most_80_characters_of_a_value(tmp_path, value, says):
+    path = tmp_path / "q.urdf"
+    path.write_text(urdf(f'<link name="a"><inertial><origin xyz="{value}"/><mass value="1"/></inertial></link>'))
+    with pytest.raises(InputError) as e:
+        models.read_model(path)
+    msg = str(e.value)
+    assert says in msg and "…" in msg and len(msg) < len(str(path)) + 250, msg[:300]
+
+
+def test_quote_keeps_the_start_and_the_end_within_80_characters():
+    assert modelxml.quote("abc") == "'abc'"
+    long = "a" * 100 + "\n" + "z" * 100
+    assert modelxml.clip(long) == "a" * 53 + "…" + "z" * 26 and len(modelxml.clip(long)) == modelxml.QUOTED
+    assert modelxml.quote(long) == repr("a" * 53 + "…" + "z" * 26)
+
+
+def test_cli_bodies_strict_names_a_long_body_name_short(tmp_path):
+    path = tmp_path / "long.urdf"
+    path.write_text(urdf(f'<link name="{"n" * 100_000}"/>'))
+    proc = run_hconv("bodies", str(path), "--strict")
+    err = proc.stderr.decode()
+    assert proc.returncode == 5 and err.count("\n") == 1 and len(err) < 300, err[:300]
+    assert "1 of 1 bodies are not ok (--strict): nnnn" in err and "… (no_inertial)" not in err[:50]
+
+
+def test_read_a_run_of_digits_that_ends_in_a_letter_is_refused_in_linear_time(tmp_path):
+    """The number pattern had as many ways to match a run of digits as it has digits: refusing
+    100,000 digits and a letter took longer than run_hconv's 120 s timeout (a generous bound,
+    that a loaded machine cannot reach: it takes about a second now)."""
+    path = tmp_path / "digits.urdf"
+    path.write_text(urdf(f'<link name="a"><inertial><mass value="{"1" * 100_000}x"/></inertial></link>'))
+    proc = run_hconv("bodies", str(path))
+    err = proc.stderr.decode()
+    assert proc.returncode == 3 and "which is not a number" in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize(
+    "shape",
+    [
+        "<robot name='r'>" + "<a/>" * 20_000 + "</robot>",
+        "<robot name='r'>" + "<link name='x'/>" * 3_000 + "</robot>",
+        "<mujoco><worldbody>" + "<body/>" * 3_000 + "</worldbody></mujoco>",
+        "<mujoco><worldbody>" + "<body><body>" * 240 + "</body></body>" * 240 + "</worldbody></mujoco>",
+        "<sdf><model name='m'>" + "<link name='l'><inertial auto='true'/></link>" * 2_000 + "</model></sdf>",
+        "<robot " + " ".join(f"{''.join(n)}=''" for n in itertools.product(string.ascii_letters, repeat=3)) + "/>",
+    ],
+    ids=["elements", "links", "bodies", "nested_bodies", "sdf_links", "attributes"],
+)
+def test_read_a_model_within_the_limits_stays_within_the_memory_bound(tmp_path, shape):
+    """Before, every file read took a 64 MiB buffer, whatever its size."""
+    path = tmp_path / ("m.xml" if shape.startswith("<mujoco") else "m.sdf" if shape.startswith("<sdf") else "m.urdf")
+    path.write_text(shape)
+    assert_within_memory_bound(path)
+
+
+def test_read_sdf_frames_are_placed_once_each(tmp_path, monkeypatch):
+    """Each link placed relative to the head of a chain of frames walked the whole chain, and
+    built the model's table of names again: quadratic in the links."""
+    n = 200
+    frames = "".join(f"<frame name='f{k}' attached_to='f{k + 1}'><pose>0 0 1 0 0 0</pose></frame>" for k in range(n))
+    links = "".join(
+        f"<link name='l{k}'><inertial><pose relative_to='f0'/><mass>1</mass></inertial></link>" for k in range(n)
+    )
+    path = tmp_path / "chain.sdf"
+    path.write_text(f"<sdf><model name='m'>{frames}<frame name='f{n}'/>{links}</model></sdf>")
+    poses = []
+    pose_of = models._sdf_pose
+    monkeypatch.setattr(models, "_sdf_pose", lambda node: poses.append(node) or pose_of(node))
+    bodies = models.read_model(path).bodies
+    assert len(bodies) == n and all(b.status == "ok" for b in bodies)
+    np.testing.assert_allclose(bodies[-1].p_BC_B, [0.0, 0.0, n])
+    assert len(poses) <= 3 * (n + 1) + n  # each frame and link once, each inertial once
+
+
+def test_read_sdf_a_chain_through_many_nested_models_is_unresolved_not_a_crash(tmp_path):
+    """Nested model k placed relative to a link of model k + 1, 1,500 times: Python's stack
+    overflowed (internal error: RecursionError)."""
+    n = 1500
+    chain = "".join(f"<model name='m{k}'><pose relative_to='m{k + 1}::l'/><link name='l'/></model>" for k in range(n))
+    path = tmp_path / "siblings.sdf"
+    path.write_text(
+        f"<sdf><model name='top'>{chain}<model name='m{n}'><link name='l'/></model>"
+        "<link name='a'><inertial><pose relative_to='m0::l'/><mass>1</mass></inertial></link></model></sdf>"
+    )
+    a = by_name(models.read_model(path))["a"]
+    assert a.status == "unresolved_frame" and "passes through more than 200 frames of nested models" in a.reason
 
 
 # --- output ----------------------------------------------------------------------------------
@@ -846,6 +1122,29 @@ def test_show_lists_bodies_whose_names_do_not_fit(tmp_path):
     text = buf.getvalue()
     assert max(len(line) for line in text.splitlines()) <= 80
     assert long in text.splitlines() and "not_physical" in text
+
+
+def test_show_more_bodies_than_a_table_shows_is_tab_separated_on_a_terminal(tmp_path, monkeypatch):
+    """rich laid a table out at milliseconds a row: a model of a million bodies took an hour."""
+    monkeypatch.setattr(modelview, "MAX_TABLE", 2)
+    m = model(tmp_path, "b.xml", mjcf("<body name='a'/><body name='b'/><body name='c'/>"))
+    buf = io.StringIO()
+    modelview.show(m, Console(file=buf, width=80, force_terminal=True, color_system=None))
+    lines = buf.getvalue().splitlines()
+    assert lines[2] == "# more bodies than a table shows (2): tab-separated text"
+    assert [line.split("\t")[0] for line in lines[3:]] == ["body", "a", "b", "c"]
+
+
+@pytest.mark.parametrize("terminal", [False, True])
+def test_show_escapes_a_tab_or_newline_in_a_name(tmp_path, terminal):
+    """A name with &#9; or &#10; split its row into columns or lines of their own."""
+    m = model(tmp_path, "n.urdf", urdf('<link name="a&#9;b&#10;c"/>', '<link name="d"/>'))
+    buf = io.StringIO()
+    modelview.show(m, Console(file=buf, width=120, force_terminal=terminal, color_system=None))
+    text = buf.getvalue()
+    assert "a\\tb\\nc" in text and "\tb" not in text and "\nc" not in text
+    if not terminal:
+        assert [line.count("\t") for line in text.splitlines() if not line.startswith("#")] == [6, 6, 6]
 
 
 # --- the command -----------------------------------------------------------------------------

@@ -829,7 +829,9 @@ def bodies_cmd(
             for note in m.notes:
                 print(f"note: {note}", file=sys.stderr)
     if strict and bad:
-        first = ", ".join(f"{b.name} ({b.status})" for b in bad[:5])
+        from hconv.tools.modelxml import clip
+
+        first = ", ".join(f"{clip(b.name)} ({b.status})" for b in bad[:5])  # a name can be megabytes long
         raise StrictError(
             f"{len(bad)} of {len(m.bodies)} bodies are not ok (--strict): {first}"
             + ("; nothing was written" if dst is not None else "")

@@ -5,7 +5,8 @@ On a terminal it is a rich table that fits the width without cutting a name or a
 table too wide for it becomes a list, one body per paragraph), and the reasons wrap at spaces.
 Anywhere else (a pipe, a file) it is tab-separated text with a header line and the reason as the
 last column; every other line starts with ``#``, so that ``cut``, ``awk -F'\\t'`` and ``grep``
-read it.
+read it. So is a model of more than :data:`MAX_TABLE` bodies on a terminal too: rich lays a
+table out at some milliseconds a row, an hour for the million bodies a model may have.
 """
 
 from __future__ import annotations
@@ -22,14 +23,25 @@ from hconv import report
 from hconv.tools.models import Body, Model
 
 _HEADERS = ("body", "m kg", "I1 kg·m²", "I2 kg·m²", "I3 kg·m²", "status")
+#: The most bodies shown as a table on a terminal (a robot has tens to hundreds; docs/measurements.md).
+MAX_TABLE = 2000
 
 
 def _g(x: float) -> str:
     return "-" if x != x else f"{x:.4g}"
 
 
+#: A name's tab, newline or carriage return (written in the file as &#9;, &#10;, &#13;) as its
+#: escape: written out, it would split the body's row into columns or lines of its own.
+_ESCAPES = str.maketrans({"\t": "\\t", "\n": "\\n", "\r": "\\r"})
+
+
+def _cell(name: str) -> str:
+    return name.translate(_ESCAPES)
+
+
 def _cells(b: Body) -> list[str]:
-    return [b.name, _g(b.m), *(_g(float(s)) for s in b.moments), b.status]
+    return [_cell(b.name), _g(b.m), *(_g(float(s)) for s in b.moments), b.status]
 
 
 def summary_line(model: Model) -> str:
@@ -44,13 +56,15 @@ def show(model: Model, console: Console | None = None) -> None:
     console = console or Console()
     title = f"hconv bodies · {model.path} ({model.format}) · {summary_line(model)}"
     principal = "I1 <= I2 <= I3: principal moments about the centre of mass"
-    if not console.is_terminal:
+    if not console.is_terminal or len(model.bodies) > MAX_TABLE:
         out = console.file
         out.write(f"# {title}\n# {principal}\n")
+        if console.is_terminal:
+            out.write(f"# more bodies than a table shows ({MAX_TABLE:,}): tab-separated text\n")
         out.write("\t".join(["body", "m", "I1", "I2", "I3", "status", "reason"]) + "\n")
         for b in model.bodies:
             numbers = [repr(float(x)) for x in (b.m, *b.moments)]
-            out.write("\t".join([b.name, *numbers, b.status, " ".join(b.reason.split())]) + "\n")
+            out.write("\t".join([_cell(b.name), *numbers, b.status, " ".join(b.reason.split())]) + "\n")
         for note in model.notes:
             out.write(f"# note: {' '.join(note.split())}\n")
         return
@@ -73,7 +87,7 @@ def show(model: Model, console: Console | None = None) -> None:
     for b in model.bodies:
         if b.reason:
             line = Text()
-            line.append(b.name, style="bold")
+            line.append(_cell(b.name), style="bold")
             line.append(f" ({b.status}): {b.reason}")
             report.note(console, line)
     for note in model.notes:

@@ -42,7 +42,7 @@ from hconv.kernels.inertia import Sym3, principal_frame
 from hconv.solve import forms, status, units
 from hconv.solve.options import check_choice
 from hconv.tables.sets import VECTOR_SETS
-from hconv.tools.modelxml import Node, error, expand_includes, read
+from hconv.tools.modelxml import Budget, Node, clip, error, expand_includes, quote, read
 
 if TYPE_CHECKING:
     import pyarrow as pa
@@ -68,7 +68,7 @@ REASON_COLUMN = "inertia_reason"
 _ORIENTATIONS = ("quat", "axisangle", "euler", "xyaxes", "zaxis")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Body:
     """One body of a model: its inertia about its centre of mass, in its own frame, and its status.
 
@@ -136,7 +136,8 @@ def read_model(path: str | os.PathLike) -> Model:
     """Read the bodies of a URDF, SDF or MJCF model (told apart by the root element) and check
     each one; InputError (one line: file, line, element and the fix) for a file it cannot read."""
     shown = os.fspath(path)
-    root = read(Path(path), shown)
+    budget = Budget(shown)
+    root = read(Path(path), shown, budget)
     readers = {"robot": ("URDF", _urdf), "sdf": ("SDF", _sdf), "mujoco": ("MJCF", _mjcf)}
     if root.tag not in readers:
         raise error(
@@ -145,7 +146,7 @@ def read_model(path: str | os.PathLike) -> Model:
             "give a URDF (<robot>), SDF (<sdf>) or MJCF (<mujoco>) file",
         )
     fmt, reader = readers[root.tag]
-    raws, notes = reader(root, Path(path), shown)
+    raws, notes = reader(root, Path(path), shown, budget)
     return Model(shown, fmt, tuple(_check(raws)), tuple(notes))
 
 
@@ -232,7 +233,7 @@ def _unit(v: list[float], node: Node, what: str) -> np.ndarray:
 # --- what the readers hand over ----------------------------------------------------------
 
 
-@dataclass
+@dataclass(slots=True)
 class _Raw:
     """A body as read: the inertial's numbers in its own frame, or why there are none."""
 
@@ -267,10 +268,16 @@ def _name(node: Node, what: str) -> str:
     return name
 
 
+def _lines(at: list[int]) -> str:
+    """``3, 9, 12``; the first five and the count when there are more: a note stays a line."""
+    shown = ", ".join(map(str, at[:5]))
+    return shown if len(at) <= 5 else f"{shown}, … ({len(at):,} in all)"
+
+
 # --- URDF ----------------------------------------------------------------------------------
 
 
-def _urdf(root: Node, path: Path, shown: str) -> tuple[list[_Raw], list[str]]:
+def _urdf(root: Node, path: Path, shown: str, budget: Budget) -> tuple[list[_Raw], list[str]]:
     # Only an unexpanded macro counts: many URDFs made by xacro keep its namespace declaration.
     xacro = next((n for n in _walk(root) if n.tag.startswith("xacro:")), None)
     if xacro is not None:
@@ -282,7 +289,7 @@ def _urdf(root: Node, path: Path, shown: str) -> tuple[list[_Raw], list[str]]:
     raws = []
     lines: dict[str, list[int]] = {}  # link name -> the lines it is given at
     for link in root.findall("link"):
-        name = _name(link, "link")
+        name = budget.name(_name(link, "link"), link)
         lines.setdefault(name, []).append(link.line)
         inertial = link.find("inertial")
         if inertial is None:
@@ -323,7 +330,7 @@ def _urdf(root: Node, path: Path, shown: str) -> tuple[list[_Raw], list[str]]:
         )
     # Both are listed, as the file gives them, but a parser that keys links by name keeps one
     notes = [
-        f"{shown}: link {name!r} is given {len(at)} times (lines {', '.join(map(str, at))}); URDF requires "
+        f"{shown}: link {quote(name)} is given {len(at)} times (lines {_lines(at)}); URDF requires "
         "unique link names, and urdfdom refuses the model: rename or remove all but one"
         for name, at in lines.items()
         if len(at) > 1
@@ -347,7 +354,7 @@ def _invert(a: _Pose) -> _Pose:
 def _bool(node: Node, name: str) -> bool:
     v = node.attrib.get(name, "false").strip().lower()
     if v not in ("true", "false", "1", "0"):
-        raise error(node, f"has {name}={v!r}", f'write {name}="true" or {name}="false"')
+        raise error(node, f"has {name}={quote(v)}", f'write {name}="true" or {name}="false"')
     return v in ("true", "1")
 
 
@@ -366,87 +373,151 @@ def _sdf_pose(owner: Node) -> tuple[_Pose, str | None]:
         v = pose.numbers("", (7,), "0 0 0 0 0 0 1") or [0.0] * 6 + [1.0]
         q = _unit([v[6], v[3], v[4], v[5]], pose, "quaternion")
         return (np.asarray(v[:3]), _matrix(q)), ref
-    raise error(pose, f"has rotation_format={kind!r}", 'write rotation_format="euler_rpy" or "quat_xyzw"')
+    raise error(pose, f"has rotation_format={quote(kind)}", 'write rotation_format="euler_rpy" or "quat_xyzw"')
 
 
 class _UnresolvedError(Exception):
     """An SDF frame hconv cannot place; the message says which and why."""
 
 
-def _sdf_in_model(model: Node, name: str, outer: tuple = ()) -> _Pose:
-    """The pose of frame ``name`` (a link, frame, joint or nested model of ``model``, or
-    ``__model__``; ``inner::name`` a frame of the nested model ``inner``, as SDF scopes names) in
-    ``model``'s frame, following relative_to and attached_to. ``outer``: the (model, frame) pairs
-    being placed further up, so that a nested model placed relative to its own frame is a cycle."""
-    if (id(model), name) in outer:
-        raise _UnresolvedError(f"frame {name!r} is placed relative to itself through a nested model: a cycle")
-    outer = (*outer, (id(model), name))
-    elements = {
-        c.attrib.get("name", "").strip(): c for c in model.children if c.tag in ("link", "frame", "joint", "model")
-    }
-    scope = model.attrib.get("name", "").strip()
-    chain: list[_Pose] = []
-    seen: list[str] = []
-    base: _Pose = (np.zeros(3), np.eye(3))  # where the chain ends: the model's frame, or a nested model's frame
-    while name != "__model__":
-        if "::" in name:
-            inner, _, rest = name.partition("::")
-            sub = elements.get(inner)
-            if sub is None or sub.tag != "model":
+class _TooDeepError(_UnresolvedError):
+    """Placing a frame passed through more than :data:`_MAX_NESTED` nested models' frames: not
+    the frame's own failing, since from a frame further down the chain the rest may be short."""
+
+
+#: The most frames of nested models that placing one frame may pass through (``a::b::link``, or a
+#: nested model placed relative to a frame of another): models nest a few deep, and each is a
+#: level of recursion here, which must stay within Python's stack.
+_MAX_NESTED = 200
+_Path = tuple[str, ...]  # a frame's name split at "::": ("inner", "link") is link in nested model inner
+_MODEL: _Path = ("__model__",)
+
+
+class _Frames:
+    """The SDF frames of a file placed in their models' frames, each frame once: a file of many
+    links relative to the end of a long chain of frames is placed in time linear in its size."""
+
+    def __init__(self) -> None:
+        self._elements: dict[int, dict[str, Node]] = {}
+        self._placed: dict[tuple[int, _Path], _Pose | str] = {}  # a pose, or why there is none
+
+    def place(self, model: Node, path: _Path, outer: tuple = ()) -> _Pose:
+        """The pose of frame ``path`` (a link, frame, joint or nested model of ``model``, or
+        ``__model__``; ``("inner", "name")`` a frame of the nested model ``inner``, as SDF scopes
+        names) in ``model``'s frame, following relative_to and attached_to. ``outer``: the
+        (model, frame) pairs being placed further up, so that a nested model placed relative to
+        its own frame is a cycle."""
+        got = self._placed.get((id(model), path))
+        if isinstance(got, str):
+            raise _UnresolvedError(got)
+        return got if got is not None else self._place(model, path, outer)
+
+    def _elements_of(self, model: Node) -> dict[str, Node]:
+        if id(model) not in self._elements:
+            self._elements[id(model)] = {
+                c.attrib.get("name", "").strip(): c
+                for c in model.children
+                if c.tag in ("link", "frame", "joint", "model")
+            }
+        return self._elements[id(model)]
+
+    def _place(self, model: Node, path: _Path, outer: tuple) -> _Pose:
+        seen: list[_Path] = []  # the frames of model walked, from path on
+        try:
+            if (id(model), path) in outer:
                 raise _UnresolvedError(
-                    f"frame {name!r} names {inner!r}, which is not a model nested in model {scope!r} "
-                    "(SDF names reach only into nested models, never out to an enclosing one)"
+                    f"frame {quote('::'.join(path))} is placed relative to itself through a nested model: a cycle"
                 )
-            # the nested model's frame in this one, then the frame in the nested model's
-            base = _compose(_sdf_in_model(model, inner, outer), _sdf_in_model(sub, rest, outer))
-            break
-        if name == "world":
-            raise _UnresolvedError("frame 'world': hconv reads no model's place in a world")
-        if name in seen:
-            raise _UnresolvedError(f"frames {' → '.join([*seen, name])} form a cycle")
-        node = elements.get(name)
-        if node is None:
-            raise _UnresolvedError(
-                f"there is no frame {name!r} in model {scope!r} (SDF resolves a name in the model that "
-                "holds it, and in nested models as inner::name)"
-            )
-        seen.append(name)
-        pose, ref = _sdf_pose(node)
-        chain.append(pose)
-        if ref is None:
-            if node.tag == "frame":
-                ref = node.attrib.get("attached_to", "").strip() or None
-            elif node.tag == "joint":
-                child = node.find("child")
-                ref = child.text.strip() if child is not None else None
-        name = ref or "__model__"
-    out = base
-    for pose in reversed(chain):
-        out = _compose(out, pose)
-    return out
+            if len(outer) >= _MAX_NESTED:
+                raise _TooDeepError(
+                    f"placing it passes through more than {_MAX_NESTED} frames of nested models; hconv follows "
+                    f"{_MAX_NESTED}"
+                )
+            outer = (*outer, (id(model), path))
+            elements = self._elements_of(model)
+            scope = model.attrib.get("name", "").strip()
+            chain: list[_Pose] = []
+            walked: set[_Path] = set()
+            base: _Pose = (np.zeros(3), np.eye(3))  # where the chain ends: the model's frame, or another's
+            while path != _MODEL:
+                got = self._placed.get((id(model), path)) if seen else None
+                if got is not None:  # placed before: the chain ends there
+                    if isinstance(got, str):
+                        raise _UnresolvedError(got)
+                    base = got
+                    break
+                if len(path) > 1:
+                    sub = elements.get(path[0])
+                    if sub is None or sub.tag != "model":
+                        raise _UnresolvedError(
+                            f"frame {quote('::'.join(path))} names {quote(path[0])}, which is not a model nested in "
+                            f"model {quote(scope)} (SDF names reach only into nested models, never out to an "
+                            "enclosing one)"
+                        )
+                    # the nested model's frame in this one, then the frame in the nested model's
+                    base = _compose(self.place(model, path[:1], outer), self.place(sub, path[1:], outer))
+                    break
+                name = path[0]
+                if name == "world":
+                    raise _UnresolvedError("frame 'world': hconv reads no model's place in a world")
+                if path in walked:
+                    cycle = " → ".join(p[0] for p in [*seen, path])
+                    raise _UnresolvedError(f"frames {clip(cycle)} form a cycle")
+                node = elements.get(name)
+                if node is None:
+                    raise _UnresolvedError(
+                        f"there is no frame {quote(name)} in model {quote(scope)} (SDF resolves a name in the "
+                        "model that holds it, and in nested models as inner::name)"
+                    )
+                seen.append(path)
+                walked.add(path)
+                pose, ref = _sdf_pose(node)
+                chain.append(pose)
+                if ref is None:
+                    if node.tag == "frame":
+                        ref = node.attrib.get("attached_to", "").strip() or None
+                    elif node.tag == "joint":
+                        child = node.find("child")
+                        ref = child.text.strip() if child is not None else None
+                path = tuple(ref.split("::")) if ref else _MODEL
+        except _UnresolvedError as exc:
+            if isinstance(exc, _TooDeepError):
+                raise  # kept for no frame: see _TooDeepError
+            for p in seen or [path]:  # each frame of the chain fails the same way: walked once
+                self._placed[(id(model), p)] = str(exc)
+            raise
+        out = base
+        for p, pose in zip(reversed(seen), reversed(chain)):
+            out = _compose(out, pose)
+            self._placed[(id(model), p)] = out
+        return out
 
 
-def _sdf(root: Node, path: Path, shown: str) -> tuple[list[_Raw], list[str]]:
+def _sdf(root: Node, path: Path, shown: str, budget: Budget) -> tuple[list[_Raw], list[str]]:
     notes = []
     tops = root.findall("model") + [m for w in root.findall("world") for m in w.findall("model")]
     for n in _walk(root):
         if n.tag == "include":
             uri = n.find("uri")
             notes.append(
-                f"{n.where}: hconv does not follow SDF includes ({uri.text.strip() if uri is not None else 'no uri'}); "
+                f"{n.where}: hconv does not follow SDF includes "
+                f"({quote(uri.text.strip()) if uri is not None else 'no uri'}); "
                 "run hconv bodies on the included model's file"
             )
-    work = [(m, "" if len(tops) == 1 else _name(m, "model") + "::") for m in tops]
+    frames = _Frames()
+    # depth first, in the file's order; a stack, not a queue: popping a list's front is quadratic
+    work = [(m, "" if len(tops) == 1 else _name(m, "model") + "::") for m in reversed(tops)]
     raws = []
     while work:
-        model, prefix = work.pop(0)
+        model, prefix = work.pop()
         for link in model.findall("link"):
-            raws.append(_sdf_link(model, link, prefix + _name(link, "link"), shown))
-        work[:0] = [(sub, prefix + _name(sub, "model") + "::") for sub in model.findall("model")]
+            name = budget.name(prefix + _name(link, "link"), link)
+            raws.append(_sdf_link(model, link, name, shown, frames))
+        work.extend((sub, prefix + _name(sub, "model") + "::") for sub in reversed(model.findall("model")))
     return raws, notes
 
 
-def _sdf_link(model: Node, link: Node, name: str, shown: str) -> _Raw:
+def _sdf_link(model: Node, link: Node, name: str, shown: str, frames: _Frames) -> _Raw:
     inertial = link.find("inertial")
     if inertial is None:
         return _Raw(
@@ -466,10 +537,10 @@ def _sdf_link(model: Node, link: Node, name: str, shown: str) -> _Raw:
     pose, ref = _sdf_pose(inertial)
     if ref is not None and ref != link.attrib.get("name", "").strip():
         try:
-            link_in_model = _sdf_in_model(model, link.attrib["name"].strip())
-            pose = _compose(_compose(_invert(link_in_model), _sdf_in_model(model, ref)), pose)
+            link_in_model = frames.place(model, (link.attrib["name"].strip(),))
+            pose = _compose(_compose(_invert(link_in_model), frames.place(model, tuple(ref.split("::")))), pose)
         except _UnresolvedError as exc:
-            why = f"the inertial's pose is relative to {ref!r}: {exc}"
+            why = f"the inertial's pose is relative to {quote(ref)}: {exc}"
             return _Raw(name, source, status="unresolved_frame", notes=[why])
     notes = []
     mass = inertial.find("mass")
@@ -511,16 +582,16 @@ def _compiler(root: Node) -> tuple[_Compiler, list[str]]:
         a = c.attrib
         if "angle" in a:
             if a["angle"] not in ("degree", "radian"):
-                raise error(c, f"has angle={a['angle']!r}", 'write angle="degree" or angle="radian"')
+                raise error(c, f"has angle={quote(a['angle'])}", 'write angle="degree" or angle="radian"')
             degrees = a["angle"] == "degree"
         if "eulerseq" in a:
             seq = a["eulerseq"]
             if len(seq) != 3 or any(ch not in "xyzXYZ" for ch in seq):
-                raise error(c, f"has eulerseq={seq!r}", "give three of x, y, z, X, Y, Z, such as xyz or XYZ")
+                raise error(c, f"has eulerseq={quote(seq)}", "give three of x, y, z, X, Y, Z, such as xyz or XYZ")
         if "inertiafromgeom" in a:
             fromgeom = a["inertiafromgeom"]
             if fromgeom not in ("false", "true", "auto"):
-                raise error(c, f"has inertiafromgeom={fromgeom!r}", 'write "false", "true" or "auto"')
+                raise error(c, f"has inertiafromgeom={quote(fromgeom)}", 'write "false", "true" or "auto"')
         if _bool(c, "balanceinertia"):
             notes.append(
                 f'{c.where}: balanceinertia="true": MuJoCo raises the moments of bodies that break the '
@@ -537,8 +608,8 @@ def _compiler(root: Node) -> tuple[_Compiler, list[str]]:
     return _Compiler(degrees, seq, fromgeom), notes
 
 
-def _mjcf(root: Node, path: Path, shown: str) -> tuple[list[_Raw], list[str]]:
-    expand_includes(root, path, shown)
+def _mjcf(root: Node, path: Path, shown: str, budget: Budget) -> tuple[list[_Raw], list[str]]:
+    expand_includes(root, path, shown, budget)
     comp, notes = _compiler(root)
     for n in _walk(root):
         if n.tag in ("replicate", "attach", "composite", "flexcomp"):
@@ -553,7 +624,7 @@ def _mjcf(root: Node, path: Path, shown: str) -> tuple[list[_Raw], list[str]]:
     while stack:
         body, parent, k = stack.pop()
         listed.add(id(body))
-        name = body.attrib.get("name", "").strip() or f"{parent}/body[{k}]"
+        name = budget.name(body.attrib.get("name", "").strip() or f"{parent}/body[{k}]", body)
         raws.append(_mjcf_body(body, name, comp, shown))
         stack.extend(reversed([(c, name, j) for j, c in enumerate(_child_bodies(body), 1)]))
     notes += _misplaced_bodies(root, listed)
@@ -593,7 +664,7 @@ def _misplaced_bodies(root: Node, listed: set[int]) -> list[str]:
 
 def _named(node: Node) -> str:
     name = node.attrib.get("name", "").strip()
-    return f" {name!r}" if name else ""
+    return f" {quote(name)}" if name else ""
 
 
 def _child_bodies(node: Node) -> list[Node]:

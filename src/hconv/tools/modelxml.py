@@ -12,16 +12,26 @@ names the file, the line and the fix):
 * pull in other files, except MJCF's ``<include file=...>``: relative to the main model's folder,
   as MuJoCo resolves it, and only inside that folder; each file at most once (as MuJoCo), which
   also ends cycles. XInclude is not processed and is refused, since ignoring it would drop bodies.
-* exhaust memory: a file larger than :data:`MAX_BYTES` is refused; only regular files are read
-  (not a FIFO or a device, which could block or never end). Trees are walked without recursion,
-  so a deeply nested file cannot overflow Python's stack.
+* exhaust memory or time: a model larger than :data:`MAX_BYTES`, with all it includes, is refused;
+  so is one of more than :data:`MAX_ELEMENTS` elements or nested deeper than :data:`MAX_DEPTH`,
+  and one whose body names (SDF's ``model::link``, MJCF's path of an unnamed body), which grow
+  with the nesting, would add up to more than :func:`Budget.names_allowed`. Within those limits a
+  model takes memory and time linear in its size (README, "A robot model's inertias"). Only
+  regular files are read (not a FIFO or a device, which could block or never end), opened without
+  blocking. Trees are walked without recursion, so a deeply nested file cannot overflow Python's
+  stack.
+* flood the terminal: a message quotes at most :data:`QUOTED` characters of any value from the
+  file (:func:`quote`), so a 60 MB attribute is refused in one short line.
 """
 
 from __future__ import annotations
 
+import errno
+import itertools
 import os
 import re
 import stat
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from xml.parsers import expat
@@ -31,16 +41,85 @@ from hconv.errors import InputError
 #: The largest model file hconv reads [bytes]. Real URDF, SDF and MJCF files are kilobytes to a
 #: few megabytes (meshes live in files of their own); a file beyond this is not a model.
 MAX_BYTES = 64 << 20
+#: The most elements a model, with all it includes, may have. A robot has tens to thousands; a
+#: large simulated world some ten thousand. Each element costs memory (a Node, its attributes;
+#: a body's numbers), so this is what bounds a model of tiny elements (``<a/>``, 4 bytes each);
+#: the figures are in docs/measurements.md.
+MAX_ELEMENTS = 1_000_000
+#: The deepest nesting of elements a file may have. tinyxml2, which MuJoCo and libsdformat parse
+#: with, stops at 100 or 500 levels (by version); a real model nests tens deep.
+MAX_DEPTH = 500
+#: The most characters of a value from a file that a message quotes.
+QUOTED = 80
 
 _XINCLUDE = "http://www.w3.org/2001/XInclude"
 _EXTERNAL_DTD = (
     "has a DOCTYPE that names an external DTD, which hconv never reads (so any entity it defines "
     "would be lost): remove the DOCTYPE"
 )
-_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
+_TOKEN = re.compile(r"\S+")
+# One way to match each number: ``\d+\.?\d*`` had as many as there are digits, and took minutes
+# to refuse a long run of digits that ends in a letter.
+_NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
 
 
-@dataclass
+def clip(text: str, limit: int = QUOTED) -> str:
+    """``text`` whole if it has at most ``limit`` characters, else its start and its end either
+    side of "…" in ``limit`` characters: a value from a file can be megabytes long."""
+    if len(text) <= limit:
+        return text
+    tail = (limit - 1) // 3
+    return f"{text[: limit - 1 - tail]}…{text[len(text) - tail :]}"
+
+
+def quote(value: str) -> str:
+    """``value`` as a message quotes it: in quotes, escaped (so that it stays on one line), and
+    :func:`clip`-ped to :data:`QUOTED` characters. Every message that quotes a value from a model
+    file goes through here."""
+    return repr(clip(value))
+
+
+class Budget:
+    """What a model, with all it includes, has used of hconv's limits (the module's docstring).
+
+    One per model: :func:`read` adds each file's bytes and elements, and the readers of
+    :mod:`hconv.tools.models` each body name they make."""
+
+    def __init__(self, shown: str) -> None:
+        self.shown = shown  #: the main model, as the user named it
+        self.bytes = 0
+        self.elements = 0
+        self.name_chars = 0
+
+    def names_allowed(self) -> int:
+        """The characters that the names of a model's bodies may add up to: four times the
+        bytes read, and a mebibyte. Names that the file spells out fit many times over; only
+        names made by nesting (``a::b::c::link``) can outgrow the file, by its depth."""
+        return 4 * self.bytes + (1 << 20)
+
+    def add_bytes(self, n: int, shown: str) -> None:
+        self.bytes += n
+        if self.bytes > MAX_BYTES:
+            raise InputError(
+                f"{shown}: brings the model {self.shown} with its includes to {self.bytes / (1 << 20):.0f} MiB, "
+                f"larger than any model hconv reads ({MAX_BYTES >> 20} MiB); is it a model (URDF, SDF or MJCF)?"
+            )
+
+    def name(self, name: str, node: Node) -> str:
+        """``name``, counted against :meth:`names_allowed`; InputError at ``node`` beyond it."""
+        self.name_chars += len(name)
+        if self.name_chars > self.names_allowed():
+            raise error(
+                node,
+                f"gets the name {quote(name)} ({len(name):,} characters), which brings the body names "
+                f"hconv makes from the nesting to more than {self.names_allowed():,} characters (four "
+                "times the model's size, and 1 MiB)",
+                "nest models or unnamed bodies less deeply, or name the bodies",
+            )
+        return name
+
+
+@dataclass(slots=True)
 class Node:
     """One XML element: its tag, attributes, child elements, own text, and where it stands."""
 
@@ -54,13 +133,13 @@ class Node:
     @property
     def where(self) -> str:
         """``arm.urdf, line 12, <inertia>``: for messages."""
-        return f"{self.file}, line {self.line}, <{self.tag}>"
+        return f"{self.file}, line {self.line}, <{clip(self.tag)}>"
 
     def find(self, tag: str) -> Node | None:
         """The one child ``tag``, or None; InputError when there are several."""
         found = [c for c in self.children if c.tag == tag]
         if len(found) > 1:
-            raise error(found[1], f"is the second <{tag}> in <{self.tag}>", f"keep one <{tag}>")
+            raise error(found[1], f"is the second <{tag}> in <{clip(self.tag)}>", f"keep one <{tag}>")
         return found[0] if found else None
 
     def findall(self, tag: str) -> list[Node]:
@@ -70,7 +149,7 @@ class Node:
         """Attribute ``name`` as whitespace-separated finite numbers, ``counts`` of them (or the
         text of the element when ``name`` is ``""``); ``default`` when absent, None if that is None."""
         raw = self.text if name == "" else self.attrib.get(name)
-        if raw is None or (name == "" and not raw.strip() and default is not None):
+        if raw is None or (name == "" and (not raw or raw.isspace()) and default is not None):
             raw = default
         if raw is None:
             return None
@@ -91,8 +170,12 @@ def error(node: Node, problem: str, fix: str) -> InputError:
 
 
 def parse_numbers(raw: str, counts: tuple[int, ...], node: Node, what: str) -> list[float]:
-    """``raw`` as ``counts`` finite numbers (decimal notation only: no nan, inf, hex or 1_000)."""
-    tokens = raw.split()
+    """``raw`` as ``counts`` finite numbers (decimal notation only: no nan, inf, hex or 1_000).
+
+    A value of more numbers than it takes is refused after reading one more than it takes, so a
+    60 MB attribute costs a scan, not a list of millions of numbers."""
+    most = max(counts)
+    tokens = [m.group() for m in itertools.islice(_TOKEN.finditer(raw), most + 1)]  # no copy of the rest
     for t in tokens:
         if not _NUMBER.fullmatch(t):
             hint = (
@@ -100,14 +183,22 @@ def parse_numbers(raw: str, counts: tuple[int, ...], node: Node, what: str) -> l
                 if "$" in raw
                 else "write a decimal number such as 0.25 or 1e-3"
             )
-            raise error(node, f"{what} holds {t!r}, which is not a number", hint)
+            raise error(node, f"{what} holds {quote(t)}, which is not a number", hint)
+    want = " or ".join(str(c) for c in counts)
+    if len(tokens) > most:
+        raise error(
+            node,
+            f"{what} holds more than {most} numbers ({quote(clip(raw).strip())}), but takes {want}",
+            "give " + want,
+        )
     values = [float(t) for t in tokens]
     big = next((t for t, v in zip(tokens, values) if not abs(v) < float("inf")), None)
     if big is not None:
-        raise error(node, f"{what} holds {big}, beyond the range of a float", "check the value")
+        raise error(node, f"{what} holds {clip(big)}, beyond the range of a float", "check the value")
     if len(values) not in counts:
-        want = " or ".join(str(c) for c in counts)
-        raise error(node, f"{what} holds {len(values)} numbers ({raw.strip()!r}), but takes {want}", "give " + want)
+        raise error(
+            node, f"{what} holds {len(values)} numbers ({quote(clip(raw).strip())}), but takes {want}", "give " + want
+        )
     return values
 
 
@@ -141,13 +232,15 @@ class _RefusedError(Exception):
     """Raised inside an expat handler; carries the message (the line is the parser's)."""
 
 
-def parse_bytes(data: bytes, shown: str) -> Node:
+def parse_bytes(data: bytes, shown: str, budget: Budget | None = None) -> Node:
     """Parse ``data`` into a tree of :class:`Node`; InputError naming ``shown`` and the line.
 
     Two slips that other model readers (TinyXML, in urdfdom and Bullet) let pass, and that change
     nothing in the content, are forgiven: blank lines before the XML declaration, and NUL bytes
     after the last element (a C string's terminator written out). Lines keep their numbers.
+    ``budget``: the model's, when ``data`` is one of its files (one of its own otherwise).
     """
+    budget = budget or Budget(shown)
     _refuse_declarations(data, shown)
     head = data.lstrip(b" \t\r\n")
     closes = head.find(b"?>")
@@ -166,8 +259,21 @@ def parse_bytes(data: bytes, shown: str) -> Node:
         # element with the fix that works for it (run xacro first); pasting content in would not
         xinclude = tag.endswith(":include") and not tag.startswith("xacro:")
         if xinclude or any(k.startswith("xmlns") and v == _XINCLUDE for k, v in attrib.items()):
-            raise _RefusedError(f"<{tag}> uses XInclude, which hconv does not follow; paste the included content in")
-        node = Node(tag, dict(attrib), shown, p.CurrentLineNumber)
+            raise _RefusedError(
+                f"<{clip(tag)}> uses XInclude, which hconv does not follow; paste the included content in"
+            )
+        if len(stack) >= MAX_DEPTH:
+            raise _RefusedError(
+                f"nests elements more than {MAX_DEPTH} deep, deeper than any model (MuJoCo and libsdformat "
+                "refuse it too); is it a model?"
+            )
+        budget.elements += 1
+        if budget.elements > MAX_ELEMENTS:
+            raise _RefusedError(
+                f"brings the model {budget.shown} to more than {MAX_ELEMENTS:,} elements, more than any model "
+                "hconv reads; is it a model?"
+            )
+        node = Node(tag, attrib, shown, p.CurrentLineNumber)  # expat gives each element a dict of its own
         (stack[-1].children if stack else roots).append(node)
         stack.append(node)
         texts.append([])
@@ -193,7 +299,7 @@ def parse_bytes(data: bytes, shown: str) -> Node:
         raise _RefusedError("refers to an external entity; hconv reads no other files this way: write the values out")
 
     def skipped(name: str, is_parameter: int) -> None:
-        raise _RefusedError(f"uses the entity &{name}; that no part of the file defines; write the value out")
+        raise _RefusedError(f"uses the entity &{clip(name)}; that no part of the file defines; write the value out")
 
     p.StartElementHandler = start
     p.EndElementHandler = end
@@ -218,12 +324,37 @@ def parse_bytes(data: bytes, shown: str) -> Node:
     return roots[0]
 
 
-def read(path: Path, shown: str) -> Node:
-    """Parse the model file at ``path`` (named ``shown`` in messages); InputError with the fix."""
+def read(path: Path, shown: str, budget: Budget | None = None) -> Node:
+    """Parse the model file at ``path`` (named ``shown`` in messages); InputError with the fix.
+    ``budget``: the model's, when the file is one it includes."""
+    budget = budget or Budget(shown)
     try:
         st = os.stat(path)
     except OSError as exc:
         raise InputError(f"{shown}: cannot read it ({exc.strerror or exc}); check the path") from None
+    _check_kind(st, shown)
+    try:
+        # without blocking: a file swapped for a FIFO after the stat above must not hang the open
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    except OSError as exc:
+        raise InputError(f"{shown}: cannot read it ({exc.strerror or exc}); check its permissions") from None
+    try:
+        with open(fd, "rb") as f:
+            st = os.fstat(fd)
+            _check_kind(st, shown)  # what was opened, which is what is read
+            data = f.read(st.st_size + 1)  # its size, and a byte more to see whether it grew since
+            if len(data) > st.st_size:  # it did: on to the limit, beyond which add_bytes refuses it
+                data += f.read(MAX_BYTES + 1 - len(data))
+    except OSError as exc:
+        raise InputError(f"{shown}: cannot read it ({exc.strerror or exc}); check its permissions") from None
+    budget.add_bytes(len(data), shown)
+    if not data.strip():
+        raise InputError(f"{shown}: is empty; give a URDF, SDF or MJCF model")
+    return parse_bytes(data, shown, budget)
+
+
+def _check_kind(st: os.stat_result, shown: str) -> None:
+    """InputError unless ``st`` is a regular file within :data:`MAX_BYTES`."""
     if stat.S_ISDIR(st.st_mode):
         raise InputError(f"{shown}: is a directory; give the model file inside it")
     if not stat.S_ISREG(st.st_mode):
@@ -233,31 +364,31 @@ def read(path: Path, shown: str) -> Node:
             f"{shown}: is {st.st_size / (1 << 20):.0f} MiB, larger than any model file hconv reads "
             f"({MAX_BYTES >> 20} MiB); is it a model (URDF, SDF or MJCF)?"
         )
-    try:
-        with open(path, "rb") as f:
-            data = f.read(MAX_BYTES + 1)
-    except OSError as exc:
-        raise InputError(f"{shown}: cannot read it ({exc.strerror or exc}); check its permissions") from None
-    if not data.strip():
-        raise InputError(f"{shown}: is empty; give a URDF, SDF or MJCF model")
-    return parse_bytes(data, shown)
 
 
-def expand_includes(root: Node, model: Path, shown: str) -> None:
+def expand_includes(root: Node, model: Path, shown: str, budget: Budget | None = None) -> None:
     """Replace every ``<include file=...>`` under ``root`` (read from ``model``) by the children of
     the included file's top element, as MuJoCo does: paths relative to the main model's folder,
-    each file at most once. Walked with a work list, not recursion."""
+    each file at most once. Walked with a work list, not recursion. ``budget``: the model's, which
+    each included file adds to."""
+    budget = budget or Budget(shown)
     folder = model.resolve().parent
     seen = {model.resolve(): shown}
-    work: list[tuple[Node, tuple[Path, ...]]] = [(root, (model.resolve(),))]
+    # the files an element is read from, innermost first: (file, (its includer, (...))), one
+    # pair per include, so that a chain of includes is not a tuple copied at each
+    work: list[tuple[Node, _Chain]] = [(root, (model.resolve(), None))]
     while work:
         node, chain = work.pop()
-        pending = [(c, chain) for c in node.children]
         kept = []
-        k = 0
-        while k < len(pending):
-            child, ch = pending[k]
-            k += 1
+        # the children, each include replaced in place by the included file's: iterators on a
+        # stack, not insertions into a list, which took time quadratic in the includes
+        pending: list[tuple[Iterator[Node], _Chain]] = [(iter(node.children), chain)]
+        while pending:
+            children, ch = pending[-1]
+            child = next(children, None)
+            if child is None:
+                pending.pop()
+                continue
             if child.tag != "include":
                 kept.append(child)
                 work.append((child, ch))
@@ -266,47 +397,94 @@ def expand_includes(root: Node, model: Path, shown: str) -> None:
             if not name or not name.strip():
                 raise error(child, "has no attribute file", 'name the file to include: <include file="parts.xml"/>')
             target = _include_target(child, name, folder)
-            if target in ch:
-                cycle = " → ".join([seen[c] for c in ch[ch.index(target) :]] + [name])
-                raise error(child, f"includes {name!r} again inside itself ({cycle}): a cycle", "remove the include")
-            if target in seen:
+            if target in seen:  # read before: a cycle when it is one of the files this include is in
+                files: list[Path] = []
+                link: _Chain | None = ch
+                while link is not None and not (files and files[-1] == target):
+                    files.append(link[0])
+                    link = link[1]
+                if files[-1] == target:
+                    cycle = " → ".join([seen[c] for c in reversed(files)] + [name])
+                    raise error(
+                        child,
+                        f"includes {quote(name)} again inside itself ({clip(cycle)}): a cycle",
+                        "remove the include",
+                    )
                 raise error(
                     child,
-                    f"includes {name!r}, which {seen[target]!r} already brought in",
+                    f"includes {quote(name)}, which {quote(seen[target])} already brought in",
                     "include each file once (MuJoCo refuses it too)",
                 )
             seen[target] = name
             _check_included(child, name, target, shown)
-            sub = read(target, name)
-            pending[k:k] = [(c, ch + (target,)) for c in sub.children]
+            sub = read(target, name, budget)
+            pending.append((iter(sub.children), (target, ch)))
         node.children = kept
+
+
+_Chain = tuple[Path, "_Chain | None"]
 
 
 def _check_included(node: Node, name: str, target: Path, shown: str) -> None:
     """InputError naming the including file and line when the included file cannot be read:
-    read() alone would name only the missing file, and the user could not tell which include
+    read() alone would name only the included file, and the user could not tell which include
     (of several, perhaps in an included file) to fix."""
+    # where the user looks for it: beside the main model, as they named that
+    expected = os.path.join(os.path.dirname(shown), name)
+    at = f" ({clip(expected)})" if expected != name else ""
     try:
-        os.stat(target)
+        st = os.stat(target)
     except OSError as exc:
-        # where the user looks for it: beside the main model, as they named that
-        expected = os.path.join(os.path.dirname(shown), name)
-        at = f" ({expected})" if expected != name else ""
         raise error(
             node,
-            f"names {name!r}{at}, which cannot be read: {exc.strerror or exc}",
+            f"names {quote(name)}{at}, which cannot be read: {exc.strerror or exc}",
             "includes are relative to the main model's folder, as in MuJoCo: check the path",
+        ) from None
+    if stat.S_ISDIR(st.st_mode):
+        raise error(node, f"names {quote(name)}{at}, which is a directory", "name the model file inside it")
+    if not stat.S_ISREG(st.st_mode):
+        raise error(
+            node,
+            f"names {quote(name)}{at}, which is not a regular file (a pipe or a device)",
+            "include a file that holds the MJCF",
+        )
+    try:
+        os.close(os.open(target, os.O_RDONLY | os.O_NONBLOCK))
+    except OSError as exc:
+        raise error(
+            node, f"names {quote(name)}{at}, which cannot be read: {exc.strerror or exc}", "check its permissions"
         ) from None
 
 
 def _include_target(node: Node, name: str, folder: Path) -> Path:
     if "://" in name or name.startswith(("http:", "https:", "file:")):
-        raise error(node, f"names {name!r}, which is not a file path", "hconv reads no URLs: give a path to a file")
-    target = (folder / name).resolve()
+        raise error(
+            node, f"names {quote(name)}, which is not a file path", "hconv reads no URLs: give a path to a file"
+        )
+    try:
+        target = (folder / name).resolve()
+    except RuntimeError:  # Python 3.10 to 3.12: "Symlink loop from ..."; a later one raises OSError(ELOOP)
+        raise _loop(node, name, folder) from None
+    except (OSError, ValueError) as exc:
+        if isinstance(exc, OSError) and exc.errno == errno.ELOOP:
+            raise _loop(node, name, folder) from None
+        why = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise error(
+            node, f"names {quote(name)}, which cannot be followed: {clip(why)}", "name a file in the model's folder"
+        ) from None
     if folder != target and folder not in target.parents:
         raise error(
             node,
-            f"names {name!r}, outside the model's folder {str(folder)!r}",
+            f"names {quote(name)}, outside the model's folder {quote(str(folder))}",
             "hconv reads includes from the model's folder only: copy the file there",
         )
     return target
+
+
+def _loop(node: Node, name: str, folder: Path) -> InputError:
+    """The include names a symbolic link that leads, through links, back to itself."""
+    return error(
+        node,
+        f"names {quote(name)} ({clip(str(folder / name))}), a symbolic link that leads back to itself (a loop)",
+        "point the link at the file to include, or name that file",
+    )
