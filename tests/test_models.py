@@ -779,7 +779,7 @@ def test_read_deep_nesting_to_the_limit_needs_no_recursion_and_beyond_it_is_one_
 
 # --- hostile files: bounded time, memory and output ------------------------------------------
 
-#: The memory bound README states for reading a model ("A robot model's inertias"): 40 bytes per
+#: The memory bound docs/models.md states for reading a model: 40 bytes per
 #: byte of the model, 2 KiB per element, and 1 MiB. Measured here as the peak of Python's
 #: allocations while reading (tracemalloc: numpy's arrays included), on the shapes that cost most:
 #: the most per byte is an element of many short attributes (` abc=''`, 8 bytes), some 220 bytes
