@@ -107,6 +107,9 @@ TINY = _EPS * _EPS
 STOP = STOP_TOL * STOP_TOL * TINY
 _S0, _S1, _S2, _S3, _S4 = ROOT_START
 
+#: The status codes this engine sets, status.py's (compiled in as constants). It writes them in
+#: the order of status.PRECEDENCE (a later write wins), and inaccurate, after the other three
+#: there, takes a row only from ok.
 OK = CODE["ok"]
 SINGULAR = CODE["singular"]
 NOT_PHYSICAL = CODE["not_physical"]
@@ -463,7 +466,7 @@ def decide(
         if not (_safe(x0) and _safe(x1) and _safe(x2)):
             return no
         res = relative_error(w0, w1, w2, x0, x1, x2)
-        if res > ILL_CONDITIONED_TOL and (code == OK or code > INACCURATE):
+        if res > ILL_CONDITIONED_TOL and code == OK:
             code = INACCURATE
     return w0, w1, w2, cond, code, res, False
 
@@ -674,7 +677,7 @@ def convert_rows(
             if diagnostics:
                 res = a[(_FINAL + 3) * CHUNK + j] if answered else math.nan
                 residual[i] = res
-                k = INACCURATE if (res > ILL_CONDITIONED_TOL) & ((k == OK) | (k > INACCURATE)) else k
+                k = INACCURATE if (res > ILL_CONDITIONED_TOL) & (k == OK) else k
             cond[i] = a[_VERDICT * CHUNK + j]
             code[i] = k
             fallback[i] = lost
