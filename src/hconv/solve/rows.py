@@ -5,13 +5,14 @@ numba, which turns :func:`convert_rows` into a loop over rows on both cores. Run
 (engine ``python``), the same code answers one body without numpy's per-call overhead. It is
 written for both: scalars and ``math`` only, no containers, every helper returns a tuple.
 
-It covers the common case and nothing else, and says so per row: the exact-family methods
-``exact`` and ``refined`` (:data:`METHODS`) on symmetric, finite, positive definite tensors, in
-float64, with ``degenerate="error"``. Every other row (not finite, not symmetric, not positive
-definite, principal moments too close for the closed form to decide, magnitudes beyond the safe
-range of the double-double residual, ω not finite or subnormal) is marked ``fallback`` and its
-caller converts it with the numpy engine, which handles them all. The statuses this engine sets
-itself are ``ok``, ``singular``, ``not_physical``, ``ill_conditioned`` and ``inaccurate``.
+It covers the common case and nothing else, and says so per row: the methods registered with
+``row_engine`` (``exact``, and ``refined``: ``refined=True`` here) on symmetric, finite, positive
+definite tensors, in float64, with ``degenerate="error"``. Every other row (not finite, not
+symmetric, not positive definite, principal moments too close for the closed form to decide,
+magnitudes beyond the safe range of the double-double residual, ω not finite or subnormal) is
+marked ``fallback`` and its caller converts it with the numpy engine, which handles them all.
+The statuses this engine sets itself are ``ok``, ``singular``, ``not_physical``,
+``ill_conditioned`` and ``inaccurate``.
 
 Every operation is the numpy engine's (:mod:`hconv.kernels.linsolve`, :mod:`hconv.kernels.spectrum`,
 :mod:`hconv.kernels.metrics`), in the same order, so ω of ``exact``, ``cond`` and every status
@@ -41,9 +42,8 @@ from hconv.solve.status import (
     TRIANGLE_RTOL,
 )
 
-#: The methods this engine computes (``refined`` is convert_rows' ``refined=True``), and the
-#: inertia forms it reads, each with whether its numbers are nine row-major (else the six).
-METHODS = ("exact", "refined")
+#: The inertia forms this engine reads, each with whether its numbers are nine row-major (else
+#: the six). Its methods are those registered with ``row_engine`` (hconv.solve.methods).
 FORMS = {"sym6": False, "full9": True}
 
 prange = range  # the compiled engine makes this numba.prange: rows shared between the cores
