@@ -3,6 +3,7 @@ the promise that numba is imported only when it runs."""
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import json
 import os
@@ -15,7 +16,7 @@ import pytest
 
 import hconv
 from hconv.errors import UsageError
-from hconv.solve import engines, rows
+from hconv.solve import engines, methods, rows
 
 NUMBA = importlib.util.find_spec("numba") is not None
 ROOT = Path(__file__).resolve().parents[1]
@@ -34,7 +35,8 @@ def fresh(monkeypatch, tmp_path):
 
 def _auto(n: int, **kw) -> str:
     args = {"method": "exact", "precision": 64, "degenerate": "error", "form": "sym6", **kw}
-    return engines.resolve("auto", n, args["method"], args["precision"], args["degenerate"], args["form"])
+    m = methods.get(args["method"])
+    return engines.resolve("auto", n, m, args["precision"], args["degenerate"], args["form"])
 
 
 def test_resolve_auto_one_body_is_python_and_small_batches_numpy(fresh):
@@ -48,8 +50,8 @@ def test_resolve_auto_runs_the_rest_on_numpy(fresh):
     assert _auto(1, precision=32) == "numpy"
     assert _auto(1, degenerate="pinv") == "numpy"
     assert _auto(1, form="principal") == "numpy"
-    assert engines.resolve("python", 5, "lapack", 64, "error", "sym6") == "numpy"
-    assert engines.resolve("python", 5, "exact", 64, "error", "sym6", degenerate_rtol=1e-9) == "numpy"
+    assert engines.resolve("python", 5, methods.get("lapack"), 64, "error", "sym6") == "numpy"
+    assert engines.resolve("python", 5, methods.get("exact"), 64, "error", "sym6", degenerate_rtol=1e-9) == "numpy"
 
 
 def test_resolve_auto_numba_once_compiled_and_worth_it(fresh, monkeypatch):
@@ -67,7 +69,7 @@ def test_resolve_auto_numba_once_compiled_and_worth_it(fresh, monkeypatch):
 def test_resolve_environment_sets_what_auto_means(fresh, monkeypatch):
     monkeypatch.setenv("HCONV_ENGINE", "python")
     assert _auto(10**6) == "python"
-    assert engines.resolve("numpy", 10, "exact", 64, "error", "sym6") == "numpy"  # a named engine wins
+    assert engines.resolve("numpy", 10, methods.get("exact"), 64, "error", "sym6") == "numpy"  # a named engine wins
     monkeypatch.setenv("HCONV_ENGINE", "fortran")
     with pytest.raises(UsageError, match="HCONV_ENGINE must be one of auto, numpy, numba, python, got 'fortran'"):
         _auto(10)
@@ -165,3 +167,11 @@ def test_convert_small_batches_never_import_numba():
         "    hconv.convert(np.ones((n, 3)), np.tile(np.diag([1.0, 2.0, 2.5]), (n, 1, 1)))"
     )
     assert "numba" not in _modules_after(code)
+
+
+def test_covers_follows_the_row_engine_field():
+    exact = methods.get("exact")
+    assert engines.covers(exact, 64, "error", "sym6")
+    assert not engines.covers(dataclasses.replace(exact, name="exact-numpy", row_engine=False), 64, "error", "sym6")
+    assert engines.covers(dataclasses.replace(exact, name="exact-twin"), 64, "error", "full9")
+    assert engines.scope_text().startswith("--method exact or refined on sym6 or full9 tensors")

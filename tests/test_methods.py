@@ -3,6 +3,7 @@ values from the seed's formulas, analytic bodies and rotation covariance."""
 
 from __future__ import annotations
 
+import dataclasses
 from fractions import Fraction
 
 import numpy as np
@@ -272,3 +273,31 @@ def test_methods_eigen_failure_text_speaks_of_error_size_not_speed():
     for eigen against 0.43 for exact's LDLᵀ (docs/methods.md, the envelope)."""
     fails = hconv.METHODS["eigen"].fails
     assert "faster" not in fails and "about 6 times LDLᵀ's at the same cond" in fails
+
+
+def test_methods_fields_say_what_differs_by_method():
+    fields = {n: (m.exact, m.refines, m.row_engine, m.ignores_products) for n, m in hconv.METHODS.items()}
+    assert [n for n, f in fields.items() if f[1]] == ["refined"]
+    assert [n for n, f in fields.items() if f[2]] == ["exact", "refined"]
+    assert [n for n, f in fields.items() if f[3]] == ["diagonal", "document"]
+
+
+def test_methods_refines_or_row_engine_without_exact_is_refused():
+    diagonal = hconv.METHODS["diagonal"]
+    with pytest.raises(ValueError, match="method 'diagonal': refines and row_engine need exact=True"):
+        dataclasses.replace(diagonal, row_engine=True)
+
+
+@pytest.mark.parametrize("engine", ["numpy", "python"])
+def test_convert_follows_the_method_fields_not_its_name(engine, rng):
+    # a Method passed as itself; under another name, it must still refine on the row engines:
+    # what a method does is read from its fields, never from its name
+    I, H = physical_bodies(rng, 40), rng.normal(size=(40, 3))
+    I[0] = np.diag([1.0, 1.0, 1e-11]) + 1e-13  # cond ~1e11: LDLᵀ alone is off, refined is not
+    twin = dataclasses.replace(hconv.METHODS["refined"], name="refined-twin")
+    got = hconv.convert(H, I, method=twin, engine=engine)
+    ref = hconv.convert(H, I, method="refined", engine=engine)
+    exact = hconv.convert(H, I, method="exact", engine=engine)
+    assert got.engine == ref.engine == engine and got.method == "refined-twin"
+    assert np.array_equal(got.w, ref.w) and np.array_equal(got.status_code, ref.status_code)
+    assert not np.array_equal(got.w, exact.w)

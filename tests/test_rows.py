@@ -18,7 +18,7 @@ from helpers import assert_same_answers, hard_bodies, mp_solve, physical_bodies,
 
 import hconv
 from hconv.solve import convert, rows
-from hconv.solve.status import CODE
+from hconv.solve.status import CODE, PRECEDENCE
 
 EPS = np.finfo(float).eps
 NUMBA = importlib.util.find_spec("numba") is not None
@@ -113,4 +113,12 @@ def test_convert_rows_uncovered_runs_are_numpy_whatever_is_asked():
     assert hconv.convert(H, I, precision=32, engine="python").engine == "numpy"
     assert hconv.convert(H, I, degenerate="pinv", engine="python").engine == "numpy"
     assert hconv.convert(H, np.ones((3, 3)), engine="python").engine == "numpy"  # principal moments: a division
-    assert CODE["ok"] == 0  # the row engine's OK is the first status
+
+
+def test_rows_status_codes_are_status_py_and_written_in_its_precedence():
+    held = (rows.OK, rows.SINGULAR, rows.NOT_PHYSICAL, rows.ILL_CONDITIONED, rows.INACCURATE)
+    assert held == tuple(CODE[n] for n in ("ok", "singular", "not_physical", "ill_conditioned", "inaccurate"))
+    # verdict writes ill_conditioned, then not_physical, then singular (a later write wins), and
+    # inaccurate takes a row only from ok: right only while PRECEDENCE orders them so
+    places = [PRECEDENCE.index(n) for n in ("singular", "not_physical", "ill_conditioned", "inaccurate")]
+    assert places == sorted(places)

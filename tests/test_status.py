@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import re
+from pathlib import Path
+
 import numpy as np
 import pytest
 from helpers import mp_solve
 
 import hconv
+from hconv.solve import status
 from hconv.solve.methods import _seed_formula
 
 GOOD_I = [2.0, 3.0, 4.0, 0.1, 0.0, 0.0]
@@ -165,3 +169,58 @@ def test_cond_matches_eigenvalue_ratio(rng):
     I = spd_bodies(rng, 50, 1e6)
     res = hconv.convert(rng.normal(size=(50, 3)), I)
     np.testing.assert_allclose(res.cond, 1e6, rtol=1e-6)
+
+
+#: The codes as released: outputs, the row engines' compiled constants and users' stored files
+#: hold them, so none may move (a new status takes the next code).
+PINNED_CODES = {
+    "ok": 0,
+    "invalid_input": 1,
+    "not_symmetric": 2,
+    "singular": 3,
+    "overflow": 4,
+    "not_positive_definite": 5,
+    "degenerate": 6,
+    "not_physical": 7,
+    "unit_suspect": 8,
+    "ill_conditioned": 9,
+    "inaccurate": 10,
+    "cancellation": 11,
+    "frame_ambiguous": 12,
+    "r_on_axis": 13,
+}
+
+
+def test_status_codes_pinned_unique_and_documented():
+    assert status.CODE == PINNED_CODES
+    assert sorted(status.CODE.values()) == list(range(len(status.CODE)))  # unique, and index STATUSES
+    assert all(status.STATUSES[code] == name for name, code in status.CODE.items())
+    assert hconv.STATUSES == status.STATUSES
+    # docs/input.md's statuses table gives each code, in order of precedence
+    text = (Path(__file__).resolve().parents[1] / "docs" / "input.md").read_text()
+    table = re.findall(r"^\| `([a-z_]+)` \| (\d+) \|", text.split("## Statuses")[1].split("\n## ")[0], re.M)
+    assert {name: int(code) for name, code in table} == {k: v for k, v in PINNED_CODES.items() if k != "ok"}
+    assert tuple(name for name, _ in table) == status.PRECEDENCE
+
+
+def test_status_precedence_is_its_own_order_not_the_codes():
+    assert sorted(status.PRECEDENCE) == sorted(set(status.CODE) - {"ok"})
+    for a in status.PRECEDENCE:
+        for b in status.PRECEDENCE:
+            winner = min(a, b, key=status.PRECEDENCE.index)
+            one = np.ones(1, dtype=bool)
+            held = np.array([status.CODE[a]], dtype=np.uint8)
+            assert status.names(status.merge(held, one, b))[0] == winner
+            assert status.names(status.combine(1, {a: one, b: one}))[0] == winner
+    codes = np.array([status.CODE[n] for n in ("r_on_axis", "ok", "singular", "r_on_axis")], dtype=np.uint8)
+    assert list(status.counts(codes).items()) == [("ok", 1), ("singular", 1), ("r_on_axis", 2)]
+
+
+def test_status_precedence_decides_with_the_order_changed(monkeypatch):
+    # precedence is read from PRECEDENCE alone: reversing it reverses which status wins, codes unchanged
+    order = tuple(reversed(status.PRECEDENCE))
+    monkeypatch.setattr(status, "PRECEDENCE", order)
+    one = np.ones(1, dtype=bool)
+    held = np.array([status.CODE["invalid_input"]], dtype=np.uint8)
+    assert status.names(status.merge(held, one, "r_on_axis"))[0] == "r_on_axis"
+    assert status.names(status.combine(1, {"invalid_input": one, "singular": one}))[0] == "singular"

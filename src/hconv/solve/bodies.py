@@ -50,7 +50,11 @@ PIVOT_K = 2.0
 
 
 def invalid_inputs(
-    sets: dict, form: str, method: str = "exact", precision: int = 64, conv: Conventions = Conventions()
+    sets: dict,
+    form: str,
+    method: str | methods.Method = "exact",
+    precision: int = 64,
+    conv: Conventions = Conventions(),
 ) -> list[tuple[str, str]]:
     """Why :func:`solve` gives the first row of ``sets`` the status ``invalid_input``: a
     ``(set, problem)`` pair per cause, in the order of ``sets``; empty when none of the given
@@ -107,7 +111,7 @@ def _pivot_shift(form: forms.Form, I_C: np.ndarray, m: np.ndarray, r_B: np.ndarr
 def solve(
     sets: dict,
     form: str,
-    method: str = "exact",
+    method: str | methods.Method = "exact",
     precision: int = 64,
     conv: Conventions = Conventions(),
     diagnostics: bool = True,
@@ -121,6 +125,7 @@ def solve(
     ``conv.frame``. Raises UsageError for a method or set that cannot be used.
     """
     spec = forms.get(form)
+    method = methods.get(method)  # resolved once: everything below takes the Method
     for name in conv.needs(method):
         if name not in sets:
             raise UsageError(f"this conversion needs the set {name!r}")
@@ -129,7 +134,13 @@ def solve(
 
 
 def _solve(
-    sets: dict, form: forms.Form, method: str, precision: int, conv: Conventions, diagnostics: bool, engine: str
+    sets: dict,
+    form: forms.Form,
+    method: methods.Method,
+    precision: int,
+    conv: Conventions,
+    diagnostics: bool,
+    engine: str,
 ) -> core.Result:
     # Names say what a quantity is about and the frame it is in: H_P_F is the momentum about P
     # (the point of the given I), in F, the frame of the given H (world, or body when q is

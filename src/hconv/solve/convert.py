@@ -217,7 +217,7 @@ def convert(
     I: ArrayLike,
     r: ArrayLike | None = None,
     *,
-    method: str = "exact",
+    method: str | methods.Method = "exact",
     precision: int = 64,
     diagnostics: bool = True,
     degenerate: str = "error",
@@ -225,7 +225,8 @@ def convert(
     extra_k: float = 0.0,
     engine: str = "auto",
 ) -> Result:
-    """Convert angular momentum to angular velocity with ``method``; see the module docstring.
+    """Convert angular momentum to angular velocity with ``method`` (a name in
+    :data:`hconv.METHODS`, or one of its entries); see the module docstring.
 
     ``precision`` (64 or 32) sets the dtype the method computes in; diagnostics are always
     computed in float64 from the inputs as given. ``diagnostics=False`` skips the residual
@@ -289,14 +290,14 @@ def convert(
                 f"Expected r to have shape {(3,) if single else (n, 3)}, got {r.shape[1:] if single else r.shape}"
             )
     elif m.needs_r:
-        raise ValueError(f"method {method!r} needs the offset r [m]; pass r=...")
+        raise ValueError(f"method {m.name!r} needs the offset r [m]; pass r=...")
     form, values = forms.from_array(I)
     res = convert_columns(
         H.T,
         form,
         values,
         None if r is None else r.T,
-        method=method,
+        method=m,
         precision=precision,
         diagnostics=diagnostics,
         degenerate=degenerate,
@@ -321,10 +322,13 @@ def convert(
     return res
 
 
-def _checked(method: str, precision: int, degenerate: str, degenerate_rtol: float | None) -> methods.Method:
+def _checked(
+    method: str | methods.Method, precision: int, degenerate: str, degenerate_rtol: float | None
+) -> methods.Method:
+    """The method, resolved once here (everything below takes the Method), and the options checked."""
     m = methods.get(method)
     options.check_precision(precision)
-    options.check_degenerate(degenerate, degenerate_rtol, method)
+    options.check_degenerate(degenerate, degenerate_rtol, m)
     return m
 
 
@@ -334,7 +338,7 @@ def convert_columns(
     I: np.ndarray,
     r: np.ndarray | None = None,
     *,
-    method: str = "exact",
+    method: str | methods.Method = "exact",
     precision: int = 64,
     diagnostics: bool = True,
     degenerate: str = "error",
@@ -351,8 +355,8 @@ def convert_columns(
     m = _checked(method, precision, degenerate, degenerate_rtol)
     n = H.shape[1]
     if m.needs_r and r is None:
-        raise ValueError(f"method {method!r} needs the offset r [m]; pass r=...")
-    used = engines.resolve(engine, n, method, precision, degenerate, form.name, degenerate_rtol)
+        raise ValueError(f"method {m.name!r} needs the offset r [m]; pass r=...")
+    used = engines.resolve(engine, n, m, precision, degenerate, form.name, degenerate_rtol)
     if used != "numpy":
         return _convert_rows(used, m, form, I, H, diagnostics, extra_k)
     dtype = options.DTYPES[precision]
@@ -364,7 +368,7 @@ def convert_columns(
     if degenerate != "error":
         deg = _Degenerate(np.full((n, 3), np.nan), np.zeros(n, dtype=np.int8))
     opts = _BlockOptions(m, dtype, form.diagonal, degenerate_rtol, extra_k)
-    covered = engines.covers(method, precision, degenerate, form.name, degenerate_rtol)
+    covered = engines.covers(m, precision, degenerate, form.name, degenerate_rtol)
     start = time.perf_counter()
     _convert_blocks(n, opts, form, I, H, r, w, cond, code, residual, deg, covered)
     if covered:
@@ -391,16 +395,14 @@ def _convert_rows(
     if used == "numba":
         from hconv.solve import compiled  # numba's import: only here, when it runs
 
-        compiled.convert_rows(
-            I, nine, H, m.name == "refined", diagnostics, cond_limit, w, cond, code, residual, fallback
-        )
+        compiled.convert_rows(I, nine, H, m.refines, diagnostics, cond_limit, w, cond, code, residual, fallback)
         compiled.mark()
     else:
-        _python_rows(I, nine, H, m.name == "refined", diagnostics, cond_limit, w, cond, code, residual, fallback)
+        _python_rows(I, nine, H, m.refines, diagnostics, cond_limit, w, cond, code, residual, fallback)
     rest = np.flatnonzero(fallback)
     if rest.size:
         sub = convert_columns(
-            H[:, rest], form, I[:, rest], method=m.name, diagnostics=diagnostics, extra_k=extra_k, engine="numpy"
+            H[:, rest], form, I[:, rest], method=m, diagnostics=diagnostics, extra_k=extra_k, engine="numpy"
         )
         w[rest], cond[rest], code[rest] = sub.w, sub.cond, sub.status_code
         if sub.residual is not None:
@@ -450,12 +452,11 @@ def _cond_limit(m: methods.Method, extra_k: float) -> float:
     return status.ILL_CONDITIONED_TOL / (k * float(np.finfo(np.float64).eps)) if k else np.inf
 
 
-def error_k(method: str, precision: int, diagonal: bool, extra_k: float = 0.0) -> float:
+def error_k(m: methods.Method, precision: int, diagonal: bool, extra_k: float = 0.0) -> float:
     """K of the bound K·cond(I)·eps on an exact-family answer's error (``ill_conditioned``), with
     ``extra_k`` for what the caller rounded before (0 for the other methods: no such bound).
     The division is correctly rounded, so on diagonal tensors the method adds nothing that grows
     with cond."""
-    m = methods.get(method)
     if not m.exact:
         return 0.0
     return extra_k if diagonal else extra_k + (m.error_k or {}).get(precision, 0.0)
@@ -542,7 +543,7 @@ def _convert_common(
     the general :func:`_convert_block` the rows that module leaves."""
     sym, asym = form.as_sym3(I)
     Hc = np.ascontiguousarray(H)
-    b = vectorrows.convert_block(sym, asym, Hc, opts.m.name == "refined", res_out is not None, cond_limit)
+    b = vectorrows.convert_block(sym, asym, Hc, opts.m.refines, res_out is not None, cond_limit)
     w_out[:] = b.w.T
     cond_out[:] = b.cond
     code_out[:] = b.code
@@ -623,7 +624,7 @@ def _convert_block(
         singular |= small <= tol
     tol = np.maximum(tol, status.singular_rtol(dtype) * big)
     dropped = singular & ~invalid & ~asym if deg is not None else np.zeros(n, dtype=bool)
-    k_extra = error_k(m.name, 8 * np.dtype(dtype).itemsize, o.diagonal, o.extra_k)
+    k_extra = error_k(m, 8 * np.dtype(dtype).itemsize, o.diagonal, o.extra_k)
     cond_limit = status.ILL_CONDITIONED_TOL / (k_extra * float(np.finfo(dtype).eps)) if k_extra else np.inf
     flags = {
         "invalid_input": invalid,

@@ -4,10 +4,11 @@
 numpy    the vectorised converter (:mod:`hconv.solve.convert`): every method, form, precision and
          mode; always there, no compiler; the reference the others are tested against
 numba    :mod:`hconv.solve.rows` compiled by numba (the ``hconv[fast]`` extra), one fused pass
-         per row on both cores; computes ``exact`` and ``refined`` on six- and nine-number tensors
-         in float64 with ``--degenerate error``; any other run is the numpy engine's, and rows
-         outside its common case (not finite, not symmetric, not positive definite, ...) are
-         handed to the numpy engine row by row
+         per row on both cores; computes the methods registered with ``row_engine`` (``exact``
+         and ``refined``) on six- and nine-number tensors in float64 with ``--degenerate
+         error``; any other run is the numpy engine's, and rows outside its common case (not
+         finite, not symmetric, not positive definite, ...) are handed to the numpy engine row
+         by row
 python   the same row code, interpreted: no numpy call per row, so the cheapest for one body;
          same scope as numba
 auto     ``numba`` once it is loaded in the process; before that, ``python`` for a single row, and
@@ -34,7 +35,7 @@ import sys
 from pathlib import Path
 
 from hconv.errors import UsageError, option
-from hconv.solve import rows
+from hconv.solve import methods, rows
 from hconv.solve.options import check_choice
 
 #: --engine.
@@ -65,12 +66,14 @@ def numba_installed() -> bool:
     return importlib.util.find_spec("numba") is not None
 
 
-def covers(method: str, precision: int, degenerate: str, form: str, degenerate_rtol: float | None = None) -> bool:
+def covers(
+    method: methods.Method, precision: int, degenerate: str, form: str, degenerate_rtol: float | None = None
+) -> bool:
     """True when the row engines compute this run themselves (the rest is the numpy engine's):
-    their methods and inertia forms (:data:`hconv.solve.rows.METHODS`, ``FORMS``), float64,
-    ``--degenerate error`` with its default threshold."""
+    their methods (registered with ``row_engine``) and inertia forms
+    (:data:`hconv.solve.rows.FORMS`), float64, ``--degenerate error`` with its default threshold."""
     return (
-        method in rows.METHODS
+        method.row_engine
         and form in rows.FORMS
         and precision == 64
         and degenerate == "error"
@@ -80,8 +83,9 @@ def covers(method: str, precision: int, degenerate: str, form: str, degenerate_r
 
 def scope_text() -> str:
     """What the row engines (numba, python) compute themselves, for a reader who asked for one."""
+    covered = [m.name for m in methods.METHODS.values() if m.row_engine]
     return (
-        f"--method {' or '.join(rows.METHODS)} on {' or '.join(rows.FORMS)} tensors, --precision 64, "
+        f"--method {' or '.join(covered)} on {' or '.join(rows.FORMS)} tensors, --precision 64, "
         "--degenerate error at its default threshold"
     )
 
@@ -159,7 +163,13 @@ def for_files(engine: str) -> str:
 
 
 def resolve(
-    engine: str, n: int, method: str, precision: int, degenerate: str, form: str, degenerate_rtol: float | None = None
+    engine: str,
+    n: int,
+    method: methods.Method,
+    precision: int,
+    degenerate: str,
+    form: str,
+    degenerate_rtol: float | None = None,
 ) -> str:
     """The engine that converts ``n`` rows: ``"numpy"``, ``"numba"`` or ``"python"``.
 

@@ -44,6 +44,20 @@ class Method:
     #: set to about twice the worst K measured over 100k random rows; K = 0 means the error does
     #: not grow with cond before I is singular.
     error_k: dict | None = None
+    #: exact family only: the answer is refined with a double-double residual to within one
+    #: rounding of I⁻¹H (the row engines' ``refined=True``)
+    refines: bool = False
+    #: the row engines (numba, python, and the numpy engine's common path, hconv.solve.engines)
+    #: compute this method themselves; every other method is the numpy engine's alone
+    row_engine: bool = False
+    #: the method reads only the diagonal I_ii of the tensor as given: its error grows with the
+    #: products of inertia (``hconv compare`` lists its worst rows against them)
+    ignores_products: bool = False
+
+    def __post_init__(self) -> None:
+        # the row engines and the refinement compute I⁻¹H: only an exact method can have them
+        if (self.refines or self.row_engine) and not self.exact:
+            raise ValueError(f"method {self.name!r}: refines and row_engine need exact=True")
 
     def cond_limit(self, precision: int) -> float:
         """The largest cond(I) at which this method's error stays within ILL_CONDITIONED_TOL."""
@@ -68,9 +82,17 @@ def register(
     needs_r: bool = False,
     nan_on: set | None = None,
     error_k: dict | None = None,
+    refines: bool = False,
+    row_engine: bool = False,
+    ignores_products: bool = False,
 ) -> Callable[[Kernel], Kernel]:
     def deco(kernel: Kernel) -> Kernel:
-        kw: dict = {"error_k": error_k}
+        kw: dict = {
+            "error_k": error_k,
+            "refines": refines,
+            "row_engine": row_engine,
+            "ignores_products": ignores_products,
+        }
         if nan_on is not None:
             kw["nan_on"] = frozenset(nan_on)
         METHODS.add(name, Method(name, kernel, unit, exact, needs_r, summary, cost, fails, **kw))
@@ -79,9 +101,12 @@ def register(
     return deco
 
 
-def get(name: str) -> Method:
-    """The method called ``name``; UsageError (a ValueError) naming the choices otherwise."""
-    return METHODS.get_checked(name)
+def get(method: str | Method) -> Method:
+    """The method called ``method`` (a Method is its own answer); UsageError (a ValueError)
+    naming the choices otherwise. Entry points call this once and pass the Method down."""
+    if isinstance(method, Method):
+        return method
+    return METHODS.get_checked(method)
 
 
 @register(
@@ -92,6 +117,7 @@ def get(name: str) -> Method:
     cost="~30 flops/row; the fastest LAPACK-accurate solver",
     fails="singular I (ω = NaN); error grows as cond(I)·eps, like LAPACK's",
     error_k={64: 1.0, 32: 2.5},
+    row_engine=True,
 )
 def _exact(I: Sym3, H: np.ndarray, r: np.ndarray | None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     fac = linsolve.ldlt_factor(I)
@@ -113,6 +139,8 @@ def _exact(I: Sym3, H: np.ndarray, r: np.ndarray | None) -> tuple[np.ndarray, di
     fails="singular I (ω = NaN); in float64 the error stays at rounding up to the singular "
     "threshold; in float32 the rounding of the inputs themselves limits it",
     error_k={64: 0.0, 32: 2.5},
+    refines=True,
+    row_engine=True,
 )
 def _refined(I: Sym3, H: np.ndarray, r: np.ndarray | None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     return linsolve.solve_refined(I, H), {}
@@ -183,6 +211,7 @@ def _eigen(I: Sym3, H: np.ndarray, r: np.ndarray | None) -> tuple[np.ndarray, di
     cost="3 divisions per row",
     fails="exact only when I is diagonal in the given axes; I_ii = 0 gives NaN",
     nan_on={"invalid_input", "not_symmetric"},
+    ignores_products=True,
 )
 def _diagonal(I: Sym3, H: np.ndarray, r: np.ndarray | None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -220,6 +249,7 @@ def _seed_formula(moments: np.ndarray, H: np.ndarray, r: np.ndarray) -> tuple[np
     cost="~12 flops per row",
     fails="not I⁻¹H and not in rad/s; r on an axis forces a component to 0 (status r_on_axis)",
     nan_on={"invalid_input", "not_symmetric"},
+    ignores_products=True,
 )
 def _document(I: Sym3, H: np.ndarray, r: np.ndarray | None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     w, on_axis = _seed_formula(np.stack([I.xx, I.yy, I.zz]), H, _offset(r))

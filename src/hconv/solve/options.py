@@ -43,14 +43,15 @@ def check_precision(precision: object) -> None:
         raise UsageError(f"{option('precision')} must be 64 or 32, got {precision!r}")
 
 
-def check_degenerate(mode: str, rtol: float | None, method: str | None = None) -> None:
+def check_degenerate(mode: str, rtol: float | None, method: str | methods.Method | None = None) -> None:
     """The degenerate mode and threshold and, given a method, that a mode other than error is
     only asked of the exact family."""
     check_choice("degenerate", mode, DEGENERATE_MODES)
     if rtol is not None and (isinstance(rtol, bool) or not isinstance(rtol, (int, float)) or not 0 <= rtol < 1):
         raise UsageError(f"{option('degenerate_rtol')} must be at least 0 and below 1, got {rtol!r}")
-    if method is not None and mode != "error" and not methods.get(method).exact:
-        raise UsageError(f"{option('degenerate', mode)} applies to the exact methods, not to {method!r}")
+    m = None if method is None else methods.get(method)
+    if m is not None and mode != "error" and not m.exact:
+        raise UsageError(f"{option('degenerate', mode)} applies to the exact methods, not to {m.name!r}")
 
 
 @dataclass(frozen=True)
@@ -77,12 +78,13 @@ class Conventions:
         """The frame ω is expressed in."""
         return self.omega_frame or self.frame
 
-    def needs(self, method: str) -> dict:
+    def needs(self, method: str | methods.Method) -> dict:
         """The sets, besides H and I, that a run with ``method`` cannot do without, each with
         the reason."""
         need = {}
-        if methods.get(method).needs_r:
-            need["r"] = f"method {method!r} needs the offset r"
+        m = methods.get(method)
+        if m.needs_r:
+            need["r"] = f"method {m.name!r} needs the offset r"
         if self.about == "pivot":
             need.setdefault("r", f"{option('about', 'pivot')} needs r, the centre of mass relative to the pivot")
             need["m"] = f"{option('about', 'pivot')} needs the mass m"

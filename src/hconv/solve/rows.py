@@ -5,13 +5,14 @@ numba, which turns :func:`convert_rows` into a loop over rows on both cores. Run
 (engine ``python``), the same code answers one body without numpy's per-call overhead. It is
 written for both: scalars and ``math`` only, no containers, every helper returns a tuple.
 
-It covers the common case and nothing else, and says so per row: the exact-family methods
-``exact`` and ``refined`` (:data:`METHODS`) on symmetric, finite, positive definite tensors, in
-float64, with ``degenerate="error"``. Every other row (not finite, not symmetric, not positive
-definite, principal moments too close for the closed form to decide, magnitudes beyond the safe
-range of the double-double residual, ω not finite or subnormal) is marked ``fallback`` and its
-caller converts it with the numpy engine, which handles them all. The statuses this engine sets
-itself are ``ok``, ``singular``, ``not_physical``, ``ill_conditioned`` and ``inaccurate``.
+It covers the common case and nothing else, and says so per row: the methods registered with
+``row_engine`` (``exact``, and ``refined``: ``refined=True`` here) on symmetric, finite, positive
+definite tensors, in float64, with ``degenerate="error"``. Every other row (not finite, not
+symmetric, not positive definite, principal moments too close for the closed form to decide,
+magnitudes beyond the safe range of the double-double residual, ω not finite or subnormal) is
+marked ``fallback`` and its caller converts it with the numpy engine, which handles them all.
+The statuses this engine sets itself are ``ok``, ``singular``, ``not_physical``,
+``ill_conditioned`` and ``inaccurate``.
 
 Every operation is the numpy engine's (:mod:`hconv.kernels.linsolve`, :mod:`hconv.kernels.spectrum`,
 :mod:`hconv.kernels.metrics`), in the same order, so ω of ``exact``, ``cond`` and every status
@@ -41,9 +42,8 @@ from hconv.solve.status import (
     TRIANGLE_RTOL,
 )
 
-#: The methods this engine computes (``refined`` is convert_rows' ``refined=True``), and the
-#: inertia forms it reads, each with whether its numbers are nine row-major (else the six).
-METHODS = ("exact", "refined")
+#: The inertia forms this engine reads, each with whether its numbers are nine row-major (else
+#: the six). Its methods are those registered with ``row_engine`` (hconv.solve.methods).
 FORMS = {"sym6": False, "full9": True}
 
 prange = range  # the compiled engine makes this numba.prange: rows shared between the cores
@@ -107,6 +107,9 @@ TINY = _EPS * _EPS
 STOP = STOP_TOL * STOP_TOL * TINY
 _S0, _S1, _S2, _S3, _S4 = ROOT_START
 
+#: The status codes this engine sets, status.py's (compiled in as constants). It writes them in
+#: the order of status.PRECEDENCE (a later write wins), and inaccurate, after the other three
+#: there, takes a row only from ok.
 OK = CODE["ok"]
 SINGULAR = CODE["singular"]
 NOT_PHYSICAL = CODE["not_physical"]
@@ -463,7 +466,7 @@ def decide(
         if not (_safe(x0) and _safe(x1) and _safe(x2)):
             return no
         res = relative_error(w0, w1, w2, x0, x1, x2)
-        if res > ILL_CONDITIONED_TOL and (code == OK or code > INACCURATE):
+        if res > ILL_CONDITIONED_TOL and code == OK:
             code = INACCURATE
     return w0, w1, w2, cond, code, res, False
 
@@ -674,7 +677,7 @@ def convert_rows(
             if diagnostics:
                 res = a[(_FINAL + 3) * CHUNK + j] if answered else math.nan
                 residual[i] = res
-                k = INACCURATE if (res > ILL_CONDITIONED_TOL) & ((k == OK) | (k > INACCURATE)) else k
+                k = INACCURATE if (res > ILL_CONDITIONED_TOL) & (k == OK) else k
             cond[i] = a[_VERDICT * CHUNK + j]
             code[i] = k
             fallback[i] = lost

@@ -1,37 +1,62 @@
 """Per-row statuses: why a row's answer cannot be trusted, and the tolerances that decide it.
 
 A status describes the input and the numerics, never a method's approximation error (that is
-what the ``residual`` column measures). Where several apply, the earliest in :data:`STATUSES`
-wins. Codes are small integers so that a status column costs one byte per row.
+what the ``residual`` column measures). Each status has two separate things, each stated once
+here: its code (:data:`CODE`), the small integer that every output holds for it (one byte per
+row), and its place in :data:`PRECEDENCE`, which decides the status of a row where several
+apply. A new status takes the next free code and its place in the order; no code ever moves.
 """
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from numpy.typing import DTypeLike
 
-#: Status names in order of precedence; the code of a status is its index.
-STATUSES: tuple[str, ...] = (
-    "ok",
-    "invalid_input",  # NaN or Inf in a value used, a value beyond float32 in --precision 32, or mass <= 0 with I != 0
-    "not_symmetric",  # a 3×3 tensor whose Iij and Iji differ by more than SYMMETRY_RTOL·max|I|
-    "singular",  # smallest |moment| <= SINGULAR_RTOL_EPS·eps·largest |moment|
-    "overflow",  # finite input, but ω is beyond the working precision's range
-    "not_positive_definite",  # a negative principal moment (beyond the degenerate threshold)
-    "degenerate",  # --degenerate pinv|lock: a (near-)zero principal moment was dropped or locked
-    "not_physical",  # principal moments break the triangle inequality I1 <= I2 + I3
-    "unit_suspect",  # with a mass column: no solid of that mass has that inertia (a unit slip?)
-    "ill_conditioned",  # exact family: cond(I) so large that the error could exceed ILL_CONDITIONED_TOL
-    "inaccurate",  # exact family: the measured residual exceeds ILL_CONDITIONED_TOL anyway (subnormals on the way)
+#: Every status and its code, pinned: a code is what Result.status_code, the row engines'
+#: compiled constants (numba's cache keys on rows.py, not on this file) and users' stored
+#: outputs hold, so it is never renumbered. docs/input.md lists the same numbers.
+CODE: dict[str, int] = {
+    "ok": 0,
+    # NaN or Inf in a value used, a value beyond float32 in --precision 32, or mass <= 0 with I != 0
+    "invalid_input": 1,
+    "not_symmetric": 2,  # a 3×3 tensor whose Iij and Iji differ by more than SYMMETRY_RTOL·max|I|
+    "singular": 3,  # smallest |moment| <= SINGULAR_RTOL_EPS·eps·largest |moment|
+    "overflow": 4,  # finite input, but ω is beyond the working precision's range
+    "not_positive_definite": 5,  # a negative principal moment (beyond the degenerate threshold)
+    "degenerate": 6,  # --degenerate pinv|lock: a (near-)zero principal moment was dropped or locked
+    "not_physical": 7,  # principal moments break the triangle inequality I1 <= I2 + I3
+    "unit_suspect": 8,  # with a mass column: no solid of that mass has that inertia (a unit slip?)
+    "ill_conditioned": 9,  # exact family: cond(I) so large that the error could exceed ILL_CONDITIONED_TOL
+    "inaccurate": 10,  # exact family: the measured residual exceeds ILL_CONDITIONED_TOL anyway (subnormals on the way)
     # --about free: H_P - r × m·v cancels so many digits that cond(I)·ε_C plus the solve's own
     # K·cond(I)·eps could exceed ILL_CONDITIONED_TOL (ε_C: hconv.kernels.frames.momentum_about_com).
-    # After the codes the row engine sets (rows.py): numba's cache keys on rows.py alone, and
-    # compiled code holds those codes as constants, so they must not move.
+    "cancellation": 11,
+    "frame_ambiguous": 12,  # document-principal on repeated principal moments
+    "r_on_axis": 13,  # document methods: r (nearly) on an axis, so a component is forced to zero
+}
+#: Status names by code: ``STATUSES[code]`` is the name (codes run 0, 1, 2, ... without a gap,
+#: so that a code indexes this tuple, and Arrow's dictionary of the status column is this tuple).
+STATUSES: tuple[str, ...] = tuple(sorted(CODE, key=CODE.__getitem__))
+#: Where several statuses apply to a row, the earliest here wins; ``ok`` is what no other holds.
+#: The row engines set ok, singular, not_physical, ill_conditioned and inaccurate, and rely on
+#: inaccurate coming after the other three (tests/test_rows.py checks).
+PRECEDENCE: tuple[str, ...] = (
+    "invalid_input",
+    "not_symmetric",
+    "singular",
+    "overflow",
+    "not_positive_definite",
+    "degenerate",
+    "not_physical",
+    "unit_suspect",
+    "ill_conditioned",
+    "inaccurate",
     "cancellation",
-    "frame_ambiguous",  # document-principal on repeated principal moments
-    "r_on_axis",  # document methods: r (nearly) on an axis, so a component is forced to zero
+    "frame_ambiguous",
+    "r_on_axis",
 )
-CODE = {name: code for code, name in enumerate(STATUSES)}
 
 SYMMETRY_RTOL = 1e-12
 #: A tensor is singular when cond(I) >= 1 / (SINGULAR_RTOL_EPS · eps) of the working precision:
@@ -60,17 +85,23 @@ def singular_rtol(dtype: DTypeLike) -> float:
 UNIT_DENSITY_BAND = (1e-4, 1e6)
 
 
+@functools.cache
+def _ranks(order: tuple[str, ...]) -> np.ndarray:
+    """Each code's place in ``order`` (lower wins), indexed by code; ok after every other status."""
+    return np.array([order.index(name) if name != "ok" else len(order) for name in STATUSES], dtype=np.uint8)
+
+
 def merge(code: np.ndarray, mask: np.ndarray, name: str) -> np.ndarray:
     """``code`` with status ``name`` set on ``mask`` rows, unless they hold a status that takes
     precedence over it; a new array."""
-    c = CODE[name]
-    return np.where(mask & ((code == 0) | (code > c)), np.uint8(c), code).astype(np.uint8)
+    c, rank = CODE[name], _ranks(PRECEDENCE)
+    return np.where(mask & (rank[code] > rank[c]), np.uint8(c), code).astype(np.uint8)
 
 
 def combine(n: int, flags: dict[str, np.ndarray]) -> np.ndarray:
     """Status codes of shape ``(N,)`` (uint8) from boolean masks keyed by status name."""
-    code = np.zeros(n, dtype=np.uint8)
-    for name in reversed(STATUSES[1:]):  # lowest precedence first, so the highest is written last
+    code = np.full(n, CODE["ok"], dtype=np.uint8)
+    for name in reversed(PRECEDENCE):  # lowest precedence first, so the highest is written last
         mask = flags.get(name)
         if mask is not None:
             code[mask] = CODE[name]
@@ -83,6 +114,6 @@ def names(codes: np.ndarray) -> np.ndarray:
 
 
 def counts(codes: np.ndarray) -> dict[str, int]:
-    """How many rows carry each status, for the statuses that occur, in precedence order."""
+    """How many rows carry each status, for the statuses that occur: ok, then in precedence order."""
     c = np.bincount(np.asarray(codes, dtype=np.int64).ravel(), minlength=len(STATUSES))
-    return {STATUSES[k]: int(c[k]) for k in range(len(STATUSES)) if c[k]}
+    return {name: int(c[CODE[name]]) for name in ("ok", *PRECEDENCE) if c[CODE[name]]}

@@ -29,7 +29,11 @@ from hconv.kernels.inertia import Sym3, max_abs, sum_sq
 from hconv.kernels.metrics import relative_error
 from hconv.kernels.spectrum import ROOT_RANGE, largest_root, smallest_root
 from hconv.solve import rows
-from hconv.solve.status import ILL_CONDITIONED_TOL, TRIANGLE_RTOL
+from hconv.solve.status import CODE, ILL_CONDITIONED_TOL, TRIANGLE_RTOL
+
+#: The status codes set here, written in the order of status.PRECEDENCE (a later write wins).
+_OK, _SINGULAR, _NOT_PHYSICAL = CODE["ok"], CODE["singular"], CODE["not_physical"]
+_ILL_CONDITIONED, _INACCURATE = CODE["ill_conditioned"], CODE["inaccurate"]
 
 
 class Block(NamedTuple):
@@ -66,8 +70,9 @@ def convert_block(
         w[:, ~answered] = np.nan
         if residual is not None:
             residual[~answered] = np.nan
-            inaccurate = (residual > ILL_CONDITIONED_TOL) & ((code == rows.OK) | (code > rows.INACCURATE))
-            code[inaccurate] = rows.INACCURATE
+            # inaccurate takes a row only from ok: it comes after the statuses set above
+            inaccurate = (residual > ILL_CONDITIONED_TOL) & (code == _OK)
+            code[inaccurate] = _INACCURATE
     return Block(w, cond, code, residual, fallback)
 
 
@@ -99,12 +104,12 @@ def _verdict(
     small = np.minimum(np.minimum(a0, a1), a2)
     positive = small > 0
     cond = np.where(positive, top / np.where(positive, small, 1.0), np.inf)
-    code = np.where(cond > cond_limit, np.uint8(rows.ILL_CONDITIONED), np.uint8(rows.OK))
+    code = np.where(cond > cond_limit, np.uint8(_ILL_CONDITIONED), np.uint8(_OK))
     a0 += a1
     a0 += a2
-    code[hi - mid - lo > TRIANGLE_RTOL * a0] = rows.NOT_PHYSICAL
+    code[hi - mid - lo > TRIANGLE_RTOL * a0] = _NOT_PHYSICAL
     singular = small <= rows.SINGULAR_LIMIT * top
-    code[singular] = rows.SINGULAR
+    code[singular] = _SINGULAR
     state = np.where(usable & _final(w), rows.ANSWER, rows.FALLBACK)
     state[usable & singular] = rows.NO_ANSWER
     return cond, code, state
