@@ -266,3 +266,14 @@ def test_interrupt_convert_dataset_at_any_moment_exits_0_complete_or_130_keeping
     assert points.count("file") == 3 and {"manifest", "settled", "returned", "exit", "shutdown"} <= set(points)
     assert {c for _, c in outcomes} == {0, 130}
     assert all(c == 0 for p, c in outcomes if p in ("settled", "returned", "exit", "shutdown")), outcomes
+
+
+def test_interrupt_convert_dataset_before_its_first_file_leaves_no_out(server, tmp_path):
+    """Interrupted before any file is done, a dataset run removes the OUT it made (and its
+    manifest, which claimed the paths): there is nothing to keep."""
+    _dataset(tmp_path)
+    for sig, point in ((signal.SIGINT, 0), (signal.SIGTERM, 1)):  # at its start, at its first batch
+        code, err, points = server.run(["convert", "data", "out", "-q"], tmp_path, point, sig, "at")
+        assert points[0] == "start" and "file" not in points, points
+        assert code == 130 and err == f"hconv: error: {INTERRUPTED}\n", err
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["data"]
