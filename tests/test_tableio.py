@@ -678,3 +678,24 @@ def test_output_to_stdout_on_a_full_disk_names_stdout(tmp_path):
         proc.returncode == 4
         and err == "hconv: error: stdout: could not be written (No space left on device); nothing was written\n"
     )
+
+
+@pytest.mark.parametrize("through", ["file link", "folder link", "hard link"])
+def test_output_that_is_the_input_through_a_link_is_refused_and_the_input_kept(through, tmp_path, capsys):
+    """OUT names the input by another path: refused as the input, even with --force, never the
+    input replaced by its own conversion."""
+    src = tmp_path / "a.parquet"
+    code, _, err = run_inprocess("generate", str(src), "--rows", "5", capsys=capsys)
+    before = src.read_bytes()
+    if through == "file link":
+        out = tmp_path / "link_to_a.parquet"
+        out.symlink_to("a.parquet")
+    elif through == "folder link":
+        (tmp_path / "here").symlink_to(".")
+        out = tmp_path / "here" / "a.parquet"
+    else:
+        out = tmp_path / "also_a.parquet"
+        os.link(src, out)
+    code, _, err = run_inprocess("convert", str(src), str(out), "--force", capsys=capsys)
+    assert code == 4 and err == f"hconv: error: {out}: is the input file; write the output to another path\n"
+    assert src.read_bytes() == before
