@@ -277,3 +277,12 @@ def test_interrupt_convert_dataset_before_its_first_file_leaves_no_out(server, t
         assert points[0] == "start" and "file" not in points, points
         assert code == 130 and err == f"hconv: error: {INTERRUPTED}\n", err
         assert sorted(p.name for p in tmp_path.iterdir()) == ["data"]
+
+
+def test_interrupt_as_a_usage_error_ends_is_ignored(server, tmp_path):
+    """A usage error (before the command's own code runs) decided its exit code: an interrupt at
+    its end, or in the interpreter's shutdown, leaves it 2 with its one line."""
+    for at, sig in ((0, signal.SIGINT), (1, signal.SIGTERM)):  # "exit", then "shutdown"
+        code, err, points = server.run(["convert", "in.parquet"], tmp_path, at, sig, "at")
+        assert points == ["exit", "shutdown"] and code == 2, (points, code, err)
+        assert err.startswith("hconv: error: Missing argument 'OUT'") and len(err.splitlines()) == 1, err

@@ -1053,6 +1053,7 @@ def _main() -> None:
     except Exception as exc:  # click's usage errors: one line, like every other hconv error
         if not (hasattr(exc, "format_message") and hasattr(exc, "exit_code")):
             raise
+        interrupts.settle()  # the exit code is decided: an interrupt now changes nothing
         ctx = getattr(exc, "ctx", None)
         if type(exc).__name__ == "NoArgsIsHelpError" and ctx is not None:
             print(ctx.get_help())

@@ -46,6 +46,8 @@ _commit_settles = False
 
 
 def _end(signum: int, frame: object) -> None:
+    if _settled:  # a usage error, its exit code decided before the command ran
+        return
     os.write(2, _MESSAGE)
     os._exit(130)
 
@@ -125,7 +127,7 @@ def ending() -> None:
     interpreter resets a Python handler to the default while it shuts down."""
     point("exit")
     for s in (_signal.SIGINT, _signal.SIGTERM):
-        if _signal.getsignal(s) is _interrupt:
+        if _signal.getsignal(s) in (_interrupt, _end):  # _end: a usage error, before the command ran
             _signal.signal(s, _signal.SIG_IGN)
     if _POINTS:
         import atexit
