@@ -286,3 +286,33 @@ def test_interrupt_as_a_usage_error_ends_is_ignored(server, tmp_path):
         code, err, points = server.run(["convert", "in.parquet"], tmp_path, at, sig, "at")
         assert points == ["exit", "shutdown"] and code == 2, (points, code, err)
         assert err.startswith("hconv: error: Missing argument 'OUT'") and len(err.splitlines()) == 1, err
+
+
+def test_interrupt_a_real_hconv_process_as_it_ends_exits_0_with_out(tmp_path):
+    """The same handshake with the command as a user starts it (``python -m hconv``, a fresh
+    interpreter): Ctrl-C while the interpreter shuts down, after OUT is in place, is ignored."""
+    _file(tmp_path / "work")
+    ann_r, ann_w = os.pipe()
+    go_r, go_w = os.pipe()
+    env = dict(os.environ, HCONV_TEST_POINTS=f"{ann_w}:{go_r}")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hconv", "convert", "in.parquet", "out.parquet", "-q"],
+        cwd=tmp_path / "work",
+        env=env,
+        pass_fds=(ann_w, go_r),
+        stderr=subprocess.PIPE,
+        preexec_fn=terminal_signals,
+    )
+    os.close(ann_w)
+    os.close(go_r)
+    points = []
+    with os.fdopen(ann_r, "rb") as said, os.fdopen(go_w, "wb", buffering=0) as answer:
+        for line in said:
+            points.append(line.decode().strip())
+            if points[-1] == "shutdown":
+                proc.send_signal(signal.SIGINT)
+            with contextlib.suppress(BrokenPipeError):
+                answer.write(b".")
+    _, err = proc.communicate(timeout=120)
+    assert points[-1] == "shutdown" and proc.returncode == 0 and err == b"", (points, proc.returncode, err)
+    assert pq.read_table(tmp_path / "work" / "out.parquet").num_rows == 50
