@@ -539,3 +539,101 @@ def test_stage_beside_a_long_name_or_its_part_fits_a_file_name(length, tmp_path)
         base = os.path.basename(path)
         assert len(os.fsencode(base)) <= 255 and tableio.is_run_temporary(base, "0123abcd")
         assert tableio.remove_run_temporaries(str(tmp_path), "0123abcd") == [path]
+
+
+@pytest.mark.parametrize(
+    "link, target, args, message",
+    [
+        # OUT named through a link to IN: the paths as written do not overlap, the places do
+        ("dslink", "data", ("data", "dslink/converted"), "dslink/converted and data overlap"),
+        # a folder link in IN that leads to OUT, or to a folder holding it: outputs read back as inputs
+        ("data/back", "../out", ("data", "out"), "data/back is a link that leads to out; remove the link"),
+        ("data/up", "..", ("data", "out"), "data/up is a link that leads to out; remove the link"),
+        # a folder link in OUT that leads into IN: outputs written into IN
+        ("out/date=2026-01-01", "../data/date=2026-01-01", ("data", "out"),
+         "out/date=2026-01-01/part-0.parquet would be written into data (through a link in out); remove the link"),
+    ],
+)  # fmt: skip
+def test_convert_dataset_refuses_in_and_out_joined_by_a_link(
+    link, target, args, message, tmp_path, capsys, monkeypatch
+):
+    monkeypatch.chdir(tmp_path)
+    _dataset(tmp_path / "data", rows=20)
+    (tmp_path / "out").mkdir()
+    os.symlink(target, tmp_path / link)
+    before = _files(tmp_path / "data")
+    code, err = _hconv("convert", *args, capsys=capsys)
+    assert code == 2 and err.startswith(f"hconv: error: {message}") and len(err.splitlines()) == 1, err
+    assert _files(tmp_path / "data") == before and _files(tmp_path / "out") == set()
+
+
+def test_convert_dataset_refuses_an_input_that_links_to_an_output(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    _dataset(tmp_path / "data", rows=20)
+    assert _hconv("convert", "data", "out", capsys=capsys)[0] == 0
+    os.symlink(f"../out/{PARTS[0]}", tmp_path / "data" / "again.parquet")
+    code, err = _hconv("convert", "data", "out", capsys=capsys)
+    assert code == 2 and "data/again.parquet is a link to a file in out; remove the link" in err, err
+
+
+@pytest.mark.parametrize("dst", ["s3://bucket/out", "s3://bucket/out.parquet"])
+def test_convert_dataset_store_that_cannot_be_reached_names_the_output(dst, tmp_path, capsys, monkeypatch):
+    """A store that does not answer (here: nothing listens at the endpoint) fails naming the
+    object asked about, never ``output:``."""
+    monkeypatch.chdir(tmp_path)
+    _dataset(tmp_path / "data", rows=20)
+    for name, value in {"AWS_ACCESS_KEY_ID": "x", "AWS_SECRET_ACCESS_KEY": "y", "AWS_REGION": "us-east-1"}.items():
+        monkeypatch.setenv(name, value)
+    code, err = _hconv("convert", "data", dst, "--endpoint-url", "http://127.0.0.1:1", capsys=capsys)
+    shown = f"{dst}/{MANIFEST}" if dst.endswith("out") else dst
+    assert code == 4 and err.startswith(f"hconv: error: {shown}: cannot reach it (") and len(err.splitlines()) == 1, err
+
+
+def test_convert_dataset_stops_on_a_full_disk_naming_the_file(tmp_path, capsys, monkeypatch):
+    """The disk fills while the second file is written: that file is named (not ``output:``), the
+    run stops there (no other file could be written either), the manifest lists the first."""
+    import errno
+
+    from hconv.tables import tableio
+
+    monkeypatch.chdir(tmp_path)
+    _dataset(tmp_path / "data", rows=20)
+    real, calls = tableio._ParquetWriter.write, []
+
+    def fills(self, table):
+        calls.append(1)
+        if len(calls) > 1:
+            raise OSError(errno.ENOSPC, "Error writing bytes to file. Detail: [errno 28] No space left on device")
+        real(self, table)
+
+    monkeypatch.setattr(tableio._ParquetWriter, "write", fills)
+    code, err = _hconv("convert", "data", "out", "-q", capsys=capsys)
+    assert code == 4, err
+    assert err.splitlines() == [
+        f"hconv: error: out/{PARTS[1]}: could not be written (No space left on device); nothing was written",
+        f"hconv: error: stopped: no room left for out/{PARTS[1]} (named above); 1 of 4 files are converted and "
+        f"listed in out/{MANIFEST}, which says complete: false; make room and run the same command again to "
+        "convert the rest",
+    ]
+    assert len(calls) == 2 and _files(tmp_path / "out") == {PARTS[0], MANIFEST}
+    assert [f["output"] for f in _manifest(tmp_path / "out")["files"]] == [PARTS[0]]
+
+
+def test_convert_dataset_whose_manifest_cannot_be_written_leaves_no_out(tmp_path, capsys, monkeypatch):
+    """The disk is full before anything is written: the manifest, written first, fails; the run
+    exits 4 naming it and removes the OUT it made, so that it wrote nothing, as the README says."""
+    import errno
+
+    monkeypatch.chdir(tmp_path)
+    _dataset(tmp_path / "data", rows=20)
+
+    def full(fd):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(os, "fsync", full)
+    code, err = _hconv("convert", "data", "out", "-q", capsys=capsys)
+    assert code == 4 and err == f"hconv: error: out/{MANIFEST}: could not be written (No space left on device)\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["data"]
+    (tmp_path / "out").mkdir()  # an OUT that was there stays
+    code, err = _hconv("convert", "data", "out", "-q", capsys=capsys)
+    assert code == 4 and (tmp_path / "out").is_dir() and _files(tmp_path / "out") == set()

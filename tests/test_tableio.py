@@ -637,3 +637,65 @@ def test_open_input_csv_nan_in_a_numeric_column_stays_nan_and_an_empty_field_sta
     assert run_hconv("convert", str(src), str(tmp_path / "o.csv"), "-q").returncode == 0
     first = [line.split(",")[0] for line in (tmp_path / "o.csv").read_text().splitlines()[1:]]
     assert first[0].lower() == "nan" and first[1] == "" and first[2].lower() in ("nan", "-nan")
+
+
+@pytest.mark.parametrize("fmt", ["csv", "parquet"])
+def test_output_full_disk_names_the_output(fmt, tmp_path, capsys, monkeypatch):
+    """A full disk while writing: the message names OUT, as every output error does (it said
+    ``output: Error writing bytes to file. Detail: [errno 28] ...``)."""
+    import errno
+
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from hconv.tables import tableio
+
+    writer = tableio._CsvWriter if fmt == "csv" else tableio._ParquetWriter
+
+    def full(self, table):
+        raise OSError(errno.ENOSPC, "Error writing bytes to file. Detail: [errno 28] No space left on device")
+
+    monkeypatch.setattr(writer, "write", full)
+    pq.write_table(pa.table({"Hx": [1.0], "Hy": [2.0], "Hz": [3.0], "I": [2.0]}), tmp_path / "in.parquet")
+    out = tmp_path / f"out.{fmt}"
+    code, _, err = run_inprocess("convert", str(tmp_path / "in.parquet"), str(out), "-q", capsys=capsys)
+    assert (
+        code == 4
+        and err == f"hconv: error: {out}: could not be written (No space left on device); nothing was written\n"
+    )
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.parquet"]
+
+
+def test_output_to_stdout_on_a_full_disk_names_stdout(tmp_path):
+    (tmp_path / "in.csv").write_text("Hx,Hy,Hz,I\n1,2,3,2\n")
+    with open("/dev/full", "wb") as full:
+        proc = subprocess.run(
+            [sys.executable, "-m", "hconv", "convert", "in.csv", "-", "--to", "csv", "-q"],
+            stdout=full, stderr=subprocess.PIPE, cwd=tmp_path, timeout=120,
+        )  # fmt: skip
+    err = proc.stderr.decode()
+    assert (
+        proc.returncode == 4
+        and err == "hconv: error: stdout: could not be written (No space left on device); nothing was written\n"
+    )
+
+
+@pytest.mark.parametrize("through", ["file link", "folder link", "hard link"])
+def test_output_that_is_the_input_through_a_link_is_refused_and_the_input_kept(through, tmp_path, capsys):
+    """OUT names the input by another path: refused as the input, even with --force, never the
+    input replaced by its own conversion."""
+    src = tmp_path / "a.parquet"
+    code, _, err = run_inprocess("generate", str(src), "--rows", "5", capsys=capsys)
+    before = src.read_bytes()
+    if through == "file link":
+        out = tmp_path / "link_to_a.parquet"
+        out.symlink_to("a.parquet")
+    elif through == "folder link":
+        (tmp_path / "here").symlink_to(".")
+        out = tmp_path / "here" / "a.parquet"
+    else:
+        out = tmp_path / "also_a.parquet"
+        os.link(src, out)
+    code, _, err = run_inprocess("convert", str(src), str(out), "--force", capsys=capsys)
+    assert code == 4 and err == f"hconv: error: {out}: is the input file; write the output to another path\n"
+    assert src.read_bytes() == before

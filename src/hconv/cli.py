@@ -302,6 +302,7 @@ def _make_job(given: dict, fixed: dict) -> Job:
 
 
 def _fail(msg: str, code: int) -> None:
+    interrupts.settle()  # the run is failing: an interrupt now would not change what it leaves
     print(f"hconv: error: {msg}", file=sys.stderr)
     raise typer.Exit(code)
 
@@ -312,19 +313,24 @@ def friendly(fn: Callable) -> Callable:
     @functools.wraps(fn)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
-            interrupts.hand_over(_sigterm)  # from here an interrupt is caught below, and cleans up
+            interrupts.hand_over()  # from here an interrupt is caught below, and cleans up
             with errors.command_line():
-                return fn(*args, **kwargs)
+                rv = fn(*args, **kwargs)
+            interrupts.settle()  # done: a late interrupt changes nothing (hconv.interrupts)
+            interrupts.point("returned")
+            return rv
         except HconvError as exc:
             _fail(str(exc), exc.exit_code)
         except KeyboardInterrupt as exc:  # a dataset run says what it kept (hconv.tables.dataset)
             _fail(str(exc) or INTERRUPTED, 130)
         except BrokenPipeError:  # the reader stopped early (`| head`): its choice, not a failure
+            interrupts.settle()
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
             raise typer.Exit(0) from None
         except OSError as exc:
             _fail(f"{exc.filename or 'output'}: {exc.strerror or exc}; nothing was written", 4)
         except (typer.Exit, typer.Abort):
+            interrupts.settle()
             raise
         except Exception as exc:  # noqa: BLE001 - the promise is: no traceback
             if os.environ.get("HCONV_DEBUG"):
@@ -335,7 +341,14 @@ def friendly(fn: Callable) -> Callable:
                 1,
             )
 
-    return wrapper
+    @functools.wraps(fn)
+    def guarded(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return wrapper(*args, **kwargs)
+        except KeyboardInterrupt:  # one that landed while an error was being reported: it wrote nothing
+            _fail(INTERRUPTED, 130)
+
+    return guarded
 
 
 def _numbers(option: str, text: str, allowed: tuple[int, ...]) -> list[float]:
@@ -675,6 +688,7 @@ def convert_cmd(
             f"{option('cluster')} converts a dataset's files; {src} is one file, converted here "
             f"(give its directory, or a glob, to use {option('cluster')})"
         )
+    interrupts.commit_settles()  # OUT in place ends the run: exit 0, never 130 with OUT there
     if sys.stderr.isatty() and dst != "-" and not quiet:
         with report.ProgressBar(f"converting {os.path.basename(src)}") as bar:  # the path crowded out the bar
             tally = pipeline.convert_file(src, dst, progress=bar, **kwargs)
@@ -772,6 +786,7 @@ def compare_cmd(
     from hconv import report
     from hconv.tools import compare
 
+    interrupts.commit_settles()  # OUT in place ends the run (hconv.interrupts)
     c = compare.compare_file(src, dst, src_format=_value(from_), dst_format=_value(to), force=force, job=job)
     from rich.console import Console
 
@@ -823,6 +838,7 @@ def bodies_cmd(
     if dst is None:
         modelview.show(m)
     elif not (strict and bad):  # as convert --strict: no output when a row is not ok
+        interrupts.commit_settles()  # OUT in place ends the run (hconv.interrupts)
         models.write_bodies(m, dst, form=form or "sym6", dst_format=_value(to), force=force)
         if not quiet:
             print(f"hconv bodies: {model} ({m.format}) to {dst}: {modelview.summary_line(m)}", file=sys.stderr)
@@ -856,6 +872,7 @@ def generate_cmd(
     """Write a synthetic scene of physically valid bodies with their known ω (w_true_x, ...)."""
     from hconv.tools import generate
 
+    interrupts.commit_settles()  # OUT in place ends the run (hconv.interrupts)
     seconds = generate.generate_file(
         dst, rows, scene=scene, cond_max=cond_max, seed=seed, dst_format=_value(to), force=force
     )
@@ -1021,6 +1038,8 @@ def main() -> None:
     except KeyboardInterrupt:  # after the command, before the exit
         print(f"hconv: error: {INTERRUPTED}", file=sys.stderr)
         sys.exit(130)
+    finally:
+        interrupts.ending()
 
 
 def _main() -> None:
@@ -1036,6 +1055,7 @@ def _main() -> None:
     except Exception as exc:  # click's usage errors: one line, like every other hconv error
         if not (hasattr(exc, "format_message") and hasattr(exc, "exit_code")):
             raise
+        interrupts.settle()  # the exit code is decided: an interrupt now changes nothing
         ctx = getattr(exc, "ctx", None)
         if type(exc).__name__ == "NoArgsIsHelpError" and ctx is not None:
             print(ctx.get_help())

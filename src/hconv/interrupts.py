@@ -1,11 +1,21 @@
-"""Ctrl-C and SIGTERM while the hconv command starts: exit 130 with one line, never a traceback;
-and :func:`held`, which makes them wait while a few steps that must not be cut finish.
+"""Ctrl-C and SIGTERM in the hconv command: exit 130 with one line and no output, or, once the
+output is in place, no effect: never a traceback, never death by the signal. And :func:`held`,
+which makes them wait while a few steps that must not be cut finish.
 
 The command spends its first few tenths of a second importing numpy, typer and the rest. A
 KeyboardInterrupt raised in there printed a traceback, or, inside numpy's import, an ImportError
 and exit 1. Until a command's own code runs (``cli.friendly``) nothing has been written and
 nothing needs cleaning up, so the process can simply end; from then on the signals raise
 KeyboardInterrupt again, so that a conversion removes its temporary file on the way out.
+
+Once the command's own code runs, the rule is: the run either ends with its output in place and
+its own exit code, or exits 130 having written nothing. So the first interrupt raises
+KeyboardInterrupt and any later one is ignored while that unwinds (a second Ctrl-C cannot cut the
+removal of a temporary file short); and once the output is committed the run is *settled*
+(:func:`settle`, inside the :func:`held` block of the commit): an interrupt from then on is
+ignored, so that a caller never sees 130 with OUT complete, then fails its retry on OUT existing.
+At the very end (:func:`ending`) the signals are ignored outright: while the interpreter shuts
+down it resets a Python handler to the default, under which a late signal would kill the process.
 
 Only the hconv command (the console script or ``python -m hconv``) does this: a program that
 imports hconv as a library keeps its own handlers. This module is the first thing hconv
@@ -16,21 +26,40 @@ imports, so it imports only what the interpreter has already loaded (``_signal``
 from __future__ import annotations
 
 import _signal  # type: ignore[import-not-found]  # signal without its enum import
+import _thread
 import os
 import sys
 
 from hconv.errors import INTERRUPTED
 
-TYPE_CHECKING = False
-if TYPE_CHECKING:
-    from collections.abc import Callable
-
 _MESSAGE = f"hconv: error: {INTERRUPTED}\n".encode()
+#: The tests' handshake (:func:`point`): ``W:R``, file descriptors to announce on and to wait on.
+_POINTS = os.environ.get("HCONV_TEST_POINTS")
+_MAIN_THREAD = _thread.get_ident()  # hconv is imported on the main thread, where handlers run
+
+
+#: The command's outcome is decided (:func:`settle`, or a first interrupt is unwinding): a
+#: Ctrl-C or SIGTERM is then ignored by :func:`_interrupt`.
+_settled = False
+#: Whether committing the output settles the command (:func:`commit_settles`).
+_commit_settles = False
 
 
 def _end(signum: int, frame: object) -> None:
+    if _settled:  # a usage error, its exit code decided before the command ran
+        return
     os.write(2, _MESSAGE)
     os._exit(130)
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    """The command's handler for Ctrl-C and SIGTERM while its own code runs: KeyboardInterrupt,
+    once, unless the run is settled."""
+    global _settled
+    if _settled:
+        return
+    _settled = True
+    raise KeyboardInterrupt
 
 
 def _is_command() -> bool:
@@ -60,12 +89,61 @@ def starting() -> bool:
     return _signal.getsignal(_signal.SIGTERM) is _end or _signal.getsignal(_signal.SIGINT) is _end
 
 
-def hand_over(on_sigterm: Callable[[int, object], None]) -> None:
-    """A command's own code starts: Ctrl-C raises KeyboardInterrupt again, SIGTERM calls ``on_sigterm``."""
-    if _signal.getsignal(_signal.SIGINT) is _end:
-        _signal.signal(_signal.SIGINT, _signal.default_int_handler)
-    if _signal.getsignal(_signal.SIGTERM) is _end:
-        _signal.signal(_signal.SIGTERM, on_sigterm)
+def hand_over() -> None:
+    """A command's own code starts: Ctrl-C and SIGTERM raise KeyboardInterrupt (once), so that
+    the run removes its temporary files on the way out."""
+    global _settled, _commit_settles
+    _settled = _commit_settles = False
+    for s in (_signal.SIGINT, _signal.SIGTERM):
+        if _signal.getsignal(s) is _end:
+            _signal.signal(s, _interrupt)
+    point("start")
+
+
+def settle() -> None:
+    """The command's outcome is decided (its output is committed, or it is failing): from here a
+    Ctrl-C or SIGTERM is ignored. Call it inside the :func:`held` block that commits the output,
+    so that an interrupt that arrived during the commit is dropped rather than raised after it.
+    Outside the hconv command (a program using hconv) it changes nothing."""
+    global _settled
+    _settled = True
+
+
+def commit_settles() -> None:
+    """The output this command commits next is its last step: :func:`committed` then settles it."""
+    global _commit_settles
+    _commit_settles = True
+
+
+def committed() -> None:
+    """An output was committed (in a :func:`held` block): it settles the command if it was the
+    command's last step (:func:`commit_settles`); a dataset's files, say, are not."""
+    if _commit_settles:
+        settle()
+
+
+def ending() -> None:
+    """The command ends, its exit code decided: ignore Ctrl-C and SIGTERM outright, since the
+    interpreter resets a Python handler to the default while it shuts down."""
+    point("exit")
+    for s in (_signal.SIGINT, _signal.SIGTERM):
+        if _signal.getsignal(s) in (_interrupt, _end):  # _end: a usage error, before the command ran
+            _signal.signal(s, _signal.SIG_IGN)
+    if _POINTS:
+        import atexit
+
+        atexit.register(point, "shutdown")
+
+
+def point(name: str) -> None:
+    """A named moment of a run, for tests that interrupt it there (tests/test_interrupts.py):
+    with HCONV_TEST_POINTS=W:R set, the main thread writes ``name`` and a newline to descriptor W,
+    then waits for a byte on R; a signal sent meanwhile lands at this moment. Otherwise nothing."""
+    if _POINTS is None or _thread.get_ident() != _MAIN_THREAD:
+        return
+    w, r = (int(fd) for fd in _POINTS.split(":"))
+    os.write(w, name.encode() + b"\n")
+    os.read(r, 1)
 
 
 def held() -> Held:

@@ -229,7 +229,7 @@ def plan_dataset(
     )
     if out.contains(source.place) or (source.pattern is None and source.place.contains(out)):
         raise overlap
-    if storage.format_by_name(out.root) and out.fs.get_file_info(out.root).type != storage.DIRECTORY:
+    if storage.format_by_name(out.root) and storage.file_info(out, "").type != storage.DIRECTORY:
         stem = os.path.splitext(out.shown)[0]
         raise UsageError(
             f"{dst}: names a file, but {src} is a dataset, converted file by file into a directory; "
@@ -242,15 +242,19 @@ def plan_dataset(
         if not os.path.isdir(parent):
             shown = os.path.dirname(out.shown) or parent
             raise OutputError(f"{dst}: the directory {shown!r} does not exist; create it first")
+    if out.local and source.place.local:
+        _refuse_links_into_out(source, out)
     inputs = source.files(src_format)
     if source.place.contains(out):  # a glob's folder holds OUT: fine unless the glob takes outputs
-        inside = out.identity[len(source.place.identity) :].strip("/")
+        inside = out.resolved[len(source.place.resolved) :].strip("/")
         match = storage.glob_regex(source.pattern or "**").match
         if any(match(f"{inside}/{_output_rel(f.rel, src_format or '', dst_format)[0]}") for f in inputs):
             raise overlap
+    if out.local and source.place.local:
+        _refuse_linked_overlap(source, out, inputs, src_format, dst_format)
     identity = job_identity(job, src_format, dst_format)
     before = _read_manifest(out, force)
-    existing = {f.rel: f for f in out.list()}
+    existing = {f.rel: f for f in out.list(OutputError)}
     same_job = before is not None and before.get("job") == identity
     same_source = before is not None and before.get("source") == source.place.identity
     why = None
@@ -303,6 +307,47 @@ def plan_dataset(
     return Plan(source, out, job, identity, inputs, kept, todo, refused, why if todo else None, before)
 
 
+def _refuse_links_into_out(source: Source, out: Place) -> None:
+    """UsageError, before IN is listed, when a folder link in IN leads into OUT or to a folder
+    holding it: the listing follows links, so outputs would come back as inputs (and a link to a
+    folder holding IN would be listed without end). Comparing the two paths cannot see it."""
+    out_real = os.path.realpath(out.root)
+    for folder, dirs, _ in os.walk(source.place.root):
+        for d in dirs:
+            path = os.path.join(folder, d)
+            real = os.path.realpath(path)
+            if os.path.islink(path) and (storage.inside(real, out_real) or storage.inside(out_real, real)):
+                rel = os.path.relpath(path, source.place.root).replace(os.sep, "/")
+                raise UsageError(
+                    f"{source.place.name(rel)} is a link that leads to {out.shown}; "
+                    "remove the link, or write the dataset to a directory it does not lead to"
+                )
+
+
+def _refuse_linked_overlap(
+    source: Source, out: Place, inputs: list[Listed], src_format: str | None, dst_format: str | None
+) -> None:
+    """UsageError when a link joins IN and OUT file by file: an input that is a link to a file of
+    OUT, or an output that a folder link in OUT would put into IN."""
+    out_real = os.path.realpath(out.root)
+    in_real = os.path.realpath(source.place.root)
+    for f in inputs:
+        if storage.inside(os.path.realpath(source.place.path(f.rel)), out_real):
+            raise UsageError(
+                f"{source.place.name(f.rel)} is a link to a file in {out.shown}; "
+                "remove the link, or write the dataset to another directory"
+            )
+        rel = _output_rel(f.rel, src_format or storage.format_by_name(f.rel) or "", dst_format)[0]
+        folder = os.path.dirname(out.path(rel))
+        real = os.path.realpath(folder)
+        lexical = os.path.normpath(os.path.join(out_real, os.path.relpath(folder, out.root)))
+        if real != lexical and storage.inside(real, in_real):
+            raise UsageError(
+                f"{out.name(rel)} would be written into {source.place.shown} (through a link in {out.shown}); "
+                "remove the link, or write the dataset to another directory"
+            )
+
+
 def convert_one(
     task: Task,
     src: Place,
@@ -343,6 +388,7 @@ def convert_one(
             threads=threads,
             progress=progress,
             name=name,
+            dst_name=_shown_output(dst, task.output, staged),
         )
         worst = tally.worst_residual
         record = FileRecord(
@@ -351,7 +397,7 @@ def convert_one(
             input_size=task.input.size,
             input_mtime_ns=task.input.mtime_ns,
             input_etag=etag,
-            output_size=_flushed(staged) if dst.local else os.path.getsize(staged),
+            output_size=_flushed(staged, dst.name(task.output)) if dst.local else os.path.getsize(staged),
             rows=tally.rows,
             statuses=tally.counts(),
             worst_residual=None if np.isnan(worst) else worst,
@@ -367,6 +413,7 @@ def convert_one(
             record.seconds = time.perf_counter() - t0
             if done is not None:
                 done(record)
+            interrupts.point("file")
     return record
 
 
@@ -482,6 +529,7 @@ def convert_part(
             progress=progress,
             name=src.name(rel),
             rows=(part.start, part.stop),
+            dst_name=_shown_output(dst, part.rel, staged),
         )
         with interrupts.held():
             if dst.local:
@@ -516,12 +564,12 @@ def join_parts(
             tableio.join_parquet(local, staged)
             with interrupts.held():
                 if dst.local:
-                    _flushed(staged)
+                    _flushed(staged, dst.name(task.output))
                     _commit(staged, target, task.overwrite, dst.name(task.output))
                 else:
                     storage.put(staged, dst, task.output)
         remove_parts(parts, dst)
-    size = os.path.getsize(target) if dst.local else dst.fs.get_file_info(target).size
+    size = os.path.getsize(target) if dst.local else storage.file_info(dst, task.output).size
     tally = Tally("", "")
     for part, r in zip(parts, records):
         row = None if r.worst_row is None else part.start + r.worst_row  # a part counts from its start
@@ -569,7 +617,13 @@ def _staged(dst: Place, rel: str, cleanup: contextlib.ExitStack, run: str | None
     if dst.local:
         _make_folders(os.path.dirname(target), cleanup)
     with interrupts.held():
-        staged = storage.stage(target if dst.local else None, run=run)
+        try:
+            staged = storage.stage(target if dst.local else None, run=run)
+        except OSError as exc:  # mkstemp in a folder that is full or not writable
+            where = os.path.dirname(target) if dst.local else "the temporary directory (TMPDIR)"
+            err = OutputError(f"{dst.name(rel)}: cannot make its temporary file in {where} ({exc.strerror or exc})")
+            err.errno = exc.errno  # a full disk stops the run (convert_dataset)
+            raise err from None
         cleanup.callback(_remove, staged)
     return staged
 
@@ -613,14 +667,26 @@ def _remove(path: str) -> None:
         os.unlink(path)
 
 
-def _flushed(path: str) -> int:
-    """Flush a finished output to the disk before the manifest can claim it; its size."""
-    fd = os.open(path, os.O_RDONLY)
+def _flushed(path: str, shown: str) -> int:
+    """Flush a finished output to the disk before the manifest can claim it; its size. ``shown``:
+    the output as messages name it (a full disk may refuse the flush)."""
     try:
-        os.fsync(fd)
-        return os.fstat(fd).st_size
-    finally:
-        os.close(fd)
+        fd = os.open(path, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+            return os.fstat(fd).st_size
+        finally:
+            os.close(fd)
+    except OSError as exc:
+        raise tableio.write_failure(shown, exc) from None
+
+
+def _shown_output(dst: Place, rel: str, staged: str) -> str:
+    """How messages name the output ``rel`` while it is written into ``staged``: its own name, and
+    for object storage where it is staged, whose disk a full disk is."""
+    if dst.local:
+        return dst.name(rel)
+    return f"{dst.name(rel)} (staged in {os.path.dirname(staged)!r}; set TMPDIR to a directory with room)"
 
 
 def convert_dataset(
@@ -707,46 +773,78 @@ def convert_dataset(
     ran_on = None
     split_files = split_parts = 0
     rows = TASK_ROWS if task_rows is None else task_rows
-    with contextlib.ExitStack() as stack:
-        if cluster is not None and plan.todo:
-            # connected (and the workers' hconv checked) before anything is written
-            session = stack.enter_context(dask_cluster.connect(cluster, workers, cluster_timeout, threads))
-            ran_on = session.describe()
-            say(f"running on {ran_on}")
-            outcomes = session.run(plan, keep, strict=strict, task_rows=rows)
-            if rows:
-                parts_run = {"id": session.run_id, "driver": tableio.maker()}
-        else:
-            outcomes = _in_process(plan, keep, strict=strict, threads=threads)
-        if plan.todo:
-            _write_manifest(plan, records, failed, written, t0, parts_run)
-        last = time.monotonic()
-        try:
-            for k, (task, error) in enumerate(outcomes):
-                if error is not None:
-                    failed[task.input.rel] = error
-                    say(f"error: {error}")
-                if progress is not None:
-                    progress(k + 1, len(plan.todo))
-                if time.monotonic() - last > CHECKPOINT_SECONDS:
+    stopped: HconvError | None = None  #: a file's output found no room on the disk: the others would not either
+    # OUT made by this run is removed again when the run ends having put nothing in it (the manifest
+    # cannot be written, an interrupt before the first file): a failed run leaves no output.
+    created = plan.dst.local and not os.path.lexists(plan.dst.root)
+    try:
+        with contextlib.ExitStack() as stack:
+            if cluster is not None and plan.todo:
+                # connected (and the workers' hconv checked) before anything is written
+                session = stack.enter_context(dask_cluster.connect(cluster, workers, cluster_timeout, threads))
+                ran_on = session.describe()
+                say(f"running on {ran_on}")
+                outcomes = session.run(plan, keep, strict=strict, task_rows=rows)
+                if rows:
+                    parts_run = {"id": session.run_id, "driver": tableio.maker()}
+            else:
+                outcomes = _in_process(plan, keep, strict=strict, threads=threads)
+            if plan.todo:
+                _write_manifest(plan, records, failed, written, t0, parts_run)
+            last = time.monotonic()
+            try:
+                for k, (task, error) in enumerate(outcomes):
+                    if error is not None:
+                        failed[task.input.rel] = error
+                        say(f"error: {error}")
+                        if getattr(error, "errno", None) in tableio.NO_ROOM:
+                            stopped = error
+                            break
+                    if progress is not None:
+                        progress(k + 1, len(plan.todo))
+                    if time.monotonic() - last > CHECKPOINT_SECONDS:
+                        _write_manifest(plan, records, failed, written, t0, parts_run)
+                        last = time.monotonic()
+            except KeyboardInterrupt:
+                if any(t.input.rel not in records and t.input.rel not in failed for t in plan.todo):
+                    if created and not converted:
+                        raise  # nothing to keep: OUT is removed below
                     _write_manifest(plan, records, failed, written, t0, parts_run)
-                    last = time.monotonic()
-        except KeyboardInterrupt:
-            _write_manifest(plan, records, failed, written, t0, parts_run)
-            kept = len(records)
-            raise KeyboardInterrupt(
-                f"interrupted; {kept} of {len(plan.inputs)} files are converted and listed in "
-                f"{plan.dst.name(MANIFEST)} (complete: false), and no other file was written; "
-                "run the same command again to convert the rest"
-            ) from None
-        if ran_on is not None:
-            ran_on = session.describe_end()
-            split_files, split_parts = session.split_files, session.parts
-    if plan.todo or plan.refused or _manifest_stale(plan, records, failed):
-        _write_manifest(plan, records, failed, written, t0)
+                    raise KeyboardInterrupt(
+                        f"interrupted; {len(records)} of {len(plan.inputs)} files are converted and listed in "
+                        f"{plan.dst.name(MANIFEST)} (complete: false), and no other file was written; "
+                        "run the same command again to convert the rest"
+                    ) from None
+                # else too late to stop: every file is done; the run ends as it would have
+            finally:
+                if hasattr(outcomes, "close"):  # stopped early: no further file starts
+                    outcomes.close()
+            if ran_on is not None:
+                ran_on = session.describe_end()
+                split_files, split_parts = session.split_files, session.parts
+        if plan.todo or plan.refused or _manifest_stale(plan, records, failed):
+            # The last manifest settles the run: from here an interrupt cannot make it exit 130
+            # with OUT complete (hconv.interrupts.settle), which a caller would retry and fail.
+            interrupts.point("manifest")
+            with interrupts.held():
+                _write_manifest(plan, records, failed, written, t0)
+                interrupts.settle()
+                interrupts.point("settled")
+    except BaseException:
+        if created and not converted:
+            _remove_created_out(plan)
+        raise
     result = _result(plan, records, failed, converted, t0)
     result.ran_on = ran_on
     result.split_files, result.split_parts, result.task_rows = split_files, split_parts, rows
+    if stopped is not None:
+        raise DatasetError(
+            f"stopped: no room left for {_named(stopped)} (named above); {len(result.files)} of {result.total} "
+            f"files are converted and listed in {result.manifest}, which says complete: false; "
+            "make room and run the same command again to convert the rest",
+            stopped.exit_code,
+            result,
+        )
     if failed:
         codes = [exc.exit_code for exc in failed.values()]
         raise DatasetError(
@@ -756,6 +854,18 @@ def convert_dataset(
             result,
         )
     return result
+
+
+def _named(exc: HconvError) -> str:
+    """The file an error's one-line message names (the part before its first ``: ``)."""
+    return str(exc).split(": ", 1)[0]
+
+
+def _remove_created_out(plan: Plan) -> None:
+    """Remove OUT, made by this run, and its manifest: the run ends having converted nothing into it."""
+    storage.remove(plan.dst, MANIFEST)
+    with contextlib.suppress(OSError):  # not empty: something else is in it, which hconv never deletes
+        os.rmdir(plan.dst.root)
 
 
 def _in_process(

@@ -118,6 +118,7 @@ class BackgroundWriter:
                     self._error = exc
 
     def write(self, table: pa.Table) -> None:
+        interrupts.point("batch")
         if self._error is not None:
             raise self._error
         self._q.put(table)
@@ -211,6 +212,7 @@ def convert_file(
     progress: Callable[[int, int | None], None] | None = None,
     name: str | None = None,
     rows: tuple[int, int] | None = None,
+    dst_name: str | None = None,
 ) -> Tally:
     """Convert the table in ``src`` into ``dst`` ("-" for stdin/stdout); returns the tally.
 
@@ -221,7 +223,8 @@ def convert_file(
     same, in the same order, for any number.
     ``progress(done, total)`` is called after each batch with rows or bytes read so far.
     ``name``: what messages call the input (default: ``src``), such as the URI of an object
-    fetched into ``src`` (:func:`hconv.tables.dataset.convert_dataset`).
+    fetched into ``src`` (:func:`hconv.tables.dataset.convert_dataset`); ``dst_name`` the same for
+    the output, such as a dataset's output whose temporary file ``dst`` is.
     ``rows``: (start, stop), convert only those rows of a Parquet ``src`` (a part of a file
     converted by one task of a cluster run: :func:`hconv.tables.dataset.convert_part`); messages
     name the file's rows, the tally's ``worst_row`` counts from ``start``.
@@ -236,7 +239,7 @@ def convert_file(
         job = dataclasses.replace(job, engine=engines.for_files(job.engine))
     fin = format_of(src, src_format, "src_format")
     fout = format_of(dst, dst_format, "dst_format")
-    out = Output(dst, fout, force=force, input_path=src)  # refuses early, before reading
+    out = Output(dst, fout, force=force, input_path=src, shown=dst_name)  # refuses early, before reading
     t0 = time.perf_counter()
     with open_input(src, fin, job, name, rows) as inp:
         if fout == "csv":
@@ -252,7 +255,7 @@ def convert_file(
             inp.batches = iter(())
             types = csvtypes.whole_file(tableio.text_batches(inp))
             with tableio.reopen(inp, job) as again:
-                tally = run(again, Output(dst, fout, force=force, input_path=src), types=types)
+                tally = run(again, Output(dst, fout, force=force, input_path=src, shown=dst_name), types=types)
     tally.seconds = time.perf_counter() - t0
     return tally
 

@@ -108,23 +108,33 @@ class Place:
         """The place however it was written: ``file://`` and an absolute path, or the URI."""
         return f"file://{self.root}" if self.local else f"{self.fs.type_name}://{self.root}"
 
-    def contains(self, other: Place) -> bool:
-        """Whether ``other`` is this place or inside it."""
-        if self.identity == other.identity:
-            return True
-        return other.identity.startswith(self.identity.rstrip("/") + "/")
+    @property
+    def resolved(self) -> str:
+        """Where the place is: :attr:`identity` with a local path's links resolved (the part that
+        exists), so that ``dslink/sub``, with ``dslink`` a link to ``ds``, is inside ``ds``."""
+        return f"file://{os.path.realpath(self.root)}" if self.local else self.identity
 
-    def list(self) -> list[Listed]:
-        """Every file under this place, recursively; none if it does not exist."""
+    def contains(self, other: Place) -> bool:
+        """Whether ``other`` is this place or inside it, however links name them."""
+        return inside(other.resolved, self.resolved)
+
+    def list(self, error: type[InputError] | type[OutputError] = InputError) -> list[Listed]:
+        """Every file under this place, recursively; none if it does not exist. ``error``: what a
+        failure to list it raises (OutputError for OUT)."""
         try:
             infos = self.fs.get_file_info(pafs.FileSelector(self.root, recursive=True, allow_not_found=True))
         except OSError as exc:
-            raise InputError(f"{self.shown}: cannot list it {store_failure(exc)}") from None
+            raise error(f"{self.shown}: cannot list it {store_failure(exc)}") from None
         cut = len(self.root) + 1 if self.root else 0
         return sorted(
             (Listed(i.path[cut:], i.size, i.mtime_ns) for i in infos if i.type == pafs.FileType.File),
             key=lambda f: f.rel,
         )
+
+
+def inside(path: str, folder: str) -> bool:
+    """Whether ``path`` is ``folder`` or inside it (both absolute, written alike)."""
+    return path == folder or path.startswith(folder.rstrip("/") + "/")
 
 
 def first_line(exc: BaseException) -> str:
@@ -382,7 +392,16 @@ def exists(where: Place, rel: str) -> bool:
     """Whether the file ``rel`` is under ``where``."""
     if where.local:
         return os.path.isfile(where.path(rel))
-    return where.fs.get_file_info(where.path(rel)).type == pafs.FileType.File
+    return file_info(where, rel).type == pafs.FileType.File
+
+
+def file_info(where: Place, rel: str) -> Any:
+    """The pyarrow FileInfo of ``rel`` under the output place ``where``; OutputError naming it
+    when the store cannot say (refused, unreachable)."""
+    try:
+        return where.fs.get_file_info(where.path(rel) if rel else where.root)
+    except OSError as exc:
+        raise OutputError(f"{where.name(rel) if rel else where.shown}: cannot reach it {store_failure(exc)}") from None
 
 
 def remove(where: Place, rel: str) -> None:
@@ -453,7 +472,7 @@ def read_bytes(where: Place, rel: str) -> bytes | None:
     except FileNotFoundError:
         return None
     except OSError as exc:
-        if not where.local and where.fs.get_file_info(where.path(rel)).type == pafs.FileType.NotFound:
+        if not where.local and file_info(where, rel).type == pafs.FileType.NotFound:
             return None
         raise OutputError(f"{where.name(rel)}: cannot read it {store_failure(exc)}") from None
 

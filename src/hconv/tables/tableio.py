@@ -18,6 +18,7 @@ from __future__ import annotations
 import contextlib
 import csv
 import difflib
+import errno
 import io
 import itertools
 import os
@@ -39,6 +40,7 @@ import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 
+from hconv import interrupts
 from hconv.errors import InputError, OutputError, UsageError, option
 from hconv.solve import forms
 from hconv.tables import csvtypes, layout, sets
@@ -839,8 +841,12 @@ class Output:
     is removed and ``path`` is left as it was.
     """
 
-    def __init__(self, path: str, fmt: str, *, force: bool = False, input_path: str | None = None):
+    def __init__(
+        self, path: str, fmt: str, *, force: bool = False, input_path: str | None = None, shown: str | None = None
+    ):
         self.path, self.fmt = path, fmt
+        #: the output as messages name it: ``path``, or the file that a dataset's staged ``path`` becomes
+        self.shown = shown or ("stdout" if path == "-" else path)
         self._writer: _CsvWriter | _ParquetWriter | None = None
         self._tmp: str | None = None
         self._target = path  #: where the file goes: ``path``, or the file a link at ``path`` names
@@ -899,9 +905,12 @@ class Output:
         """Append a converted table; the first call fixes the output schema."""
         if self._tmp is None:
             raise ValueError("write to an Output inside its with block")
-        if self._writer is None:
-            self._writer = (_CsvWriter if self.fmt == "csv" else _ParquetWriter)(self._tmp, table.schema)
-        self._writer.write(table)
+        try:
+            if self._writer is None:
+                self._writer = (_CsvWriter if self.fmt == "csv" else _ParquetWriter)(self._tmp, table.schema)
+            self._writer.write(table)
+        except OSError as exc:  # a full disk, a quota: the output named, not the temporary file
+            raise write_failure(self.shown, exc) from None
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: object) -> None:
         try:
@@ -911,9 +920,7 @@ class Output:
                 self._commit()
         except OSError as err:
             if exc_type is None:
-                raise OutputError(
-                    f"{self.path}: could not be written ({err.strerror or err}); nothing was written"
-                ) from None
+                raise write_failure(self.shown, err) from None
         finally:
             if self._tmp and os.path.exists(self._tmp):
                 os.unlink(self._tmp)
@@ -929,9 +936,29 @@ class Output:
                 except BrokenPipeError:  # the reader stopped early (e.g. `| head`): not our failure
                     devnull = os.open(os.devnull, os.O_WRONLY)
                     os.dup2(devnull, sys.stdout.fileno())
+            interrupts.committed()
         else:
-            os.replace(self._tmp, self._target)
-            self._tmp = None
+            # held: an interrupt during the rename acts after it, when the command may be settled
+            # (hconv.interrupts), rather than leaving OUT in place and the run exiting 130
+            interrupts.point("commit")
+            with interrupts.held():
+                os.replace(self._tmp, self._target)
+                self._tmp = None
+                interrupts.committed()
+                interrupts.point("committed")
+
+
+#: The errors that say the disk (or the user's quota on it) has no room: no file written there can succeed.
+NO_ROOM = (errno.ENOSPC, errno.EDQUOT)
+
+
+def write_failure(shown: str, exc: OSError) -> OutputError:
+    """OutputError for the output ``shown`` that could not be written, its errno kept (so that a
+    dataset can tell a full disk, :data:`NO_ROOM`, from one file's failure)."""
+    reason = os.strerror(exc.errno) if exc.errno else exc.strerror or _first_line(exc)
+    err = OutputError(f"{shown}: could not be written ({reason}); nothing was written")
+    err.errno = exc.errno
+    return err
 
 
 def _file_kind(mode: int) -> str:
