@@ -795,3 +795,35 @@ def test_open_input_csv_without_a_line_end_says_so_not_that_it_is_empty(tmp_path
     assert code == 0, err
     out = pq.read_table(tmp_path / "out.parquet")
     assert out.num_rows == 0 and ",".join(out.column_names[:10]) == header
+
+
+@pytest.mark.parametrize(
+    ("damage", "message"),
+    [
+        (
+            lambda row: row + b"x" * (200 << 10),  # a row longer than pyarrow's block: it cut it there
+            "data row 3000 runs on for more than 128 KiB in one value: a quote opened and never closed, or "
+            "a line that is not CSV; fix that row",
+        ),
+        (
+            lambda row: b'"' + row,  # the rest of the file (under 128 KiB) is one value
+            "data row 3000 has 1 values where the header names 10, one of them running over several lines: "
+            "a quote opened and never closed? close it",
+        ),
+    ],
+    ids=["long", "quote"],
+)
+def test_open_input_csv_row_cut_by_a_block_end_or_an_open_quote_is_named(
+    damage, message, tmp_path, capsys, monkeypatch
+):
+    """pyarrow splits a CSV into blocks; a row it cannot end within one came out as 'a row has 1
+    values', naming no row, though the row had all its values."""
+    from hconv.tables import tableio
+
+    monkeypatch.setattr(tableio, "CSV_BLOCK_BYTES", 1 << 16)
+    monkeypatch.chdir(tmp_path)
+    lines = _scene_csv(tmp_path / "in.csv", 3500).split(b"\n")
+    lines[3000] = damage(lines[3000])
+    (tmp_path / "in.csv").write_bytes(b"\n".join(lines))
+    code, _, err = run_inprocess("convert", "in.csv", "out.parquet", capsys=capsys)
+    assert (code, err.strip()) == (3, f"hconv: error: in.csv: {message}")

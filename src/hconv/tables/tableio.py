@@ -715,22 +715,41 @@ _CSV_UTF8 = re.compile(r"In CSV column #(\d+): CSV conversion error to string: i
 
 
 def _csv_parse_error(path: str, name: str, exc: Exception) -> InputError:
-    """A row with the wrong number of values, named by its data row; else pyarrow's first line."""
+    """A row with the wrong number of values, or too long for a block, named by its data row;
+    else pyarrow's first line."""
     m = _CSV_RAGGED.search(str(exc))
-    if not m:
+    straddles = "straddl" in str(exc)  # a row longer than a block ("straddles two block boundaries")
+    if not m and not straddles:
         return InputError(f"{name}: not a readable CSV file ({_first_line(exc)})")
-    expected, got = int(m.group(1)), int(m.group(2))
-    row = ""
+    expected = int(m.group(1)) if m else 0
+    row, k = "", 0
     try:  # the error path only: find the row with Python's csv module
         with open(path, newline="", encoding="utf-8-sig") as f:
-            for k, fields in enumerate(csv.reader(f)):
-                if k and fields and len(fields) != expected:
+            for k, fields in enumerate(csv.reader(f)):  # noqa: B007 - k is the last row read, below
+                if k == 0:
+                    expected = expected or len(fields)
+                elif fields and len(fields) != expected:
                     row = f"data row {k}"
+                    if any("\n" in v for v in fields):  # a quote that ran on, often to the end of the file
+                        return InputError(
+                            f"{name}: data row {k} has {len(fields)} values where the header names {expected}, "
+                            "one of them running over several lines: a quote opened and never closed? close it"
+                        )
                     break
-    except (OSError, UnicodeDecodeError, csv.Error):
+    except csv.Error:  # a value longer than the csv module's limit: pyarrow cut its row at a block's end
+        return InputError(
+            f"{name}: data row {k + 1} runs on for more than {csv.field_size_limit() >> 10} KiB in one value: "
+            "a quote opened and never closed, or a line that is not CSV; fix that row"
+        )
+    except (OSError, UnicodeDecodeError):
         pass
+    if not m:
+        return InputError(
+            f"{name}: {row or 'a row'} is longer than {CSV_BLOCK_BYTES >> 20} MiB, the longest row hconv reads; "
+            "is it a CSV?"
+        )
     return InputError(
-        f"{name}: {row or 'a row'} has {got} values, but the header names {expected} columns; "
+        f"{name}: {row or 'a row'} has {m.group(2)} values, but the header names {expected} columns; "
         "every row needs one value per column (quote a value that holds a comma)"
     )
 
