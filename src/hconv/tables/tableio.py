@@ -11,6 +11,10 @@ From CSV, the columns hconv does not use are read as text (:attr:`Input.text`), 
 output gives them back exactly as they went in; into Parquet, the pipeline gives them types
 (:mod:`hconv.tables.csvtypes`), unless the Job says ``keep_text``. ω's unit goes into a column
 ``w_unit`` in CSV; in Parquet it is the ``unit`` metadata of wx, wy, wz.
+
+Whatever pyarrow raises while reading is the input's (InputError, naming the file, and for
+Parquet the row group), and a file that changes while it is read is refused; pyarrow is given
+native files only (see ``_open_csv``).
 """
 
 from __future__ import annotations
