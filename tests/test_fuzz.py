@@ -14,8 +14,9 @@ import os
 
 import numpy as np
 import pyarrow as pa
+import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
-from helpers import mp_solve, rel_err, run_inprocess
+from helpers import mp_solve, rel_err, run_hconv, run_inprocess
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -201,3 +202,152 @@ def test_fuzz_one_arguments(capsys, H, I, r, q, method):
                 assert not got.any()  # H = 0: ω = 0 exactly
             else:
                 assert rel_err(got, want)[0] < 1e-6
+
+
+# --- damaged files: a seeded sweep ------------------------------------------------------------
+# Damage as disks, networks and half-finished copies make it, to a small valid file: flipped
+# bits, cut tails, inserted or lost bytes, a page overwritten, other encodings, repeated headers.
+# Every outcome must be exit 0 with right numbers for the rows as read, or exit 3 with one line
+# that names the input; never 1 or 4 (the output is not at fault), never a file left behind.
+
+SWEEP_ROWS = 240
+TENSOR = ["Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz"]
+
+
+def sweep_table(seed: int, rows: int = SWEEP_ROWS) -> pa.Table:
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(rows, 3, 3))
+    inertia = a @ a.transpose(0, 2, 1) + 0.5 * np.eye(3)  # symmetric positive definite
+    cols = {"id": pa.array(np.arange(rows)), "label": pa.array([f"body-{k % 7}" for k in range(rows)])}
+    for c in ["Hx", "Hy", "Hz"]:
+        cols[c] = pa.array(rng.normal(size=rows))
+    for c, (i, j) in zip(TENSOR, [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)], strict=True):
+        cols[c] = pa.array(inertia[:, i, j])
+    return pa.table(cols)
+
+
+def damage(data: bytes, rng: np.random.Generator, kind: str) -> bytes:
+    b = bytearray(data)
+    at = int(rng.integers(1, len(b) - 1))
+    if kind == "flip":  # a few bits anywhere
+        for _ in range(int(rng.integers(1, 4))):
+            b[int(rng.integers(0, len(b)))] ^= 1 << int(rng.integers(0, 8))
+    elif kind == "bytes":  # a few bytes replaced
+        for _ in range(int(rng.integers(1, 6))):
+            b[int(rng.integers(0, len(b)))] = int(rng.integers(0, 256))
+    elif kind == "run":  # a run of bytes overwritten, as a bad sector or a page of garbage
+        n = int(rng.integers(8, 200))
+        b[at : at + n] = rng.integers(0, 256, min(n, len(b) - at), dtype=np.uint8).tobytes()
+    elif kind == "cut":  # a copy that stopped early
+        del b[at:]
+    elif kind == "insert":
+        b[at:at] = rng.integers(0, 256, int(rng.integers(1, 30)), dtype=np.uint8).tobytes()
+    elif kind == "delete":
+        del b[at : at + int(rng.integers(1, 30))]
+    elif kind == "zeros":  # a hole, as a sparse file's unwritten region
+        b[at : at + int(rng.integers(16, 4096))] = bytes(min(4096, len(b) - at))[: len(b[at : at + 4096])]
+    return bytes(b)
+
+
+PARQUET_DAMAGE = ["flip", "bytes", "run", "cut", "insert", "delete", "zeros"]
+CSV_DAMAGE = PARQUET_DAMAGE + ["latin1", "header_again", "header_twice", "quote", "join", "nul", "utf16_tail"]
+
+
+def damage_csv(data: bytes, rng: np.random.Generator, kind: str) -> bytes:
+    lines = data.split(b"\n")
+    k = int(rng.integers(1, len(lines) - 1))
+    if kind == "latin1":  # a label typed on another machine
+        lines[k] = lines[k].replace(b"body", "bödy".encode("latin-1"))
+    elif kind == "header_again":  # two files concatenated with their headers
+        lines.insert(k, lines[0])
+    elif kind == "header_twice":  # a column named twice
+        lines[0] = lines[0].replace(b"label", b"Hx")
+    elif kind == "quote":  # a quote opened and never closed
+        lines[k] = b'"' + lines[k]
+    elif kind == "join":  # a lost line end
+        lines[k : k + 2] = [lines[k] + lines[k + 1]]
+    elif kind == "nul":
+        lines[k] = lines[k][:3] + b"\x00" + lines[k][3:]
+    elif kind == "utf16_tail":
+        lines[k] = lines[k].decode().encode("utf-16-le")
+    else:
+        return damage(data, rng, kind)
+    return b"\n".join(lines)
+
+
+def check_converted(src, dst, code: int, err: str, before: set, counts: dict) -> None:
+    """The sweep's checks for one run; ``counts`` gathers the figures."""
+    counts[code] = counts.get(code, 0) + 1
+    assert code in (0, 3), (src.name, code, err)
+    assert "Traceback" not in err and "internal error" not in err, err
+    if code == 3:
+        lines = [ln for ln in err.splitlines() if ln.strip()]
+        assert len(lines) == 1 and lines[0].startswith("hconv: error: "), (src.name, err)
+        assert str(src) in lines[0], (src.name, err)  # names the input
+        counts["named"] = counts.get("named", 0) + 1
+        assert {p.name for p in src.parent.iterdir()} == before, src.name  # no output, no temporary file
+        return
+    assert {p.name for p in src.parent.iterdir()} == before | {dst.name}, src.name
+    out = pq.read_table(dst)
+    if src.suffix == ".csv":  # every row kept: as many as Python's csv module reads
+        rows = [r for r in csv.reader(io.StringIO(src.read_bytes().decode("utf-8-sig"))) if r]
+        assert out.num_rows == len(rows) - 1, src.name
+    else:
+        assert out.num_rows == pq.ParquetFile(src).metadata.num_rows, src.name
+    ok = np.asarray(out.column("status").to_pylist()) == "ok"
+    H = np.stack([out.column(c).to_numpy() for c in ["Hx", "Hy", "Hz"]], axis=1)[ok]
+    t = {c: out.column(c).to_numpy()[ok] for c in TENSOR}
+    inertia = np.stack(
+        [
+            np.stack([t["Ixx"], t["Ixy"], t["Ixz"]], axis=1),
+            np.stack([t["Ixy"], t["Iyy"], t["Iyz"]], axis=1),
+            np.stack([t["Ixz"], t["Iyz"], t["Izz"]], axis=1),
+        ],
+        axis=1,
+    )
+    w = np.stack([out.column(c).to_numpy() for c in ["wx", "wy", "wz"]], axis=1)[ok]
+    if ok.any():  # ω of each ok row, against numpy's solve of the row as hconv read it
+        want = np.linalg.solve(inertia, H[..., None])[..., 0]
+        assert np.all(rel_err(w, want) < 1e-9), src.name
+    dst.unlink()
+
+
+def sweep(tmp_path, capsys, fmt: str, n: int, kinds: list, goods: list[bytes]) -> dict:
+    """``n`` damaged copies of the files ``goods``, each converted in this process; the figures."""
+    folder = tmp_path / "runs"
+    folder.mkdir()
+    counts: dict = {}
+    for seed in range(n):
+        rng = np.random.default_rng(seed)
+        kind = kinds[seed % len(kinds)]
+        src = folder / f"damaged-{seed:03d}-{kind}.{fmt}"
+        src.write_bytes((damage_csv if fmt == "csv" else damage)(goods[seed % len(goods)], rng, kind))
+        dst = folder / "out.parquet"
+        before = {p.name for p in folder.iterdir()}
+        code, _, err = run_inprocess("convert", str(src), str(dst), "-q", capsys=capsys)
+        check_converted(src, dst, code, err, before, counts)
+        if seed == 1:  # the real command says the same
+            proc = run_hconv("convert", str(src), str(dst), "-q")
+            assert (proc.returncode, proc.stderr.decode()) == (code, err)
+            dst.unlink(missing_ok=True)
+        src.unlink()
+    return counts
+
+
+def test_convert_damaged_parquet_sweep_is_exit_0_right_or_3_naming_the_input(tmp_path, capsys):
+    table, goods = sweep_table(0), []
+    for checksums in (False, True):  # pages without checksums (pyarrow's default) and with them
+        buf = pa.BufferOutputStream()
+        pq.write_table(table, buf, row_group_size=40, write_page_checksum=checksums)
+        goods.append(buf.getvalue().to_pybytes())
+    counts = sweep(tmp_path, capsys, "parquet", 100, PARQUET_DAMAGE, goods)
+    print(f"\ndamaged Parquet: 100 inputs, exit codes {counts}")
+    assert counts.get(3, 0) > 50  # the sweep damages what is read, not only what no one reads
+
+
+def test_convert_damaged_csv_sweep_is_exit_0_right_or_3_naming_the_input(tmp_path, capsys):
+    buf = pa.BufferOutputStream()
+    pacsv.write_csv(sweep_table(0, 700), buf)  # 150 KB: most damage lies past the 64 KiB hconv checks first
+    counts = sweep(tmp_path, capsys, "csv", 50, CSV_DAMAGE, [buf.getvalue().to_pybytes()])
+    print(f"\ndamaged CSV: 50 inputs, exit codes {counts}")
+    assert counts.get(3, 0) > 20

@@ -11,8 +11,12 @@ import sys
 import time
 from pathlib import Path
 
+import pyarrow as pa
+import pyarrow.parquet as pq
 import pytest
 from helpers import run_hconv, run_inprocess, run_on_terminal, terminal_signals
+
+import hconv.errors
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE_CSV = ROOT / "examples" / "data" / "scene.csv"
@@ -699,3 +703,187 @@ def test_output_that_is_the_input_through_a_link_is_refused_and_the_input_kept(t
     code, _, err = run_inprocess("convert", str(src), str(out), "--force", capsys=capsys)
     assert code == 4 and err == f"hconv: error: {out}: is the input file; write the output to another path\n"
     assert src.read_bytes() == before
+# --- what pyarrow reads, and what it says when it cannot -------------------------------------
+
+
+def _scene_csv(path: Path, rows: int, label=lambda k: f"b{k}") -> bytes:
+    """A CSV of ``rows`` valid bodies (diagonal inertia), with a text column ``label``."""
+    lines = ["Hx,Hy,Hz,Ixx,Iyy,Izz,Ixy,Ixz,Iyz,label"]
+    lines += [f"{k % 7 + 1},{k % 3},1,2,3,4,0,0,0,{label(k)}" for k in range(rows)]
+    data = ("\n".join(lines) + "\n").encode()
+    path.write_bytes(data)
+    return data
+
+
+def test_open_input_csv_error_leaves_no_python_read_on_pyarrow_threads(tmp_path, monkeypatch):
+    """pyarrow reads a CSV ahead on its own threads. Given a Python file object, those threads
+    call into the interpreter; after an error in the first block they were still reading when
+    the process exited, and a thread coming back into an exiting interpreter aborts it
+    (SIGABRT, 'terminate called without an active exception', 2 runs in 60 of `hconv convert`
+    on such a file). So no read of the input may go through Python off the main thread: each is
+    recorded here, deterministically, wherever the race would have gone."""
+    import threading
+
+    from hconv.tables import pipeline, tableio
+
+    monkeypatch.setattr(tableio, "CSV_BLOCK_BYTES", 1 << 18)
+    src = tmp_path / "bad.csv"
+    data = _scene_csv(src, 20000)
+    at = data.index(b",b", 100_000) + 2  # past the 64 KiB hconv checks itself, in pyarrow's first block
+    src.write_bytes(data[:at] + b"\xe9\xff" + data[at:])
+    off_main = []
+
+    class Seen(io.FileIO):
+        def read(self, n: int = -1) -> bytes:
+            if threading.current_thread() is not threading.main_thread():
+                off_main.append(threading.current_thread().name)
+            return super().read(n)
+
+    def seen_open(path, mode="r", *args, **kwargs):
+        return Seen(path, "r") if mode == "rb" else open(path, mode, *args, **kwargs)
+
+    monkeypatch.setattr(tableio, "open", seen_open, raising=False)
+    with pytest.raises(hconv.errors.InputError, match="bad.csv: column 'label' holds text that is not UTF-8"):
+        pipeline.convert_file(str(src), str(tmp_path / "out.parquet"))
+    assert not off_main, f"pyarrow's threads read the input through Python: {sorted(set(off_main))}"
+    assert not (tmp_path / "out.parquet").exists()
+
+
+def _scene_parquet(path: Path, groups: int, rows: int = 50, checksums: bool = False) -> pa.Table:
+    """A Parquet file of ``groups`` row groups of ``rows`` valid bodies, with a snappy text column."""
+    import numpy as np
+
+    n = groups * rows
+    table = pa.table(
+        {
+            "Hx": np.arange(n, dtype=float),
+            "Hy": np.ones(n),
+            "Hz": np.ones(n),
+            "Ixx": np.full(n, 2.0),
+            "Iyy": np.full(n, 3.0),
+            "Izz": np.full(n, 4.0),
+            "Ixy": np.zeros(n),
+            "Ixz": np.zeros(n),
+            "Iyz": np.zeros(n),
+            "label": [f"body {k} of a long enough name" for k in range(n)],
+        }
+    )
+    pq.write_table(
+        table, path, row_group_size=rows, compression="snappy", use_dictionary=False, write_page_checksum=checksums
+    )
+    return table
+
+
+def _overwrite_chunk(path: Path, group: int, column: str, fill: bytes) -> None:
+    """Overwrite the second half of a column chunk's pages in row group ``group`` (0-based) with
+    ``fill``, repeated: its page header intact, its data damaged."""
+    meta = pq.ParquetFile(path).metadata
+    names = [meta.schema.column(k).name for k in range(meta.num_columns)]
+    chunk = meta.row_group(group).column(names.index(column))
+    start, size = chunk.data_page_offset, chunk.total_compressed_size
+    data = bytearray(path.read_bytes())
+    data[start + size // 2 : start + size] = (fill * size)[: size - size // 2]
+    path.write_bytes(bytes(data))
+
+
+@pytest.mark.parametrize(
+    ("column", "checksums", "why"),
+    [
+        ("label", False, "Corrupt snappy compressed data"),  # a compressed page that does not decompress
+        ("Hx", True, "CRC checksum verification failed"),  # plain floats: only a checksum tells
+    ],
+    ids=["snappy", "checksum"],
+)
+def test_open_input_parquet_damaged_page_names_the_input_and_its_row_group(
+    column, checksums, why, tmp_path, capsys, monkeypatch
+):
+    src = tmp_path / "in.parquet"
+    _scene_parquet(src, groups=4, checksums=checksums)
+    _overwrite_chunk(src, 2, column, b"\xff\x00\x13")
+    monkeypatch.chdir(tmp_path)
+    code, _, err = run_inprocess("convert", "in.parquet", "out.parquet", capsys=capsys)
+    assert code == 3, err
+    assert err.startswith("hconv: error: in.parquet: row group 3 of 4 (data rows 101-150) cannot be read (")
+    assert why in err and "the file is damaged" in err and len(err.strip().splitlines()) == 1, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.parquet"]
+
+
+@pytest.mark.parametrize("fmt", ["csv", "parquet"])
+def test_convert_file_input_rewritten_while_read_is_refused(fmt, tmp_path, monkeypatch):
+    """A file appended to, cut or rewritten in place while hconv reads it: what was read may mix
+    two versions of it, which no later check would see."""
+    from hconv.tables import pipeline, tableio
+
+    src = tmp_path / f"in.{fmt}"
+    if fmt == "csv":
+        monkeypatch.setattr(tableio, "CSV_BLOCK_BYTES", 1 << 12)
+        _scene_csv(src, 2000)
+    else:
+        monkeypatch.setattr(tableio, "PARQUET_BATCH_ROWS", 50)
+        _scene_parquet(src, groups=4)
+    calls = []
+
+    def progress(done: int, total: int | None) -> None:  # after the first batch: another writer appends
+        calls.append(done)
+        if len(calls) == 1:
+            with open(src, "ab") as f:
+                f.write(b"1,2,3,4,5,6,0,0,0,late\n")
+
+    changed = rf"in\.{fmt}: changed while hconv read it \(from \d+ to \d+ bytes"
+    with pytest.raises(hconv.errors.InputError, match=changed):
+        pipeline.convert_file(str(src), str(tmp_path / "out.parquet"), progress=progress, threads=1)
+    assert len(calls) >= 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == [f"in.{fmt}"]
+
+
+def test_open_input_csv_without_a_line_end_says_so_not_that_it_is_empty(tmp_path, capsys, monkeypatch):
+    from hconv.tables import tableio
+
+    monkeypatch.chdir(tmp_path)
+    big = tmp_path / "one.csv"
+    big.write_bytes(b"Hx,Hy,Hz,Ixx,Iyy,Izz,Ixy,Ixz,Iyz" + b",1" * ((tableio.CSV_BLOCK_BYTES >> 1) + 10))
+    code, _, err = run_inprocess("convert", "one.csv", "out.parquet", capsys=capsys)
+    assert (code, err.strip()) == (
+        3,
+        "hconv: error: one.csv: has no line end in its first 4 MiB; a CSV is a header line and one line per "
+        "row, each shorter than that: is it a CSV?",
+    )
+    # a header written without its newline is a table with no rows, as it is with one
+    header = "Hx,Hy,Hz,Ixx,Iyy,Izz,Ixy,Ixz,Iyz,note"
+    (tmp_path / "header.csv").write_bytes(header.encode())
+    code, _, err = run_inprocess("convert", "header.csv", "out.parquet", "-q", capsys=capsys)
+    assert code == 0, err
+    out = pq.read_table(tmp_path / "out.parquet")
+    assert out.num_rows == 0 and ",".join(out.column_names[:10]) == header
+
+
+@pytest.mark.parametrize(
+    ("damage", "message"),
+    [
+        (
+            lambda row: row + b"x" * (200 << 10),  # a row longer than pyarrow's block: it cut it there
+            "data row 3000 runs on for more than 128 KiB in one value: a quote opened and never closed, or "
+            "a line that is not CSV; fix that row",
+        ),
+        (
+            lambda row: b'"' + row,  # the rest of the file (under 128 KiB) is one value
+            "data row 3000 has 1 values where the header names 10, one of them running over several lines: "
+            "a quote opened and never closed? close it",
+        ),
+    ],
+    ids=["long", "quote"],
+)
+def test_open_input_csv_row_cut_by_a_block_end_or_an_open_quote_is_named(
+    damage, message, tmp_path, capsys, monkeypatch
+):
+    """pyarrow splits a CSV into blocks; a row it cannot end within one came out as 'a row has 1
+    values', naming no row, though the row had all its values."""
+    from hconv.tables import tableio
+
+    monkeypatch.setattr(tableio, "CSV_BLOCK_BYTES", 1 << 16)
+    monkeypatch.chdir(tmp_path)
+    lines = _scene_csv(tmp_path / "in.csv", 3500).split(b"\n")
+    lines[3000] = damage(lines[3000])
+    (tmp_path / "in.csv").write_bytes(b"\n".join(lines))
+    code, _, err = run_inprocess("convert", "in.csv", "out.parquet", capsys=capsys)
+    assert (code, err.strip()) == (3, f"hconv: error: in.csv: {message}")

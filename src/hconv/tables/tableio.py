@@ -11,6 +11,10 @@ From CSV, the columns hconv does not use are read as text (:attr:`Input.text`), 
 output gives them back exactly as they went in; into Parquet, the pipeline gives them types
 (:mod:`hconv.tables.csvtypes`), unless the Job says ``keep_text``. ω's unit goes into a column
 ``w_unit`` in CSV; in Parquet it is the ``unit`` metadata of wx, wy, wz.
+
+Whatever pyarrow raises while reading is the input's (InputError, naming the file, and for
+Parquet the row group), and a file that changes while it is read is refused; pyarrow is given
+native files only (see ``_open_csv``).
 """
 
 from __future__ import annotations
@@ -563,11 +567,79 @@ def _header_hint(names: list) -> str:
     return ""
 
 
+def _one_line(path: str, name: str) -> bytes | None:
+    """The bytes of a CSV file that is one line with no line end (a header and no rows, written
+    without its newline), which pyarrow takes for an empty file; None for a file with a line end
+    in its first block. InputError for a file with none in its first block: no CSV reader reads
+    a line longer than a block, and such a file is rarely a CSV (a 100 MB file without a newline
+    was called empty)."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(1 << 16)
+            if not head or b"\n" in head or b"\r" in head:
+                return None
+            head += f.read(CSV_BLOCK_BYTES + 1 - len(head))
+    except OSError as exc:
+        raise _oserror(name, exc) from None
+    if b"\n" in head or b"\r" in head:
+        return None
+    if len(head) <= CSV_BLOCK_BYTES:
+        return head
+    raise InputError(
+        f"{name}: has no line end in its first {CSV_BLOCK_BYTES >> 20} MiB; a CSV is a header line and one "
+        f"line per row, each shorter than that: is it a CSV?"
+    )
+
+
+@dataclass(frozen=True)
+class _Stat:
+    """What tells that a file changed while it was read: its size and modification time, as its
+    open descriptor sees them (a file replaced by a rename keeps the one being read unchanged)."""
+
+    size: int
+    mtime_ns: int
+
+    @staticmethod
+    def of(fd: int) -> _Stat:
+        st = os.fstat(fd)
+        return _Stat(st.st_size, st.st_mtime_ns)
+
+
+def _changed(name: str, fd: int | None, at_open: _Stat | None, why: str = "") -> InputError | None:
+    """InputError if the file open as ``fd`` is no longer as it was when opened (``at_open``):
+    rewritten, cut or appended to while hconv read it, so that what was read mixes two versions."""
+    if fd is None or at_open is None:
+        return None
+    try:
+        now = _Stat.of(fd)
+    except OSError:
+        return None
+    if now == at_open:
+        return None
+    return InputError(
+        f"{name}: changed while hconv read it (from {at_open.size} to {now.size} bytes{why}); nothing was "
+        "written: run again once whatever writes it has finished"
+    )
+
+
 def _open_csv(path: str, name: str, job: Job) -> Input:
     _sniff_csv(path, name)
+    one_line = _one_line(path, name)
     ropts = pacsv.ReadOptions(block_size=CSV_BLOCK_BYTES)
+
+    def source() -> pa.NativeFile:
+        """The file as pyarrow reads it: a native file, never a Python file object. pyarrow reads
+        ahead on its own threads, which may still be reading when an error is raised here; one
+        that holds a Python object needs the interpreter, and if the interpreter is exiting by
+        then the process aborts (SIGABRT, 'terminate called without an active exception', about
+        one run in ten on a file with bad UTF-8 in its first block). A native file needs no
+        interpreter, and pyarrow keeps it open for as long as its threads use it."""
+        if one_line is not None:  # a header without its newline: read it with one
+            return pa.BufferReader(one_line + b"\n")
+        return pa.OSFile(path)
+
     try:
-        with pacsv.open_csv(path, read_options=ropts) as probe:
+        with pacsv.open_csv(source(), read_options=ropts) as probe:
             names = probe.schema.names
     except pa.ArrowInvalid as exc:
         if "Empty CSV file" in str(exc):
@@ -588,29 +660,37 @@ def _open_csv(path: str, name: str, job: Job) -> Input:
     # NaN is a float value, not a missing one: pyarrow's default null markers include its
     # spellings, which turned a file's NaN into a null (an empty field in CSV output).
     copts = pacsv.ConvertOptions(column_types=types, strings_can_be_null=False, null_values=csvtypes.NULLS.to_pylist())
-    f = open(path, "rb")  # noqa: SIM115 - stays open for the batches; Input.close() closes it
+    try:
+        f = source()
+        fd = None if one_line is not None else f.fileno()
+        at_open = None if fd is None else _Stat.of(fd)
+    except OSError as exc:
+        raise _oserror(name, exc) from None
     try:  # the reader parses its first block here already, so bad values can show up now
         reader = pacsv.open_csv(f, read_options=ropts, convert_options=copts)
-    except pa.ArrowInvalid as exc:
-        f.close()
-        raise _csv_value_error(path, name, names, ropts, exc) from None
-    except BaseException:
-        f.close()
-        raise
-    total = os.fstat(f.fileno()).st_size
+    except pa.ArrowInvalid as exc:  # f is left to pyarrow, whose read-ahead may still be using it
+        raise _changed(name, fd, at_open) or _csv_value_error(path, name, names, ropts, exc) from None
+    total = f.size()
 
     def batches() -> Iterator[pa.RecordBatch]:
         while True:
             try:
                 batch = reader.read_next_batch()
             except StopIteration:
-                return
+                break
             except pa.ArrowInvalid as exc:
-                raise _csv_value_error(path, name, names, ropts, exc) from None
+                raise _changed(name, fd, at_open) or _csv_value_error(path, name, names, ropts, exc) from None
+            except (OSError, pa.ArrowException, MemoryError) as exc:  # all the reader raises is the input's
+                raise _changed(name, fd, at_open) or InputError(
+                    f"{name}: cannot be read ({_first_line(exc)}); check the file"
+                ) from None
             yield batch
+        changed = _changed(name, fd, at_open)
+        if changed:
+            raise changed
 
     text = tuple(n for n in names if n not in nums)
-    return Input(name, reader.schema, batches(), total, f.tell, plan, [f.close], text, path)
+    return Input(name, reader.schema, batches(), total, f.tell, plan, [], text, path)
 
 
 def reopen(inp: Input, job: Job) -> Input:
@@ -629,7 +709,7 @@ def text_batches(inp: Input) -> Iterator[pa.RecordBatch]:
     try:
         with pacsv.open_csv(inp.path, read_options=ropts, convert_options=copts) as reader:
             yield from reader
-    except pa.ArrowInvalid:
+    except (OSError, pa.ArrowException):  # not the output's: reading inp again says what it is
         return
 
 
@@ -641,22 +721,41 @@ _CSV_UTF8 = re.compile(r"In CSV column #(\d+): CSV conversion error to string: i
 
 
 def _csv_parse_error(path: str, name: str, exc: Exception) -> InputError:
-    """A row with the wrong number of values, named by its data row; else pyarrow's first line."""
+    """A row with the wrong number of values, or too long for a block, named by its data row;
+    else pyarrow's first line."""
     m = _CSV_RAGGED.search(str(exc))
-    if not m:
+    straddles = "straddl" in str(exc)  # a row longer than a block ("straddles two block boundaries")
+    if not m and not straddles:
         return InputError(f"{name}: not a readable CSV file ({_first_line(exc)})")
-    expected, got = int(m.group(1)), int(m.group(2))
-    row = ""
+    expected = int(m.group(1)) if m else 0
+    row, k = "", 0
     try:  # the error path only: find the row with Python's csv module
         with open(path, newline="", encoding="utf-8-sig") as f:
-            for k, fields in enumerate(csv.reader(f)):
-                if k and fields and len(fields) != expected:
+            for k, fields in enumerate(csv.reader(f)):  # noqa: B007 - k is the last row read, below
+                if k == 0:
+                    expected = expected or len(fields)
+                elif fields and len(fields) != expected:
                     row = f"data row {k}"
+                    if any("\n" in v for v in fields):  # a quote that ran on, often to the end of the file
+                        return InputError(
+                            f"{name}: data row {k} has {len(fields)} values where the header names {expected}, "
+                            "one of them running over several lines: a quote opened and never closed? close it"
+                        )
                     break
-    except (OSError, UnicodeDecodeError, csv.Error):
+    except csv.Error:  # a value longer than the csv module's limit: pyarrow cut its row at a block's end
+        return InputError(
+            f"{name}: data row {k + 1} runs on for more than {csv.field_size_limit() >> 10} KiB in one value: "
+            "a quote opened and never closed, or a line that is not CSV; fix that row"
+        )
+    except (OSError, UnicodeDecodeError):
         pass
+    if not m:
+        return InputError(
+            f"{name}: {row or 'a row'} is longer than {CSV_BLOCK_BYTES >> 20} MiB, the longest row hconv reads; "
+            "is it a CSV?"
+        )
     return InputError(
-        f"{name}: {row or 'a row'} has {got} values, but the header names {expected} columns; "
+        f"{name}: {row or 'a row'} has {m.group(2)} values, but the header names {expected} columns; "
         "every row needs one value per column (quote a value that holds a comma)"
     )
 
@@ -687,7 +786,7 @@ def _csv_value_error(path: str, name: str, names: list, ropts: pacsv.ReadOptions
                         where = f" in data row {seen + k + 1}"
                         raise StopIteration from None
             seen += batch.num_rows
-    except (StopIteration, pa.ArrowException):
+    except (StopIteration, OSError, pa.ArrowException):
         pass
     return InputError(
         f"{name}: column {col!r} must be numeric but holds {value!r}{where}; "
@@ -731,43 +830,91 @@ def _open_parquet(path: str, name: str, job: Job, rows: tuple[int, int] | None =
     try:
         if os.path.getsize(path) == 0:
             raise InputError(f"{name}: the file is empty (0 bytes); it is not a Parquet file")
+        source = pa.OSFile(path)
+        at_open = _Stat.of(source.fileno())
         # Stream pages rather than pre-buffering whole row groups, so that peak memory does not
         # grow with the writer's row-group size (docs/measurements.md).
-        pf = pq.ParquetFile(path, pre_buffer=False, buffer_size=1 << 20)
+        # Pages that carry a checksum (pyarrow writes them with write_page_checksum=True) are
+        # checked: a damaged page of plain floats otherwise reads as other numbers, silently.
+        pf = pq.ParquetFile(source, pre_buffer=False, buffer_size=1 << 20, page_checksum_verification=True)
+        schema = pf.schema_arrow  # a footer whose column metadata is damaged fails here
+        meta = pf.metadata
     except pa.ArrowException as exc:
         raise _not_parquet(path, name, exc) from None
     except OSError as exc:
         if exc.errno is None and os.path.isfile(path):  # pyarrow's own errors about the bytes
             raise _not_parquet(path, name, exc) from None
         raise _oserror(name, exc) from None
-    schema = pf.schema_arrow
     plan = layout.plan(schema, job, name)
     done = [0]
-    start, stop = rows if rows is not None else (0, pf.metadata.num_rows)
-    groups, skip = _row_groups(pf.metadata, start, stop)
+    start, stop = rows if rows is not None else (0, meta.num_rows)
+    groups, skip = _row_groups(meta, start, stop)
+
+    def read(row_groups: list[int]) -> Iterator[pa.RecordBatch]:
+        """``pf``'s batches of ``row_groups``. pyarrow reads and decodes the pages lazily, here, on
+        the reading thread: whatever it raises is the input's fault (before, a damaged page's
+        OSError reached the CLI as the output's, exit 4), named by its row group."""
+        got = pf.iter_batches(batch_size=PARQUET_BATCH_ROWS, row_groups=row_groups)
+        n = 0  #: rows read, from the first of row_groups
+        while True:
+            try:
+                batch = next(got)
+            except StopIteration:
+                return
+            except Exception as exc:  # noqa: BLE001 - only pyarrow's reading runs in this try
+                raise _changed(name, source.fileno(), at_open, f"; {_first_line(exc)}") or _damaged(
+                    pf, name, row_groups, n, exc
+                ) from None
+            n += batch.num_rows
+            yield batch
 
     def read_all() -> Iterator[pa.RecordBatch]:
-        try:
-            got = pf.iter_batches(batch_size=PARQUET_BATCH_ROWS, row_groups=groups)
-            for batch in got if rows is None else _rebatched(got, skip, stop - start):
-                done[0] += batch.num_rows
-                yield batch
-        except pa.ArrowException as exc:
-            raise InputError(
-                f"{name}: not a readable Parquet file ({_first_line(exc)}); check that it was completely written"
-            ) from None
+        got = read(groups)
+        for batch in got if rows is None else _rebatched(got, skip, stop - start):
+            done[0] += batch.num_rows
+            yield batch
+        changed = _changed(name, source.fileno(), at_open)
+        if changed:  # rewritten in place while read: what was read may mix two versions of it
+            raise changed
 
     batches = read_all()
     if any(g.is_list and g.size is None for g in plan.groups.values()):
         # A variable-length list column's length shows only in the data: the file's first batch
         # fixes it, here on the reading thread, so every batch (of every part) is held to the same plan.
-        first = next(batches, None) if start == 0 else next(pf.iter_batches(PARQUET_BATCH_ROWS, [0]), None)
+        first = next(batches, None) if start == 0 else next(read([0]), None)
         if first is not None:
             plan = plan.resolve(pa.Table.from_batches([first]))
             if start == 0:
                 batches = itertools.chain([first], batches)
-    closers = [pf.close]
+    closers = [pf.close, source.close]
     return Input(name, schema, batches, stop - start, lambda: done[0], plan, closers, first_row=start)
+
+
+def _damaged(pf: pq.ParquetFile, name: str, groups: list[int], read: int, exc: Exception) -> InputError:
+    """The error for a Parquet file whose pages pyarrow could not read after ``read`` rows of the
+    row groups ``groups``, naming the row group that fails: the next batch may span several, so
+    each that it touches is read again, alone (on this error path only)."""
+    meta = pf.metadata
+    firsts = list(itertools.accumulate((meta.row_group(k).num_rows for k in range(meta.num_row_groups)), initial=0))
+    bad, n = None, 0
+    for k in groups:
+        rows = meta.row_group(k).num_rows
+        if n + rows > read and n < read + PARQUET_BATCH_ROWS:  # the failing batch touches it
+            bad = bad if bad is not None else k  # at worst the first it touches
+            try:
+                for _ in pf.iter_batches(batch_size=PARQUET_BATCH_ROWS, row_groups=[k]):
+                    pass
+            except Exception:  # noqa: BLE001 - any failure names this row group
+                bad = k
+                break
+        n += rows
+    if bad is None:
+        return InputError(f"{name}: cannot be read ({_first_line(exc)}); the file is damaged: write it again")
+    return InputError(
+        f"{name}: row group {bad + 1} of {meta.num_row_groups} (data rows {firsts[bad] + 1}-{firsts[bad + 1]}) "
+        f"cannot be read ({_first_line(exc)}); the file is damaged or was not completely written: "
+        "write it again from its source"
+    )
 
 
 def _row_groups(meta: pq.FileMetaData, start: int, stop: int) -> tuple[list[int], int]:
