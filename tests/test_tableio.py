@@ -703,6 +703,8 @@ def test_output_that_is_the_input_through_a_link_is_refused_and_the_input_kept(t
     code, _, err = run_inprocess("convert", str(src), str(out), "--force", capsys=capsys)
     assert code == 4 and err == f"hconv: error: {out}: is the input file; write the output to another path\n"
     assert src.read_bytes() == before
+
+
 # --- what pyarrow reads, and what it says when it cannot -------------------------------------
 
 
