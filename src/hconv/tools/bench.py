@@ -32,6 +32,7 @@ from hconv.kernels.inertia import Sym3
 from hconv.kernels.metrics import relative_error
 from hconv.solve import convert as core
 from hconv.solve import methods, options
+from hconv.solve.blocks import BLOCK_ROWS
 from hconv.tools import stability
 from hconv.tools.scene import make_scene
 
@@ -40,7 +41,7 @@ ACCURACY_CONDS = (1e1, 1e4, 1e8)
 #: refined against lapack on rows of one condition number each: its steps grow with cond
 REFINED_CONDS = (1e4, 1e8, 1e10, 1e12)
 #: rows per condition number there (16 blocks)
-REFINED_ROWS = 16 * core.BLOCK_ROWS
+REFINED_ROWS = 16 * BLOCK_ROWS
 
 
 @dataclass
@@ -107,11 +108,11 @@ def kernel_rates(
         dt = options.DTYPES[prec]
         blocks = [
             (
-                I.take(slice(lo, lo + core.BLOCK_ROWS)).astype(dt),
-                H[:, lo : lo + core.BLOCK_ROWS].astype(dt),
-                r[:, lo : lo + core.BLOCK_ROWS].astype(dt),
+                I.take(slice(lo, lo + BLOCK_ROWS)).astype(dt),
+                H[:, lo : lo + BLOCK_ROWS].astype(dt),
+                r[:, lo : lo + BLOCK_ROWS].astype(dt),
             )
-            for lo in range(0, n, core.BLOCK_ROWS)
+            for lo in range(0, n, BLOCK_ROWS)
         ]
         for name, m in methods.METHODS.items():
             if keys is None or f"{name}/{prec}" in keys:
