@@ -6,10 +6,11 @@ one`` takes it; ``hconv.convert_table`` on pyarrow Tables and RecordBatches (pya
 only when that is called), with a :class:`Job` (an Options with the scene's columns, units and
 formats); ``hconv.convert_file`` on a file, ``hconv.convert_dataset`` on a directory, glob or
 prefix of files, local or on object storage, and ``hconv.convert_path`` on either, by what the
-path is, as ``hconv convert`` decides. Every one takes ``job=`` or the keywords, never both. For engines that own the data (DuckDB, Polars, Dask, Ray,
-Spark): ``hconv.output_schema`` gives ``convert_table``'s result schema without converting, and
-``hconv.parquet_write_options`` hconv's own Parquet writer settings, and ``hconv.units_of`` the
-units a schema or Parquet files store, for engines that drop them (docs/recipes.md).
+path is, as ``hconv convert`` decides. Every one takes ``job=`` or the keywords, never both.
+For engines that own the data (DuckDB, Polars, Dask, Ray, Spark): ``hconv.output_schema`` gives
+``convert_table``'s result schema without converting, and ``hconv.parquet_write_options``
+hconv's own Parquet writer settings, and ``hconv.units_of`` the units a schema or Parquet files
+store, for engines that drop them (docs/recipes.md).
 Conventions: :mod:`hconv.kernels.inertia`; the package's layers: docs/architecture.md.
 """
 

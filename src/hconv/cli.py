@@ -32,7 +32,6 @@ from hconv.tables.formats import FORMATS
 from hconv.tools.scene import SCENES
 
 if TYPE_CHECKING:
-    from hconv.solve.methods import Method
     from hconv.tables.job import Job
 
 
@@ -621,23 +620,7 @@ def diagnose_cmd(
 
     d = diagnose.diagnose_file(src, src_format=_value(from_), tol=tol, job=job)
     if as_json:
-        clean = _json_number
-        print(
-            json.dumps(
-                [
-                    {
-                        "hypothesis": s.hypothesis,
-                        "rank": rank,
-                        "tied_with": tied,
-                        "median_residual": clean(s.residual.median),
-                        "share_explained": clean(s.residual.share_within),
-                        "median_angle_deg": clean(s.angle.median),
-                    }
-                    for rank, s, tied in d.ranks()
-                ],
-                indent=1,
-            )
-        )
+        print(json.dumps(d.to_json(), indent=1))
         return
     from hconv import report
 
@@ -808,24 +791,7 @@ def engines_cmd(
         seconds, compiled_now = compiled.warm()
         done = "compiled the numba engine" if compiled_now else "loaded the numba engine from numba's cache"
         print(f"{done} in {seconds:.1f} s")
-    installed = engines.numba_installed()
-    ready = installed and engines.compiled_ready()
-    numba_state = "not installed: " + engines.NUMBA_FIX
-    if installed:
-        numba_state = "installed, compiled" if ready else "installed, not compiled: run hconv engines --compile"
-    auto = (
-        f"python for one body; numba for {engines.AUTO_MIN_ROWS:,}+ rows once compiled, or after "
-        f"{engines.START_COST}\xa0s of numpy time; else numpy. Files: numpy"
-    )
-    forced = os.environ.get("HCONV_ENGINE")
-    _listing(
-        [
-            ("numpy", "every method and option; always there (the reference)"),
-            ("numba", "exact and refined on tensors, in float64, on every core", numba_state),
-            ("python", "the numba engine's code, interpreted: one body at a time"),
-            ("auto", auto, *([f"HCONV_ENGINE={forced}: every auto is {forced}"] if forced else [])),
-        ]
-    )
+    _listing(engines.listing())
 
 
 def _listing(entries: list[tuple[str, ...]]) -> None:
@@ -843,29 +809,9 @@ def _listing(entries: list[tuple[str, ...]]) -> None:
 def methods_cmd(as_json: bool = typer.Option(False, "--json", help="print a JSON list")) -> None:
     """List the methods: the unit of each result, whether it is exact, its cost and when it fails."""
     if as_json:
+        from hconv.solve import methods
 
-        def limit(m: Method, p: int) -> float | None:  # JSON has no Infinity: null means "up to the singular threshold"
-            return m.cond_limit(p) if m.exact and math.isfinite(m.cond_limit(p)) else None
-
-        print(
-            json.dumps(
-                [
-                    {
-                        "name": m.name,
-                        "unit": m.unit,
-                        "exact": m.exact,
-                        "needs_r": m.needs_r,
-                        "cond_limit_float64": limit(m, 64),
-                        "cond_limit_float32": limit(m, 32),
-                        "summary": m.summary,
-                        "cost": m.cost,
-                        "fails": m.fails,
-                    }
-                    for m in METHODS.values()
-                ],
-                indent=1,
-            )
-        )
+        print(json.dumps(methods.listing(), indent=1))
         return
     from hconv import report
 
@@ -888,12 +834,7 @@ def stability_cmd(
     chart = charts.requested(out, no_chart)
     points = stability.run(rows=rows, seed=seed)
     if as_json:
-        from dataclasses import asdict
-
-        def clean(row: dict) -> dict:  # standard JSON has no NaN: null where no row had an answer
-            return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in row.items()}
-
-        print(json.dumps([clean(asdict(p)) for p in points]))
+        print(json.dumps(stability.to_json(points)))
     else:
         from hconv import report
 
