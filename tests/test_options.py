@@ -10,7 +10,7 @@ from helpers import run_hconv
 import hconv
 from hconv.errors import UsageError
 from hconv.solve import options
-from hconv.solve.options import Conventions
+from hconv.solve.options import Conventions, Options
 from hconv.tables.job import Job
 
 H, I = np.ones(3), np.array([1.0, 2.0, 3.0])
@@ -73,3 +73,129 @@ def test_choices_are_the_clis():
     # the CLI builds its choices from these tuples: an unknown one is refused by the command line itself
     proc = run_hconv("one", "--H", "1,2,3", "--I", "1", "--about", "corner")
     assert proc.returncode == 2 and all(c in proc.stderr.decode() for c in options.ABOUT)
+
+
+# One run configuration rule (options.configure) for every entry point: job= or the keywords, not
+# both. Each entry converts one body with method lapack and gives back the method it used.
+def _table():
+    import pyarrow as pa
+
+    names = ["Hx", "Hy", "Hz", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz"]
+    return pa.table({n: [v] for n, v in zip(names, [1.0, 2.0, 3.0, 2.0, 3.0, 4.0, 0.0, 0.0, 0.0])})
+
+
+def _parquet_method(path) -> str:
+    import pyarrow.parquet as pq
+
+    return pq.read_schema(path).metadata[b"hconv.method"].decode()
+
+
+def _via_convert(tmp_path, **kw):
+    return hconv.convert([1.0, 2.0, 3.0], [2.0, 3.0, 4.0], **kw).method
+
+
+def _via_convert_body(tmp_path, **kw):
+    return hconv.convert_body([1.0, 2.0, 3.0], [2.0, 3.0, 4.0], **kw).method
+
+
+def _via_convert_table(tmp_path, **kw):
+    return hconv.convert_table(_table(), **kw).schema.metadata[b"hconv.method"].decode()
+
+
+def _via_output_schema(tmp_path, **kw):
+    return hconv.output_schema(_table().schema, **kw).metadata[b"hconv.method"].decode()
+
+
+def _via_convert_file(tmp_path, **kw):
+    import pyarrow.parquet as pq
+
+    pq.write_table(_table(), tmp_path / "in.parquet")
+    hconv.convert_file(str(tmp_path / "in.parquet"), str(tmp_path / "out.parquet"), **kw)
+    return _parquet_method(tmp_path / "out.parquet")
+
+
+def _via_convert_dataset(tmp_path, **kw):
+    import pyarrow.parquet as pq
+
+    (tmp_path / "in").mkdir()
+    pq.write_table(_table(), tmp_path / "in" / "a.parquet")
+    hconv.convert_dataset(tmp_path / "in", tmp_path / "out", **kw)
+    return _parquet_method(tmp_path / "out" / "a.parquet")
+
+
+def _via_convert_path(tmp_path, **kw):
+    import pyarrow.parquet as pq
+
+    pq.write_table(_table(), tmp_path / "in.parquet")
+    hconv.convert_path(tmp_path / "in.parquet", tmp_path / "out.parquet", **kw)
+    return _parquet_method(tmp_path / "out.parquet")
+
+
+ENTRIES = {
+    "hconv.convert": _via_convert,
+    "convert_body": _via_convert_body,
+    "convert_table": _via_convert_table,
+    "output_schema": _via_output_schema,
+    "convert_file": _via_convert_file,
+    "convert_dataset": _via_convert_dataset,
+    "convert_path": _via_convert_path,
+}
+
+
+@pytest.mark.parametrize("entry", ENTRIES)
+def test_configure_every_entry_point_takes_a_job(entry, tmp_path):
+    job = Options(method="lapack") if entry == "hconv.convert" else Job(method="lapack")
+    assert ENTRIES[entry](tmp_path, job=job) == "lapack"
+
+
+@pytest.mark.parametrize("entry", ENTRIES)
+def test_configure_every_entry_point_takes_the_keywords(entry, tmp_path):
+    assert ENTRIES[entry](tmp_path, method="lapack", precision=64) == "lapack"
+
+
+@pytest.mark.parametrize("entry", ENTRIES)
+def test_configure_every_entry_point_refuses_a_job_and_keywords(entry, tmp_path):
+    job = Options(method="lapack") if entry == "hconv.convert" else Job(method="lapack")
+    kind = "Options" if entry == "hconv.convert" else "Job"
+    message = _message(lambda: ENTRIES[entry](tmp_path, job=job, method="exact", precision=32))
+    assert message == (
+        f"{entry}: method, precision given beside job=; put them in the {kind} ({kind}(method=...)), "
+        "which then holds the whole run configuration"
+    )
+    assert not (tmp_path / "out.parquet").exists() and not (tmp_path / "out").exists()
+
+
+def test_configure_names_a_conventions_keyword_where_it_goes():
+    message = _message(lambda: hconv.convert(H, I, job=Options(), degenerate="pinv"))
+    assert "put them in the Options (Options(conventions=hconv.Conventions(degenerate=...)))" in message
+
+
+def test_configure_folds_conventions_keywords_into_the_conventions():
+    res = hconv.convert([1.0, 1.0, 0.0], [0.0, 1.0, 1.0], degenerate="pinv", degenerate_rtol=1e-9)
+    same = hconv.convert(
+        [1.0, 1.0, 0.0], [0.0, 1.0, 1.0], job=Options(conventions=Conventions(degenerate="pinv", degenerate_rtol=1e-9))
+    )
+    assert res.status == same.status == "degenerate" and np.array_equal(res.w, same.w)
+
+
+def test_configure_makes_a_job_of_solve_options():
+    out = hconv.convert_table(_table(), job=Options(method="lapack", precision=32))
+    assert out.schema.field("wx").type == "float" and out.schema.metadata[b"hconv.method"] == b"lapack"
+
+
+def test_configure_refuses_what_is_not_a_run_configuration():
+    assert _message(lambda: hconv.convert(H, I, job="exact")) == (
+        "job takes a hconv.Options, got 'exact' (str); for the method alone pass method='exact'"
+    )
+
+
+def test_convert_refuses_a_scene_it_would_ignore():
+    job = Options(conventions=Conventions(about="pivot"))
+    assert _message(lambda: hconv.convert(H, I, job=job)) == (
+        "hconv.convert takes H and I as given, about one point and in one frame: about='pivot' "
+        "is for hconv.convert_body (one body) or hconv.convert_table"
+    )
+    assert _message(lambda: hconv.convert(H, I, job=Job(omega_unit="deg/s"))) == (
+        "hconv.convert reads no columns and gives ω in rad/s: omega_unit='deg/s' is for hconv.convert_table "
+        "(or hconv.convert_body); give hconv.convert a hconv.Options"
+    )

@@ -22,16 +22,16 @@ import typer
 from typer.core import TyperCommand
 
 from hconv import errors, interrupts
-from hconv.errors import INTERRUPTED, HconvError, StrictError, UsageError, option
+from hconv.errors import INTERRUPTED, HconvError, StrictError, UsageError
 from hconv.kernels import allocator
 from hconv.solve import forms, options
 from hconv.solve.engines import ENGINES
 from hconv.solve.methods import METHODS
+from hconv.tables.body import UNIT_SETS
 from hconv.tables.formats import FORMATS
 from hconv.tools.scene import SCENES
 
 if TYPE_CHECKING:
-    from hconv.solve.methods import Method
     from hconv.tables.job import Job
 
 
@@ -383,11 +383,6 @@ def _pairs(option: str, items: list[str] | None) -> tuple:
     return tuple(pairs)
 
 
-#: The sets ``hconv one`` takes, each with what its option holds.
-ONE_VALUES = {"H": "Hx,Hy,Hz", "I": "I", "r": "rx,ry,rz", "m": "MASS", "v": "vx,vy,vz", "q": "qw,qx,qy,qz"}
-ONE_UNIT_SETS = ("H", "I", "r", "m", "v")
-
-
 @app.command()
 @friendly
 @job_options(
@@ -397,7 +392,7 @@ ONE_UNIT_SETS = ("H", "I", "r", "m", "v")
     *DEGENERATE,
     "unit_options",
     "omega_unit",
-    help={"unit_options": f"SET=UNIT for {', '.join(ONE_UNIT_SETS)}, e.g. I=g*cm**2 (repeatable)"},
+    help={"unit_options": f"SET=UNIT for {', '.join(UNIT_SETS)}, e.g. I=g*cm**2 (repeatable)"},
 )
 def one(
     H: str = typer.Option(..., "--H", help="Hx,Hy,Hz (kg·m²/s)"),
@@ -416,158 +411,57 @@ def one(
     """Convert one body state and print ω with its unit, the residual, cond and the status."""
     import numpy as np
 
-    from hconv.solve import bodies, methods
+    from hconv.solve import methods
+    from hconv.tables import body
 
     i = _numbers("--I", I, tuple(sorted({f.count for f in forms.FORMS.values()})))
-    form = forms.by_count(len(i))
-    if form is None:  # _numbers let through only the counts of registered forms
-        raise UsageError(f"--I takes {forms.counts_text()} values")
-    sets: dict[str, Any] = {"H": _numbers("--H", H, (3,)), "I": i}
+    given = {"H": _numbers("--H", H, (3,))}
     for name, text, k in (("r", r, 3), ("q", q, 4), ("v", v, 3)):
         if text is not None:
-            sets[name] = _numbers(f"--{name}", text, (k,))
-    if mass is not None:
-        sets["m"] = [mass]
-    for key, value in job.unit_options:
-        if key not in ONE_UNIT_SETS:
-            raise UsageError(f"--unit {key}={value}: hconv one takes a unit per set: {', '.join(ONE_UNIT_SETS)}")
-    for name in list(sets):
-        with np.errstate(over="ignore"):  # an overflow is the status invalid_input, not a warning
-            sets[name] = np.asarray(sets[name], dtype=np.float64)[:, None] * job.set_factor(name)
-    need = job.needs()
-    missing = [k for k in need if k not in sets]
-    if missing:  # every value at once: one run to find them all, not one per missing value
-        wanted = " ".join(f"--{k} {ONE_VALUES[k]}" for k in missing)
-        raise UsageError(f"{_needs_text([need[k] for k in missing])}; pass {wanted}")
-    # A value given and silently unused reads as if it had changed the answer; refusing it would
-    # break the habit of one command re-run with another --method, so it is a note after the result.
-    unread = [k for k in ONE_READ_BY if k in sets and k not in need]
-    res = bodies.solve(sets, form.name, job.method, job.precision, job.conventions)
-    unit_out, scale = job.unit, job.omega_scale
-    w = [float(x) * scale for x in res.w[0]]
-    residual = float(res.residual[0]) if res.residual is not None else float("nan")
-    cond, state = float(res.cond[0]), str(res.status[0])
-    cancelled = res.cancelled is not None and bool(res.cancelled[0])
+            given[name] = _numbers(f"--{name}", text, (k,))
+    values: dict[str, Any] = dict(r=given.get("r"), q=given.get("q"), m=mass, v=given.get("v"), job=job)
+    res = body.convert_body(given["H"], i, **values)
+    w = [float(x) for x in res.w]
+    residual = float(res.residual) if res.residual is not None else float("nan")
+    cond, state = float(res.cond), str(res.status)
+    cancelled = res.cancelled is not None and bool(res.cancelled)
+    unread = body.unread(job, [*given, *(["m"] if mass is not None else [])])
     if state == "invalid_input":  # the status says that, not which value: say it beside, on stderr
-        causes = bodies.invalid_inputs(sets, form.name, job.method, job.precision, job.conventions)
-        given = {"H": H, "I": I, "r": r, "q": q, "v": v, "m": None if mass is None else f"{mass:g}"}
-        print(_invalid_hint(causes, given, job.precision), file=sys.stderr)
-    axis = (
-        None
-        if res.null_axis is None or not np.isfinite(res.null_axis[0]).all()
-        else [float(x) for x in res.null_axis[0]]
-    )
+        causes = body.invalid_inputs(given["H"], i, **values)
+        texts = {"H": H, "I": I, "r": r, "q": q, "v": v, "m": None if mass is None else f"{mass:g}"}
+        print(body.invalid_hint(causes, texts, job.precision), file=sys.stderr)
+    axis = None if res.null_axis is None or not np.isfinite(res.null_axis).all() else [float(x) for x in res.null_axis]
     if as_json:
         clean = _json_number
         out: dict[str, Any] = {
             "w": [clean(x) for x in w],
-            "unit": unit_out,
+            "unit": res.unit,
             "residual": clean(residual),
             "cond": clean(cond),
             "status": state,
             "method": job.method,
         }
         if res.null_dim is not None:
-            out.update(null_axis=axis, null_dim=int(res.null_dim[0]))
+            out.update(null_axis=axis, null_dim=int(res.null_dim))
         print(json.dumps(out))
-        _status_hint(state, residual, cancelled)
-        _unread_hint(unread)
-        return
-    print(f"w        = [{', '.join(repr(x) for x in w)}] {unit_out}")
-    print(f"residual = {residual:.3g}  {RESIDUAL_FREE if job.conventions.about == 'free' else RESIDUAL}")
-    print(f"cond     = {cond:.3g}")
-    print(f"status   = {state}")
-    print(f"method   = {job.method}")
-    if res.null_dim is not None and res.null_dim[0]:
-        print(f"dropped  = {int(res.null_dim[0])} axis" + (f" {axis}" if axis else "es"))
-    if unit_out == methods.M2_S:
-        print(f"note: {unit_out} is not a unit of angular velocity;")
-        print("      see 'The seed's three questions' in the README")
-    _status_hint(state, residual, cancelled)
-    _unread_hint(unread)
-
-
-def _unread_hint(unread: list[str]) -> None:
-    """On stderr: the values given that this run did not read (:data:`ONE_READ_BY`)."""
-    if unread:
-        sys.stdout.flush()
-        said = "; ".join(f"--{k} is read only {ONE_READ_BY[k]}" for k in unread)
-        text = f"hconv: this run did not use {' or '.join(f'--{k}' for k in unread)}: {said}"
-        print(_fill(text, sys.stderr), file=sys.stderr)
-
-
-def _status_hint(state: str, residual: float, cancelled: bool) -> None:
-    """After the result, on stderr: what the result alone does not say. A row has one status, so
-    a cancellation under a status that comes first (unit_suspect) is told here, by the same bound
-    (``cancelled``: hconv.solve.bodies); where ω is NaN there is nothing to qualify."""
+    else:
+        free = job.conventions.about == "free"
+        print(f"w        = [{', '.join(repr(x) for x in w)}] {res.unit}")
+        print(f"residual = {residual:.3g}  {body.RESIDUAL_FREE if free else body.RESIDUAL}")
+        print(f"cond     = {cond:.3g}")
+        print(f"status   = {state}")
+        print(f"method   = {job.method}")
+        if res.null_dim is not None and res.null_dim:
+            print(f"dropped  = {int(res.null_dim)} axis" + (f" {axis}" if axis else "es"))
+        if res.unit == methods.M2_S:
+            print(f"note: {res.unit} is not a unit of angular velocity;")
+            print("      see 'The seed's three questions' in the README")
     if cancelled and not math.isnan(residual):  # the status says that digits were lost, not how many, nor what to do
         sys.stdout.flush()  # after the result on a shared terminal too
-        print(_fill(_cancellation_hint(state, residual), sys.stderr), file=sys.stderr)
-
-
-#: hconv one's values that only some runs read (q and m are read by every run: the frame, the
-#: density check), and by which.
-ONE_READ_BY = {
-    "r": "by the document methods (--method document|document-principal) and with --about pivot|free",
-    "v": "with --about free",
-}
-
-#: What is wrong and what to give instead, per cause that hconv.solve.bodies.invalid_inputs names.
-INVALID_HINTS = {
-    "not_finite": "is not finite (NaN or infinity); give finite numbers",
-    "zero_quaternion": "is not a rotation (zero norm); give a unit quaternion w,x,y,z",
-    "mass_not_positive": "is not positive, but a body with inertia needs m > 0 (a massless link has I = 0)",
-    "mass_negative": "is a negative mass; give m >= 0",
-    "beyond_float32": "is beyond float32's range (3.4e+38) for --precision 32; use --precision 64",
-}
-
-
-#: What ``hconv one``'s residual is: measured; with --about free, measured against H_C and with
-#: the bound on what taking r × m·v out of H lost added (hconv.solve.bodies), which it can not see.
-RESIDUAL = "(|w - I⁻¹H| / |I⁻¹H|)"
-RESIDUAL_FREE = "(|w - I⁻¹H_C| / |I⁻¹H_C| + cond(I)·ε_C, H_C = H - r × m·v)"
-
-
-def _needs_text(reasons: list[str]) -> str:
-    """Reasons such as "--about free needs r, ..." as one sentence, each option named once."""
-    heads: dict[str, list[str]] = {}
-    for reason in reasons:
-        head, sep, tail = reason.partition(" needs ")
-        heads.setdefault(head if sep else reason, []).append(tail if sep else "")
-    parts = []
-    for head, tails in heads.items():
-        tails = [t for t in tails if t]
-        if not tails:
-            parts.append(head)
-        else:
-            listed = tails[0] if len(tails) == 1 else "; ".join(tails[:-1]) + "; and " + tails[-1]
-            parts.append(f"{head} needs {listed}")
-    return "; ".join(parts)
-
-
-def _cancellation_hint(state: str, residual: float) -> str:
-    """For stderr: what losing digits to H - r × m·v means for this row, and the fix."""
-    head = "hconv: cancellation" + (
-        "" if state == "cancellation" else f" (the status shows {state}, which comes first)"
-    )
-    if residual >= 1:
-        # The bound is first order: once it reaches |ω| no digit is left, and it bounds nothing
-        # (a trial row was off by 48 |ω| with a residual of 10.6).
-        what = (
-            f"{_DIFFERENCE} cancels all of H's digits that survived the inputs' rounding to float64, so ω is "
-            f"unknown: not one digit of it holds, and the residual ({residual:.2g}) is no bound on its error"
-        )
-    else:
-        what = (
-            f"{_DIFFERENCE} cancels most of H's digits, so the inputs' rounding to float64 may put ω off "
-            f"by up to {residual:.2g} of |ω| (the residual)"
-        )
-    fix = errors.option("about", "same").replace(" ", "\xa0")
-    return f"{head}: {what}; give H about the centre of mass, with {fix}"
-
-
-#: A formula that wrapping must not split (no-break spaces, which _fill prints as spaces).
-_DIFFERENCE = "H\xa0-\xa0r\xa0×\xa0m·v"
+        print(_fill(body.cancellation_hint(state, residual), sys.stderr), file=sys.stderr)
+    if unread:
+        sys.stdout.flush()
+        print(_fill(body.unread_note(unread), sys.stderr), file=sys.stderr)
 
 
 def _width(stream: Any) -> int:
@@ -584,20 +478,6 @@ def _fill(text: str, stream: Any, indent: str = "  ", first: str = "") -> str:
 
     lines = textwrap.fill(text, _width(stream), initial_indent=first, subsequent_indent=indent, break_on_hyphens=False)
     return lines.replace("\xa0", " ")
-
-
-def _invalid_hint(causes: list[tuple[str, str]], given: dict[str, str | None], precision: int) -> str:
-    """One line for stderr: the first value that makes ``hconv one``'s input invalid, and the fix."""
-    if not causes:
-        return (
-            f"hconv: every value is finite, but one overflows float{precision} on the way to ω "
-            "(the rotation by q or the change of point, --about); give smaller values"
-        )
-    name, problem = causes[0]
-    text = given[name] or ""
-    if problem == "not_finite" and all(math.isfinite(float(x)) for x in text.split(",")):
-        return f"hconv: {name} = {text} overflows float64 once converted to SI units (--unit); give smaller values"
-    return f"hconv: {name} = {text} {INVALID_HINTS[problem]}"
 
 
 @app.command("convert")
@@ -671,56 +551,50 @@ def convert_cmd(
     """Convert every row of a CSV or Parquet table, or of each file of a dataset; OUT gets the input
     columns, ω and diagnostics."""
     from hconv import report
-    from hconv.tables import dataset, pipeline
+    from hconv.tables import dataset, paths
 
-    kwargs: dict[str, Any] = dict(
-        job=job, src_format=_value(from_), dst_format=_value(to), force=force, strict=strict, threads=threads
-    )
-    if cluster is not None or workers is not None or task_rows is not None:
-        kwargs.update(cluster=cluster, workers=workers, cluster_timeout=cluster_timeout, task_rows=task_rows)
-    if dataset.is_dataset(src, dst):
-        _convert_dataset(src, dst, kwargs, endpoint_url, quiet)
-        return
-    if endpoint_url is not None:
-        raise UsageError("--endpoint-url is for s3:// URIs; IN and OUT are local")
-    if cluster is not None or workers is not None or task_rows is not None:
-        raise UsageError(
-            f"{option('cluster')} converts a dataset's files; {src} is one file, converted here "
-            f"(give its directory, or a glob, to use {option('cluster')})"
-        )
-    interrupts.commit_settles()  # OUT in place ends the run: exit 0, never 130 with OUT there
-    if sys.stderr.isatty() and dst != "-" and not quiet:
-        with report.ProgressBar(f"converting {os.path.basename(src)}") as bar:  # the path crowded out the bar
-            tally = pipeline.convert_file(src, dst, progress=bar, **kwargs)
-    else:
-        tally = pipeline.convert_file(src, dst, **kwargs)
-    if not quiet:
-        report.summary(tally, asked=job.engine)
-
-
-def _convert_dataset(src: str, dst: str, kwargs: dict[str, Any], endpoint_url: str | None, quiet: bool) -> None:
-    """``hconv convert`` of a dataset: a line per failing file as it fails, the summary, then the
-    exit code of the failures (hconv.tables.dataset)."""
-    from hconv import report
-    from hconv.tables import dataset
+    files = dataset.is_dataset(src, dst)  # the library's rule (paths.convert_path): for the bar and summary
 
     def log(line: str) -> None:
         if not quiet or line.startswith("error: "):
             print(f"hconv: {line}", file=sys.stderr)
 
-    run = functools.partial(dataset.convert_dataset, src, dst, endpoint_url=endpoint_url, log=log, **kwargs)
+    run = functools.partial(
+        paths.convert_path,
+        src,
+        dst,
+        job=job,
+        src_format=_value(from_),
+        dst_format=_value(to),
+        force=force,
+        strict=strict,
+        threads=threads,
+        log=log,
+        endpoint_url=endpoint_url,
+        cluster=cluster,
+        workers=workers,
+        cluster_timeout=None if cluster is None and workers is None and task_rows is None else cluster_timeout,
+        task_rows=task_rows,
+    )
+    if not files:
+        interrupts.commit_settles()  # OUT in place ends the run: exit 0, never 130 with OUT there
     try:
-        if sys.stderr.isatty() and not quiet:
-            with report.ProgressBar("converting files") as bar:
+        if sys.stderr.isatty() and not quiet and (files or dst != "-"):
+            # for one file, its name: the path crowded out the bar
+            with report.ProgressBar("converting files" if files else f"converting {os.path.basename(src)}") as bar:
                 result = run(progress=bar)
         else:
             result = run()
     except dataset.DatasetError as exc:
         if not quiet:
-            report.dataset_summary(exc.result, asked=kwargs["job"].engine)
+            report.dataset_summary(exc.result, asked=job.engine)
         raise
-    if not quiet:
-        report.dataset_summary(result, asked=kwargs["job"].engine)
+    if quiet:
+        return
+    if isinstance(result, dataset.DatasetResult):
+        report.dataset_summary(result, asked=job.engine)
+    else:
+        report.summary(result, asked=job.engine)
 
 
 @app.command("diagnose")
@@ -746,23 +620,7 @@ def diagnose_cmd(
 
     d = diagnose.diagnose_file(src, src_format=_value(from_), tol=tol, job=job)
     if as_json:
-        clean = _json_number
-        print(
-            json.dumps(
-                [
-                    {
-                        "hypothesis": s.hypothesis,
-                        "rank": rank,
-                        "tied_with": tied,
-                        "median_residual": clean(s.residual.median),
-                        "share_explained": clean(s.residual.share_within),
-                        "median_angle_deg": clean(s.angle.median),
-                    }
-                    for rank, s, tied in d.ranks()
-                ],
-                indent=1,
-            )
-        )
+        print(json.dumps(d.to_json(), indent=1))
         return
     from hconv import report
 
@@ -933,24 +791,7 @@ def engines_cmd(
         seconds, compiled_now = compiled.warm()
         done = "compiled the numba engine" if compiled_now else "loaded the numba engine from numba's cache"
         print(f"{done} in {seconds:.1f} s")
-    installed = engines.numba_installed()
-    ready = installed and engines.compiled_ready()
-    numba_state = "not installed: " + engines.NUMBA_FIX
-    if installed:
-        numba_state = "installed, compiled" if ready else "installed, not compiled: run hconv engines --compile"
-    auto = (
-        f"python for one body; numba for {engines.AUTO_MIN_ROWS:,}+ rows once compiled, or after "
-        f"{engines.START_COST}\xa0s of numpy time; else numpy. Files: numpy"
-    )
-    forced = os.environ.get("HCONV_ENGINE")
-    _listing(
-        [
-            ("numpy", "every method and option; always there (the reference)"),
-            ("numba", "exact and refined on tensors, in float64, on every core", numba_state),
-            ("python", "the numba engine's code, interpreted: one body at a time"),
-            ("auto", auto, *([f"HCONV_ENGINE={forced}: every auto is {forced}"] if forced else [])),
-        ]
-    )
+    _listing(engines.listing())
 
 
 def _listing(entries: list[tuple[str, ...]]) -> None:
@@ -968,29 +809,9 @@ def _listing(entries: list[tuple[str, ...]]) -> None:
 def methods_cmd(as_json: bool = typer.Option(False, "--json", help="print a JSON list")) -> None:
     """List the methods: the unit of each result, whether it is exact, its cost and when it fails."""
     if as_json:
+        from hconv.solve import methods
 
-        def limit(m: Method, p: int) -> float | None:  # JSON has no Infinity: null means "up to the singular threshold"
-            return m.cond_limit(p) if m.exact and math.isfinite(m.cond_limit(p)) else None
-
-        print(
-            json.dumps(
-                [
-                    {
-                        "name": m.name,
-                        "unit": m.unit,
-                        "exact": m.exact,
-                        "needs_r": m.needs_r,
-                        "cond_limit_float64": limit(m, 64),
-                        "cond_limit_float32": limit(m, 32),
-                        "summary": m.summary,
-                        "cost": m.cost,
-                        "fails": m.fails,
-                    }
-                    for m in METHODS.values()
-                ],
-                indent=1,
-            )
-        )
+        print(json.dumps(methods.listing(), indent=1))
         return
     from hconv import report
 
@@ -1013,12 +834,7 @@ def stability_cmd(
     chart = charts.requested(out, no_chart)
     points = stability.run(rows=rows, seed=seed)
     if as_json:
-        from dataclasses import asdict
-
-        def clean(row: dict) -> dict:  # standard JSON has no NaN: null where no row had an answer
-            return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in row.items()}
-
-        print(json.dumps([clean(asdict(p)) for p in points]))
+        print(json.dumps(stability.to_json(points)))
     else:
         from hconv import report
 

@@ -31,6 +31,11 @@ def command_line() -> Iterator[None]:
         _reader = before
 
 
+def on_command_line() -> bool:
+    """Whether messages are for the command line (:func:`command_line`) rather than Python."""
+    return _reader == "cli"
+
+
 def option(name: str, value: object = _UNSET) -> str:
     """Option ``name`` (its Python keyword), with ``value`` if given, as the reader spells it:
     ``--omega-unit deg/s`` on the command line, ``omega_unit='deg/s'`` in Python; a switch given

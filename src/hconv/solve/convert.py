@@ -25,11 +25,12 @@ The numpy engine, which converts in blocks of rows, is :mod:`hconv.solve.blocks`
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
 
+from hconv.errors import UsageError, option
 from hconv.solve import arguments, blocks, engines, forms, methods, options, rows, status
 
 
@@ -70,16 +71,23 @@ def convert(
     I: ArrayLike,
     r: ArrayLike | None = None,
     *,
-    method: str | methods.Method = "exact",
-    precision: int = 64,
-    diagnostics: bool = True,
-    degenerate: str = "error",
+    method: str | methods.Method | None = None,
+    precision: int | None = None,
+    diagnostics: bool | None = None,
+    degenerate: str | None = None,
     degenerate_rtol: float | None = None,
     extra_k: float = 0.0,
-    engine: str = "auto",
+    engine: str | None = None,
+    job: options.Options | None = None,
 ) -> Result:
     """Convert angular momentum to angular velocity with ``method`` (a name in
-    :data:`hconv.METHODS`, or one of its entries); see the module docstring.
+    :data:`hconv.METHODS`, or one of its entries; default exact); see the module docstring.
+
+    The run configuration is ``job`` (a :class:`hconv.Options`, or a :class:`hconv.Job` whose
+    table-level fields are at their defaults), or the keywords below, folded into one by
+    :func:`hconv.solve.options.configure`; not both. H and I are taken as given, about one point
+    and in one frame: the scene conventions ``about``, ``products`` and ``omega_frame`` are
+    :func:`hconv.convert_body`'s and ``convert_table``'s.
 
     ``precision`` (64 or 32) sets the dtype the method computes in; diagnostics are always
     computed in float64 from the inputs as given. ``diagnostics=False`` skips the residual
@@ -113,7 +121,21 @@ def convert(
     * a list or tuple holding Quantities, masked arrays or such DataArrays is a UsageError:
       pass one of them for the whole array.
     """
-    m = _checked(method, precision, degenerate, degenerate_rtol)
+    opts = options.configure(
+        options.Options,
+        "hconv.convert",
+        job,
+        method=method,
+        precision=precision,
+        diagnostics=diagnostics,
+        degenerate=degenerate,
+        degenerate_rtol=degenerate_rtol,
+        engine=engine,
+    )
+    _refuse_scene(opts)
+    m = methods.get(opts.method)
+    precision, diagnostics, engine = opts.precision, opts.diagnostics, opts.engine
+    degenerate, degenerate_rtol = opts.conventions.degenerate, opts.conventions.degenerate_rtol
     args = arguments.read(H, I, r)
     H, I, r, single = args.H, args.I, args.r, args.single
     if r is None and m.needs_r:
@@ -147,6 +169,35 @@ def convert(
     if args.quantities:  # ω in the registry of the first Quantity given (pint refuses to mix registries)
         res = replace(res, w=args.quantities[0](res.w, res.unit))
     return res
+
+
+def _refuse_scene(opts: options.Options) -> None:
+    """UsageError for a run configuration that asks :func:`convert` for what it does not do: a
+    scene convention other than H and I as given, or a table-level field of a Job (a column
+    mapping, units, ω's unit), which it would silently ignore."""
+    conv, plain = opts.conventions, options.Conventions()
+    scene = [
+        option(name, getattr(conv, name))
+        for name in ("about", "products", "omega_frame")
+        if getattr(conv, name) != getattr(plain, name) and not (name == "omega_frame" and conv.w_frame == conv.frame)
+    ]
+    base = {f.name for f in fields(options.Options)}
+    default = type(opts)()
+    table = [
+        option(f.name, getattr(opts, f.name))
+        for f in fields(opts)
+        if f.name not in base and getattr(opts, f.name) != getattr(default, f.name)
+    ]
+    if scene:
+        raise UsageError(
+            f"hconv.convert takes H and I as given, about one point and in one frame: {', '.join(scene)} "
+            "is for hconv.convert_body (one body) or hconv.convert_table"
+        )
+    if table:
+        raise UsageError(
+            f"hconv.convert reads no columns and gives ω in rad/s: {', '.join(table)} is for hconv.convert_table "
+            "(or hconv.convert_body); give hconv.convert a hconv.Options"
+        )
 
 
 def _checked(

@@ -192,3 +192,24 @@ def resolve(
     if (n >= AUTO_MIN_ROWS or _spent >= START_COST) and numba_installed() and compiled_ready():
         return "numba"
     return "numpy"
+
+
+def listing() -> list[tuple[str, ...]]:
+    """The engines as ``hconv engines`` lists them: ``(name, what it covers, its state, ...)``,
+    paragraphs to wrap (a no-break space keeps a number with its unit)."""
+    installed = numba_installed()
+    ready = installed and compiled_ready()
+    numba_state = "not installed: " + NUMBA_FIX
+    if installed:
+        numba_state = "installed, compiled" if ready else "installed, not compiled: run hconv engines --compile"
+    auto = (
+        f"python for one body; numba for {AUTO_MIN_ROWS:,}+ rows once compiled, or after "
+        f"{START_COST}\xa0s of numpy time; else numpy. Files: numpy"
+    )
+    forced = os.environ.get("HCONV_ENGINE")
+    return [
+        ("numpy", "every method and option; always there (the reference)"),
+        ("numba", "exact and refined on tensors, in float64, on every core", numba_state),
+        ("python", "the numba engine's code, interpreted: one body at a time"),
+        ("auto", auto, *([f"HCONV_ENGINE={forced}: every auto is {forced}"] if forced else [])),
+    ]

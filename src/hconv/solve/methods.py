@@ -10,6 +10,7 @@ All arrays share one dtype, which sets the working precision.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -273,3 +274,26 @@ def _document_principal(I: Sym3, H: np.ndarray, r: np.ndarray | None) -> tuple[n
     gap = np.minimum(S[1] - S[0], S[2] - S[1])
     repeated = gap <= REPEATED_RTOL * np.max(np.abs(S), axis=0)
     return frames.to_world(R, w_p), {"frame_ambiguous": repeated, "r_on_axis": on_axis}
+
+
+def listing() -> list[dict]:
+    """Every method as ``hconv methods --json`` prints it. A cond limit is None (JSON's null,
+    which has no Infinity) where it is "up to the singular threshold"."""
+
+    def limit(m: Method, p: int) -> float | None:
+        return m.cond_limit(p) if m.exact and math.isfinite(m.cond_limit(p)) else None
+
+    return [
+        {
+            "name": m.name,
+            "unit": m.unit,
+            "exact": m.exact,
+            "needs_r": m.needs_r,
+            "cond_limit_float64": limit(m, 64),
+            "cond_limit_float32": limit(m, 32),
+            "summary": m.summary,
+            "cost": m.cost,
+            "fails": m.fails,
+        }
+        for m in METHODS.values()
+    ]

@@ -10,7 +10,8 @@ on the command line, ``degenerate_rtol=`` in Python.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -95,3 +96,67 @@ class Conventions:
         if self.w_frame != self.frame:
             need["q"] = "ω in another frame than H needs the orientation q"
         return need
+
+
+@dataclass(frozen=True)
+class Options:
+    """What a solve needs besides the data, checked when made: the method, the precision, the
+    diagnostics, the scene's :class:`Conventions` and the engine. ``hconv.convert`` takes it as
+    ``job=`` (or its fields as keywords, folded by :func:`configure`); the table-level run
+    configuration, :class:`hconv.tables.job.Job`, extends it with columns, units and formats."""
+
+    method: str | methods.Method = "exact"
+    precision: int = 64
+    diagnostics: bool = True  #: False skips the residual, the costliest diagnostic
+    conventions: Conventions = field(default_factory=Conventions)
+    engine: str = "auto"  #: auto, numpy, numba or python (hconv.solve.engines)
+
+    def __post_init__(self) -> None:
+        from hconv.solve import engines  # engines reads this module's choices
+
+        methods.get(self.method)
+        check_precision(self.precision)
+        if not isinstance(self.conventions, Conventions):
+            raise UsageError(f"conventions must be a Conventions, got {type(self.conventions).__name__}")
+        check_degenerate(self.conventions.degenerate, self.conventions.degenerate_rtol, self.method)
+        engines.check_engine(self.engine)
+        if not isinstance(self.diagnostics, bool):  # diagnostics='no' would read as True
+            raise UsageError(f"{option('diagnostics')} must be True or False, got {self.diagnostics!r}")
+
+
+#: The keywords :func:`configure` folds into the run configuration's :class:`Conventions`.
+CONVENTION_KEYWORDS = tuple(f.name for f in fields(Conventions))
+
+O = TypeVar("O", bound=Options)
+
+
+def configure(kind: type[O], caller: str, job: object, **keywords: Any) -> O:
+    """The run configuration of entry point ``caller``: ``job`` whole, or the ``keywords`` it was
+    given (None: not given; those naming a :class:`Conventions` field go into its conventions)
+    made into a ``kind``; never both, so that neither silently wins. The one rule of every entry
+    point that takes ``job=`` (``hconv.convert``, ``convert_body``, ``convert_table``,
+    ``output_schema``, ``convert_file``, ``convert_dataset``, ``convert_path``). An
+    :class:`Options` given where a richer ``kind`` (a Job) is wanted becomes one, with its
+    other fields at their defaults."""
+    given = {name: value for name, value in keywords.items() if value is not None}
+    if job is None:
+        conventions = {name: given.pop(name) for name in CONVENTION_KEYWORDS if name in given}
+        if conventions:
+            given["conventions"] = Conventions(**conventions)
+        return kind(**given)
+    if not isinstance(job, Options):
+        hint = f"make one with hconv.{kind.__name__}(...)"
+        if isinstance(job, str) and job in methods.METHODS:
+            hint = f"for the method alone pass {option('method', job)}"
+        raise UsageError(f"job takes a hconv.{kind.__name__}, got {job!r} ({type(job).__name__}); {hint}")
+    if given:
+        names = list(given)
+        first = names[0]
+        where = f"conventions=hconv.Conventions({first}=...)" if first in CONVENTION_KEYWORDS else f"{first}=..."
+        raise UsageError(
+            f"{caller}: {', '.join(names)} given beside job=; put them in the {kind.__name__} "
+            f"({kind.__name__}({where})), which then holds the whole run configuration"
+        )
+    if not isinstance(job, kind):  # solve-level options where a Job is wanted: the Job they make
+        return kind(**{f.name: getattr(job, f.name) for f in fields(Options)})
+    return job

@@ -24,9 +24,9 @@ import pyarrow.parquet as pq
 
 from hconv import __version__
 from hconv.errors import InputError, UsageError
-from hconv.solve import bodies, methods, status, units
+from hconv.solve import bodies, methods, options, status, units
 from hconv.tables import layout, storage
-from hconv.tables.job import Job, check_job
+from hconv.tables.job import Job
 from hconv.tables.sets import QUANTITY
 
 _STATUS_TYPE = pa.dictionary(pa.int8(), pa.string())
@@ -95,7 +95,7 @@ def convert_table(
             f"convert_table takes a pyarrow Table or RecordBatch, got {type(data).__name__}; "
             "make one with pyarrow.table(...)"
         )
-    job = _job("convert_table", method, precision, diagnostics, job)
+    job = options.configure(Job, "convert_table", job, method=method, precision=precision, diagnostics=diagnostics)
     return convert_batch(data, job, plan, source)[0]
 
 
@@ -123,7 +123,7 @@ def output_schema(
     if not isinstance(input_schema, pa.Schema):
         hint = "; pass its .schema" if hasattr(input_schema, "schema") else ""
         raise UsageError(f"output_schema takes a pyarrow Schema, got {type(input_schema).__name__}{hint}")
-    job = _job("output_schema", method, precision, diagnostics, job)
+    job = options.configure(Job, "output_schema", job, method=method, precision=precision, diagnostics=diagnostics)
     return result_schema(input_schema, job, layout.plan(input_schema, job, source))
 
 
@@ -167,28 +167,11 @@ def units_of(source: pa.Schema | str | os.PathLike, *, endpoint_url: str | None 
     return {c: found[c][0] for c in names}
 
 
-def _job(caller: str, method: str | None, precision: int | None, diagnostics: bool | None, job: Job | None) -> Job:
-    """The run configuration from a function's own options, or ``job`` alone; not both."""
-    check_job(job)
-    if job is None:
-        return Job(
-            "exact" if method is None else method, 64 if precision is None else precision, diagnostics is not False
-        )
-    given = {"method": method, "precision": precision, "diagnostics": diagnostics}
-    beside = [name for name, value in given.items() if value is not None]
-    if beside:
-        raise UsageError(
-            f"{caller}: {', '.join(beside)} given beside job=; put them in the Job "
-            f"(Job({beside[0]}=...)), which then holds the whole run configuration"
-        )
-    return job
-
-
 def result_schema(schema: pa.Schema, job: Job, plan: layout.Layout) -> pa.Schema:
     """The schema of a conversion of a table of ``schema`` planned as ``plan``: the one owner of
     it, for :func:`output_schema` and for every converted batch."""
     meta = dict(schema.metadata or {})
-    meta.update({b"hconv.method": job.method.encode(), b"hconv.version": __version__.encode()})
+    meta.update({b"hconv.method": methods.get(job.method).name.encode(), b"hconv.version": __version__.encode()})
     return pa.schema(_with_input_units(schema, plan) + output_fields(job), metadata=meta)
 
 

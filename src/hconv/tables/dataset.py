@@ -38,10 +38,10 @@ import numpy as np
 
 from hconv import interrupts
 from hconv.errors import HconvError, OutputError, UsageError, option
-from hconv.solve import methods
+from hconv.solve import methods, options
 from hconv.tables import storage, tableio
 from hconv.tables.formats import EXTENSIONS, FORMATS
-from hconv.tables.job import Job, check_job
+from hconv.tables.job import Job
 from hconv.tables.pipeline import Tally, check_callback, check_threads, convert_file
 from hconv.tables.storage import Listed, Place, Source
 
@@ -693,12 +693,12 @@ def convert_dataset(
     src: str | os.PathLike[str],
     dst: str | os.PathLike[str],
     *,
-    method: str = "exact",
-    precision: int = 64,
+    method: str | None = None,
+    precision: int | None = None,
     src_format: str | None = None,
     dst_format: str | None = None,
     force: bool = False,
-    diagnostics: bool = True,
+    diagnostics: bool | None = None,
     job: Job | None = None,
     strict: bool = False,
     threads: int | None = None,
@@ -728,7 +728,7 @@ def convert_dataset(
     if interrupted, and HconvError subclasses if the dataset cannot be read or written at all.
     """
     t0 = time.perf_counter()
-    check_job(job)
+    job = options.configure(Job, "convert_dataset", job, method=method, precision=precision, diagnostics=diagnostics)
     check_threads(threads)  # before anything is written: a bad option fails the run, not each file
     check_callback("progress", progress)
     check_callback("log", log)
@@ -740,7 +740,6 @@ def convert_dataset(
 
         dask_cluster.check(cluster, workers, cluster_timeout)
     src_path, dst_path = os.fspath(src), os.fspath(dst)
-    job = job or Job(method, precision, diagnostics)
     say = log or (lambda line: None)
     plan = plan_dataset(
         src_path,

@@ -10,12 +10,12 @@ pyarrow nor rich, so that ``hconv one`` stays quick.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from hconv.errors import UsageError, entry, option
-from hconv.solve import engines, methods, options, units
-from hconv.solve.options import Conventions
+from hconv.solve import methods, options, units
+from hconv.solve.options import Options
 from hconv.tables.sets import QUANTITY, all_names, quantity_of
 
 
@@ -61,10 +61,12 @@ def _check_units_once(pairs: tuple) -> None:
         given[key] = unit
 
 
-@dataclass(frozen=True)
-class Job:
+@dataclass(frozen=True, kw_only=True)
+class Job(Options):
     """Everything a conversion needs besides the data; checked when made.
 
+    The solve-level part (method, precision, diagnostics, conventions, engine) is
+    :class:`~hconv.solve.options.Options`', which a Job extends; its own fields are keywords only.
     Defaults are hconv's own conventions. ``mapping`` reads hconv's names from other columns
     (``--map``; a dict or (name, column) pairs); ``unit_options`` gives units by set, hconv name
     or column (``--unit``; a dict or pairs). ``observed``: the run compares with an observed ω
@@ -77,16 +79,11 @@ class Job:
     left alone, as its metadata would be.
     """
 
-    method: str = "exact"
-    precision: int = 64
-    diagnostics: bool = True
-    conventions: Conventions = field(default_factory=Conventions)
     mapping: tuple = ()
     unit_options: tuple = ()
     quat_order: str = "wxyz"
     omega_unit: str = "rad/s"
     observed: bool = False
-    engine: str = "auto"  #: auto, numpy, numba or python (hconv.solve.engines)
     keep_text: bool = False  #: CSV to Parquet: the other columns stay text, as in the CSV
     field_units: tuple = ()  #: (column, unit) pairs, as field metadata would give them
 
@@ -100,14 +97,10 @@ class Job:
             quantity = quantity_of(key)
             if quantity is not None:  # a set or one of hconv's names: its unit can be checked now
                 units.factor(quantity, unit, entry("unit_options", key, unit))
+        super().__post_init__()  # the method, precision, diagnostics, conventions and engine
         m = methods.get(self.method)
-        options.check_precision(self.precision)
-        if not isinstance(self.conventions, Conventions):
-            raise UsageError(f"conventions must be a Conventions, got {type(self.conventions).__name__}")
-        options.check_degenerate(self.conventions.degenerate, self.conventions.degenerate_rtol, self.method)
         options.check_choice("quat_order", self.quat_order, options.QUAT_ORDERS)
-        engines.check_engine(self.engine)
-        for name in ("diagnostics", "observed", "keep_text"):  # diagnostics='no' would read as True
+        for name in ("observed", "keep_text"):  # diagnostics='no' would read as True
             if not isinstance(getattr(self, name), bool):
                 raise UsageError(f"{option(name)} must be True or False, got {getattr(self, name)!r}")
         # an unknown unit fails now, not mid-run
@@ -147,11 +140,8 @@ class Job:
 
 
 def check_job(job: object) -> None:
-    """UsageError unless ``job`` is a Job or None: every function that takes ``job=`` calls this
-    first, so that ``job='exact'`` is not an AttributeError deep inside."""
-    if job is None or isinstance(job, Job):
-        return
-    hint = "make one with hconv.Job(...)"
-    if isinstance(job, str) and job in methods.METHODS:
-        hint = f"for the method alone pass {option('method', job)}"
-    raise UsageError(f"job takes a hconv.Job, got {job!r} ({type(job).__name__}); {hint}")
+    """UsageError unless ``job`` is a Job or None: every function that takes ``job=`` checks
+    it first (by :func:`hconv.solve.options.configure`), so that ``job='exact'`` is not an
+    AttributeError deep inside."""
+    if job is not None and not isinstance(job, Job):
+        options.configure(Job, "job", job)

@@ -24,10 +24,10 @@ import pyarrow as pa
 
 from hconv import interrupts
 from hconv.errors import StrictError, UsageError, option
-from hconv.solve import engines, methods, status
+from hconv.solve import engines, methods, options, status
 from hconv.tables import csvtypes, tableio
 from hconv.tables.arrow import convert_batch
-from hconv.tables.job import Job, check_job
+from hconv.tables.job import Job
 from hconv.tables.tableio import Input, Output, format_of, open_input
 
 
@@ -200,12 +200,12 @@ def convert_file(
     src: str,
     dst: str,
     *,
-    method: str = "exact",
-    precision: int = 64,
+    method: str | None = None,
+    precision: int | None = None,
     src_format: str | None = None,
     dst_format: str | None = None,
     force: bool = False,
-    diagnostics: bool = True,
+    diagnostics: bool | None = None,
     job: Job | None = None,
     strict: bool = False,
     threads: int | None = None,
@@ -216,7 +216,9 @@ def convert_file(
 ) -> Tally:
     """Convert the table in ``src`` into ``dst`` ("-" for stdin/stdout); returns the tally.
 
-    ``job`` (conventions, units, mapping) overrides ``method``, ``precision`` and ``diagnostics``.
+    ``job`` (conventions, units, mapping) is the whole run configuration; or ``method`` (default
+    exact), ``precision`` (64) and ``diagnostics`` (True) make one; not both
+    (:func:`hconv.solve.options.configure`).
     ``strict``: any row whose status is not ok fails the run (StrictError naming the first rows),
     and nothing is written.
     ``threads``: batches converted at once (default :func:`default_threads`); the output is the
@@ -233,8 +235,7 @@ def convert_file(
     check_threads(threads)
     check_callback("progress", progress)
     threads = threads or default_threads()
-    check_job(job)
-    job = job or Job(method, precision, diagnostics)
+    job = options.configure(Job, "convert_file", job, method=method, precision=precision, diagnostics=diagnostics)
     if engines.for_files(job.engine) != job.engine:
         job = dataclasses.replace(job, engine=engines.for_files(job.engine))
     fin = format_of(src, src_format, "src_format")

@@ -370,6 +370,25 @@ class Diagnosis:
     def tied(self, a: Score, b: Score) -> bool:
         return frozenset((a.hypothesis, b.hypothesis)) in self.ties
 
+    def to_json(self) -> list[dict]:
+        """The ranking as ``hconv diagnose --json`` prints it, best first; None (JSON's null)
+        where a figure is NaN or infinite, which standard JSON has not."""
+
+        def clean(x: float) -> float | None:
+            return x if np.isfinite(x) else None
+
+        return [
+            {
+                "hypothesis": s.hypothesis,
+                "rank": rank,
+                "tied_with": tied,
+                "median_residual": clean(s.residual.median),
+                "share_explained": clean(s.residual.share_within),
+                "median_angle_deg": clean(s.angle.median),
+            }
+            for rank, s, tied in self.ranks()
+        ]
+
 
 def _key(x: float) -> float:
     return x if np.isfinite(x) else np.inf

@@ -10,8 +10,9 @@ against I⁻¹H like the rest: their error is their distance from the physics, n
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from fractions import Fraction
 
 import numpy as np
@@ -162,3 +163,12 @@ def run(
                         )
                     )
     return points
+
+
+def to_json(points: list[Point]) -> list[dict]:
+    """Every sweep point as ``hconv stability --json`` prints it; None (JSON's null, as standard
+    JSON has no NaN) where no row had an answer."""
+    return [
+        {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in asdict(p).items()}
+        for p in points
+    ]
