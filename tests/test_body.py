@@ -69,3 +69,39 @@ def test_unread_names_the_values_a_run_does_not_read():
     assert body.unread(hconv.Job(), ["H", "I", "r", "v"]) == ["r", "v"]
     free = hconv.Job(conventions=hconv.Conventions(about="free"))
     assert body.unread(free, ["H", "I", "r", "m", "v"]) == []
+
+
+def test_convert_body_reads_pint_quantities_in_their_own_units():
+    """H, I, r, m and v as pint Quantities in units other than SI give what their SI numbers give
+    (the factors exact: 1 g·cm² = 1e-7 kg·m², 1 mm = 1e-3 m, 1 g = 1e-3 kg, 1 km/h = 1/3.6 m/s),
+    and ω comes back as a Quantity; before, numpy dropped the units (ω 1e7 too large)."""
+    import pint
+
+    u = pint.UnitRegistry()
+    kw = {"about": "free", "method": "exact"}
+    got = hconv.convert_body(
+        [1.0, 2.0, 3.0] * u("g*cm**2/s"),
+        [1.0, 2.0, 4.0, 0.5, 0.0, 0.0] * u("g*cm**2"),
+        [10.0, 0.0, 20.0] * u("mm"),
+        m=300.0 * u("g"),
+        v=[0.0, 3.6, 0.0] * u("km/h"),
+        **kw,
+    )
+    want = hconv.convert_body(
+        [1e-7, 2e-7, 3e-7], [1e-7, 2e-7, 4e-7, 0.5e-7, 0.0, 0.0], [0.01, 0.0, 0.02], m=0.3, v=[0.0, 1.0, 0.0], **kw
+    )
+    assert str(got.w.units) == "radian / second"
+    assert got.w.magnitude.tolist() == pytest.approx(want.w.tolist(), rel=1e-12)
+    assert got.status == want.status
+
+
+def test_convert_body_quantity_of_another_dimension_or_with_a_unit_option_is_refused():
+    import pint
+
+    u = pint.UnitRegistry()
+    with pytest.raises(UsageError, match=r"^m: 'm' is not a unit of mass \(kg\)$"):
+        hconv.convert_body([1.0, 2.0, 3.0], [1.0, 2.0, 3.0], [0.0, 0.0, 0.1], m=2 * u.m, v=[0, 0, 0], about="free")
+    with pytest.raises(UsageError, match=r"^H is a pint Quantity, which carries its unit: drop unit_options="):
+        hconv.convert_body(
+            [1.0, 2.0, 3.0] * u("g*cm**2/s"), [1.0, 2.0, 3.0], job=hconv.Job(unit_options={"H": "g*cm**2/s"})
+        )

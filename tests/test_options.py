@@ -199,3 +199,11 @@ def test_convert_refuses_a_scene_it_would_ignore():
         "hconv.convert reads no columns and gives ω in rad/s: omega_unit='deg/s' is for hconv.convert_table "
         "(or hconv.convert_body); give hconv.convert a hconv.Options"
     )
+
+
+def test_options_diagnostics_takes_a_numpy_truth_and_refuses_text():
+    """A numpy bool (what a comparison gives) is a truth; text such as 'no' would read as True."""
+    assert hconv.convert([1.0, 2.0, 3.0], [1.0, 2.0, 3.0], diagnostics=np.False_).residual is None
+    assert hconv.convert([1.0, 2.0, 3.0], [1.0, 2.0, 3.0], diagnostics=np.True_).residual == 0.0
+    with pytest.raises(UsageError, match=r"^diagnostics must be True or False, got 'no'$"):
+        hconv.convert([1.0, 2.0, 3.0], [1.0, 2.0, 3.0], diagnostics="no")

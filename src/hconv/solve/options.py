@@ -120,6 +120,8 @@ class Options:
             raise UsageError(f"conventions must be a Conventions, got {type(self.conventions).__name__}")
         check_degenerate(self.conventions.degenerate, self.conventions.degenerate_rtol, self.method)
         engines.check_engine(self.engine)
+        if isinstance(self.diagnostics, np.bool_):  # a numpy truth is a truth (as numpy's own APIs take it)
+            object.__setattr__(self, "diagnostics", bool(self.diagnostics))
         if not isinstance(self.diagnostics, bool):  # diagnostics='no' would read as True
             raise UsageError(f"{option('diagnostics')} must be True or False, got {self.diagnostics!r}")
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from hconv import errors
 from hconv.errors import UsageError, entry, option
-from hconv.solve import bodies, forms, options
+from hconv.solve import arguments, bodies, forms, options
 from hconv.solve.convert import Result
 from hconv.tables.job import Job
 
@@ -96,11 +96,13 @@ def convert_body(
         degenerate_rtol=degenerate_rtol,
         omega_unit=omega_unit,
     )
-    sets, form = _sets(H, I, r, q, m, v, job)
+    quantities: list[type] = []  # the classes of the pint Quantities given, as hconv.convert keeps them
+    sets, form = _sets(H, I, r, q, m, v, job, quantities)
     res = bodies.solve(sets, form, job.method, job.precision, job.conventions, job.diagnostics, job.engine)
     scale = job.omega_scale  # in float64, as a unit's factor is
+    w = res.w[0].astype(np.float64) * scale if scale != 1.0 else res.w[0]
     return Result(
-        res.w[0].astype(np.float64) * scale if scale != 1.0 else res.w[0],
+        quantities[0](w, job.unit) if quantities else w,  # pint refuses to mix registries: the first one's
         None if res.residual is None else res.residual[0],
         res.cond[0],
         res.status_code[0],
@@ -125,7 +127,7 @@ def invalid_inputs(
 ) -> list[tuple[str, str]]:
     """Why :func:`convert_body` gives this body the status ``invalid_input``: ``(set, problem)``
     pairs, first the first given (:func:`hconv.solve.bodies.invalid_inputs`)."""
-    sets, form = _sets(H, I, r, q, m, v, job)
+    sets, form = _sets(H, I, r, q, m, v, job, [])
     return bodies.invalid_inputs(sets, form, job.method, job.precision, job.conventions)
 
 
@@ -145,17 +147,32 @@ def _sets(
     m: float | None,
     v: Numbers | None,
     job: Job,
+    quantities: list[type],
 ) -> tuple[dict[str, np.ndarray], str]:
     """The body's values as :func:`hconv.solve.bodies.solve`'s sets, ``(k, 1)`` in SI, in the
-    order H, I, r, q, v, m, and the name of I's form."""
-    i = _values("I", I, None)
+    order H, I, r, q, v, m, and the name of I's form. A pint Quantity is read in its own unit, as
+    :func:`hconv.convert` reads one (:mod:`hconv.solve.arguments`), its class appended to
+    ``quantities``; a unit option for a set given as a Quantity would apply a second unit."""
+    given_units = dict(job.unit_options)
+
+    def read(name: str, value: Any, count: int | None) -> np.ndarray:
+        before = len(quantities)
+        x = _values(name, value, count, quantities)
+        if len(quantities) > before and name in given_units:
+            raise UsageError(
+                f"{name} is a pint Quantity, which carries its unit: drop "
+                f"{entry('unit_options', name, given_units[name])}"
+            )
+        return x
+
+    i = read("I", I, None)
     form = forms.by_count(len(i))
     if form is None:
         raise UsageError(f"I takes {forms.counts_text()} values, got {len(i)}")
-    values: dict[str, np.ndarray] = {"H": _values("H", H, 3), "I": i}
+    values: dict[str, np.ndarray] = {"H": read("H", H, 3), "I": i}
     for name, value, k in (("r", r, 3), ("q", q, 4), ("v", v, 3), ("m", m, 1)):
         if value is not None:
-            values[name] = _values(name, value, k)
+            values[name] = read(name, value, k)
     for key, unit in job.unit_options:
         if key not in UNIT_SETS:
             command = "hconv one" if errors.on_command_line() else "convert_body"
@@ -175,10 +192,13 @@ def _sets(
     return sets, form.name
 
 
-def _values(name: str, value: Any, count: int | None) -> np.ndarray:
-    """``value`` as float64 numbers, ``count`` of them (None: any)."""
+def _values(name: str, value: Any, count: int | None, quantities: list[type]) -> np.ndarray:
+    """``value`` as float64 numbers in SI, ``count`` of them (None: any); numbers with a unit or
+    a mask as :func:`hconv.solve.arguments.as_float` reads them."""
     try:
-        x = np.asarray(value, dtype=np.float64).ravel()
+        x = arguments.as_float(name, value, quantities).ravel()
+    except UsageError:
+        raise
     except (TypeError, ValueError):
         raise UsageError(f"{name} takes numbers, got {value!r}") from None
     if count is not None and x.size != count:
