@@ -455,7 +455,7 @@ def one(
             print(f"dropped  = {int(res.null_dim)} axis" + (f" {axis}" if axis else "es"))
         if res.unit == methods.M2_S:
             print(f"note: {res.unit} is not a unit of angular velocity;")
-            print("      see 'The seed's three questions' in the README")
+            print("      see docs/design-note.md, the design note's questions")
     if cancelled and not math.isnan(residual):  # the status says that digits were lost, not how many, nor what to do
         sys.stdout.flush()  # after the result on a shared terminal too
         print(_fill(body.cancellation_hint(state, residual), sys.stderr), file=sys.stderr)
