@@ -276,6 +276,39 @@ def test_convert_xarray_units_attribute_is_read():
         hconv.convert(np.ones((1, 3)), xr.DataArray(np.ones((1, 3)), attrs={"units": "kg*m**2/s"}))
 
 
+@pytest.mark.parametrize("key", ["units", "unit", "Units", "UNIT"])
+def test_convert_unit_in_attrs_is_read_under_any_spelling(key):
+    """xarray's ``attrs`` under ``unit`` or in capitals was dropped (ω 1e7 too large), as was a
+    pandas Series' ``attrs``: every spelling of the key is read."""
+    xr, pd = need("xarray"), need("pandas")
+    for H in (xr.DataArray([1.0, 2.0, 3.0]), pd.Series([1.0, 2.0, 3.0])):
+        H.attrs[key] = "g*cm**2/s"
+        res = hconv.convert(H, [1.0, 1.0, 1.0])  # kg·m²
+        assert res.w.tolist() == pytest.approx([float(k * G_CM2) for k in (1, 2, 3)], rel=1e-15)
+    with pytest.raises(UsageError, match=rf"^H\.attrs\[{key!r}\]: 'kg\*m\*\*2' is not a unit of angular momentum"):
+        hconv.convert(
+            pd.Series([1.0, 1.0, 1.0], name="H").pipe(lambda s: s.attrs.update({key: "kg*m**2"}) or s), [1, 1, 1]
+        )
+
+
+def test_convert_array_like_with_a_unit_attribute_is_refused_whatever_its_class():
+    """Not an ndarray, but numpy reads it through ``__array__`` and would drop its ``unit``."""
+
+    class Measured:
+        unit = "g*cm**2/s"
+
+        def __array__(self, dtype=None, copy=None):
+            return np.array([1.0, 2.0, 3.0], dtype=dtype)
+
+    with pytest.raises(UsageError, match=r"^H is test_units's Measured in g\*cm\*\*2/s, which hconv does not read"):
+        hconv.convert(Measured(), [1.0, 1.0, 1.0])
+
+
+def test_convert_dimensionless_quantity_names_its_unit():
+    with pytest.raises(UsageError, match=r"^H: 'dimensionless' is not a unit of angular momentum"):
+        hconv.convert([1.0, 2.0, 3.0] * _ureg()("dimensionless"), [1.0, 1.0, 1.0])
+
+
 def test_convert_plain_numbers_load_no_pint():
     """pint is found by its classes' modules, never imported to look: hconv.convert on numbers,
     masked arrays and lists (and hconv one, tests/test_cli.py) starts without it."""

@@ -97,15 +97,17 @@ def as_float(name: str, given_a: ArrayLike, quantities: list[type] | None = None
 
 def _unwrapped(name: str, a: Any, quantities: list[type] | None) -> tuple[Any, float]:
     """The numbers that ``a`` holds and the factor from their unit to SI: a pint Quantity's
-    magnitude (its class appended to ``quantities``), an xarray DataArray's values in its
-    ``units``; UsageError for numbers whose unit or mask numpy would drop and hconv does not read."""
+    magnitude (its class appended to ``quantities``), an array's values in the unit its ``attrs``
+    give (an xarray DataArray, a pandas Series); UsageError for numbers whose unit or mask numpy
+    would drop and hconv does not read."""
     scale = 1.0
-    if units.is_xarray(a):
-        unit, data = units.labelled_unit(a), getattr(a, "data", None)
-        if units.is_pint(data):
-            a = data  # pint-xarray: the Quantity holds the unit
-        elif unit is not None:
-            scale, a = units.factor(name, unit, f"{name}.attrs['units']"), a.values
+    data = getattr(a, "data", None) if units.is_xarray(a) else None
+    labelled = units.labelled_unit(a)
+    if units.is_pint(data):
+        a = data  # pint-xarray: the Quantity holds the unit
+    elif labelled is not None:
+        key, unit = labelled
+        scale, a = units.factor(name, unit, f"{name}.attrs[{key!r}]"), getattr(a, "values", a)
     if units.is_pint(a):
         if quantities is not None:
             quantities.append(type(a))
@@ -160,7 +162,7 @@ def _carried(x: object) -> str | None:
     if isinstance(x, np.ma.MaskedArray):
         return "masked arrays, whose masks numpy would drop; pass one masked array, e.g. np.ma.stack(...)"
     if units.labelled_unit(x) is not None:
-        return "xarray DataArrays with units, which numpy would drop; pass one DataArray"
+        return "arrays with a unit in their attrs, which numpy would drop; pass one array of them all"
     what = units.foreign(x)
     return (
         None if what is None else f"{what} and others like it, whose units numpy would drop; pass plain numbers in SI"

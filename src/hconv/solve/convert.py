@@ -113,9 +113,10 @@ def convert(
       quantity is a UsageError naming the argument; ω then comes back as a pint Quantity in
       ``unit`` (rad/s, or m²/s for the document methods), of the first Quantity's registry.
       Plain numbers beside a Quantity are in SI, as always;
-    * an xarray DataArray with a ``units`` attribute is read in that unit;
-    * any other number with a unit (astropy's Quantity, unyt's arrays) is a UsageError: pass a
-      pint Quantity or plain numbers in SI;
+    * an array whose ``attrs`` hold a unit (an xarray DataArray, a pandas Series: the key
+      ``units`` or ``unit``, in any case) is read in that unit;
+    * any other array with a unit (astropy's Quantity, unyt's arrays, anything with a ``unit``
+      or ``units`` attribute) is a UsageError: pass a pint Quantity or plain numbers in SI;
     * a masked array's masked entries are NaN: their rows get status ``invalid_input`` and no ω,
       as a file's empty cells do;
     * a list or tuple holding Quantities, masked arrays or such DataArrays is a UsageError:

@@ -13,10 +13,12 @@ ndarray subclasses, read as bare numbers). The rule, applied by :func:`hconv.sol
 * a pint Quantity is read in its own unit (:func:`pint_factor`: its registry's factor to SI, the
   same number a file's column in that unit is multiplied by); a unit of another quantity is a
   UsageError naming the argument;
-* an xarray DataArray with a ``units`` attribute is read in that unit, as ``--unit`` would read it
-  (:func:`factor`); one that wraps a pint Quantity (pint-xarray) is that Quantity;
-* any other number that carries a unit (astropy, unyt, an ndarray subclass with a ``unit`` or
-  ``units``) is refused (:func:`foreign`): pass a pint Quantity or plain numbers in SI.
+* an array whose ``attrs`` hold a unit (an xarray DataArray, a pandas Series; the key ``units``
+  or ``unit`` in any case) is read in that unit, as ``--unit`` would read it (:func:`factor`); a
+  DataArray that wraps a pint Quantity (pint-xarray) is that Quantity;
+* any other array that carries a unit (astropy, unyt, anything numpy reads as an array that has
+  a ``unit`` or ``units`` attribute) is refused (:func:`foreign`): pass a pint Quantity or plain
+  numbers in SI.
 
 All of these are told apart by their classes' modules and attributes, so hconv imports none of
 these libraries (nor pint, when no Quantity is passed).
@@ -27,6 +29,7 @@ from __future__ import annotations
 import functools
 import re
 import sys
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -141,7 +144,7 @@ def pint_factor(quantity: str, value: Any, where: str) -> float:
     the Quantity's own registry (which may define units hconv's does not) as :func:`factor` does
     in hconv's; UsageError naming ``where`` for a unit of another quantity."""
     unit = value.units
-    return _to_si(quantity, type(value)(1.0, unit), f"{format(unit, '~')!r}", where)
+    return _to_si(quantity, type(value)(1.0, unit), repr(format(unit, "~") or "dimensionless"), where)
 
 
 def is_xarray(value: object) -> bool:
@@ -149,22 +152,35 @@ def is_xarray(value: object) -> bool:
     return _package(type(value)) == "xarray"
 
 
-def labelled_unit(value: object) -> str | None:
-    """The ``units`` attribute of an xarray DataArray (None for anything else, or without one)."""
-    if not is_xarray(value):
+#: The keys of an ``attrs`` mapping that hold a unit (compared without regard to case): xarray's
+#: CF convention writes ``units``, and people write ``unit`` (hconv's own Parquet field metadata).
+UNIT_KEYS = ("units", "unit")
+
+
+def labelled_unit(value: object) -> tuple[str, str] | None:
+    """``(key, unit)``: the unit in the ``attrs`` mapping of an array-like (an xarray DataArray,
+    a pandas Series), under a key of :data:`UNIT_KEYS` in any case; None without one."""
+    attrs = getattr(value, "attrs", None)
+    if not isinstance(attrs, Mapping) or not _array_like(value):
         return None
-    unit = getattr(value, "attrs", {}).get("units")
-    return None if unit is None else str(unit)
+    for key, unit in attrs.items():
+        if isinstance(key, str) and key.lower() in UNIT_KEYS and unit is not None:
+            return key, str(unit)
+    return None
+
+
+def _array_like(value: object) -> bool:
+    return isinstance(value, np.ndarray) or hasattr(value, "__array__")
 
 
 def foreign(value: object) -> str | None:
     """What ``value`` is, e.g. ``"astropy's Quantity in g cm2 / s"``, when it carries a unit that
-    hconv does not read (anything but pint's, and an xarray DataArray's ``units``); None for
-    anything else. Found without importing those libraries: their packages' names, or an
-    ndarray subclass's ``unit`` or ``units``."""
+    hconv does not read (anything but pint's, and a unit in ``attrs``); None for anything else.
+    Found without importing those libraries: their packages' names, or the ``unit`` or ``units``
+    attribute of anything numpy can read as an array."""
     cls = type(value)
     package = _package(cls)
-    if package in ("pint", "xarray") or not (isinstance(value, np.ndarray) or package in ("astropy", "unyt")):
+    if package in ("pint", "xarray") or not (_array_like(value) or package in ("astropy", "unyt")):
         return None
     unit = getattr(value, "unit", None)
     if unit is None:
