@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 import typer
 from typer.core import TyperCommand
 
-from hconv import errors, interrupts
+from hconv import errors, interrupts, streams
 from hconv.errors import INTERRUPTED, HconvError, StrictError, UsageError
 from hconv.kernels import allocator
 from hconv.solve import forms, options
@@ -316,6 +316,7 @@ def friendly(fn: Callable) -> Callable:
             interrupts.hand_over()  # from here an interrupt is caught below, and cleans up
             with errors.command_line():
                 rv = fn(*args, **kwargs)
+                sys.stdout.flush()  # here, where a full stdout is the command's failure, named
             interrupts.settle()  # done: a late interrupt changes nothing (hconv.interrupts)
             interrupts.point("returned")
             return rv
@@ -850,7 +851,8 @@ def _sigterm(signum: int, frame: object) -> None:  # let the atomic writer clean
 
 def main() -> None:
     try:
-        _main()
+        with streams.standard_streams():
+            _main()
     except KeyboardInterrupt:  # after the command, before the exit
         print(f"hconv: error: {INTERRUPTED}", file=sys.stderr)
         sys.exit(130)
