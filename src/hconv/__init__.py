@@ -16,14 +16,13 @@ from hconv import interrupts
 
 interrupts.end_quietly_while_starting()  # first: the imports below take most of the command's start
 
-__version__ = "0.1.0"
-
 from hconv.solve.convert import Result, convert  # noqa: E402
 from hconv.solve.forms import FORMS  # noqa: E402
 from hconv.solve.methods import METHODS  # noqa: E402
 from hconv.solve.options import Conventions  # noqa: E402
 from hconv.solve.status import STATUSES  # noqa: E402
 from hconv.tables.job import Job  # noqa: E402
+from hconv.version import __version__  # noqa: E402
 
 __all__ = [
     "convert",

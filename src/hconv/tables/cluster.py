@@ -238,7 +238,7 @@ class Session:
 
     def check_workers(self, timeout: float) -> None:
         """UsageError unless the cluster has a worker within ``timeout`` and each runs this hconv."""
-        from hconv import __version__
+        from hconv.version import __version__
 
         try:
             self.client.wait_for_workers(1, timeout=timeout)
@@ -373,8 +373,8 @@ def _cli() -> bool:
 def _prepare_worker() -> str:
     """On a worker: its allocator tuned as the hconv command's is (without it, block temporaries
     are faulted in anew for every block: hconv.kernels.allocator); its hconv version."""
-    from hconv import __version__
     from hconv.kernels import allocator
+    from hconv.version import __version__
 
     allocator.tune()
     return __version__

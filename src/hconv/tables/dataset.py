@@ -44,6 +44,7 @@ from hconv.tables.formats import EXTENSIONS, FORMATS
 from hconv.tables.job import Job, check_job
 from hconv.tables.pipeline import Tally, check_callback, check_threads, convert_file
 from hconv.tables.storage import Listed, Place, Source
+from hconv.version import __version__
 
 MANIFEST = "_hconv_manifest.json"
 MANIFEST_KIND = "hconv dataset manifest"
@@ -895,7 +896,7 @@ def _manifest(plan: Plan, records: dict[str, FileRecord], failed: dict[str, Hcon
         "kind": MANIFEST_KIND,
         "version": MANIFEST_VERSION,
         "complete": len(files) == len(plan.inputs),
-        "hconv": _version(),
+        "hconv": __version__,
         "source": plan.src.place.identity,
         "job": plan.identity,
         "inputs": len(plan.inputs),
@@ -951,12 +952,6 @@ def _write_manifest(
     m["written_at"] = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
     m["seconds"] = round(time.perf_counter() - t0, 3)
     storage.write_bytes(plan.dst, MANIFEST, (json.dumps(m, indent=1) + "\n").encode())
-
-
-def _version() -> str:
-    from hconv import __version__
-
-    return __version__
 
 
 def _sum(job: Job, files: list[FileRecord]) -> tuple[Tally, FileRecord | None]:
