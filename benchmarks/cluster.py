@@ -122,7 +122,7 @@ def split(work: Path, rows: int, task_rows: int) -> None:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from hconv.tables import dataset, pipeline, storage, tableio
+    from hconv.tables import dataset, parquetio, pipeline, storage
     from hconv.tools.scene import make_scene
 
     big = work / "split" / "big.parquet"
@@ -143,7 +143,7 @@ def split(work: Path, rows: int, task_rows: int) -> None:
         pipeline.convert_file(str(big), paths[-1], threads=1, force=True, rows=(p.start, p.stop))
         each.append(time.perf_counter() - t0)
     t0 = time.perf_counter()
-    tableio.join_parquet(paths, str(work / "joined.parquet"))
+    parquetio.join_parquet(paths, str(work / "joined.parquet"))
     join = time.perf_counter() - t0
     same = (work / "joined.parquet").read_bytes() == (work / "whole.parquet").read_bytes()
     print(

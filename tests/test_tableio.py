@@ -165,9 +165,9 @@ def test_output_removes_the_temporary_file_of_a_killed_run_and_says_so(left, tmp
 
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="start times come from Linux's /proc")
 def test_remove_stale_temporaries_leaves_live_and_unknown_makers_alone(tmp_path, capsys):
-    from hconv.tables import tableio
+    from hconv.tables import temporaries
 
-    pid, start, tag = tableio._maker().split("-")
+    pid, start, tag = temporaries._maker().split("-")
     other_tag = f"{(int(tag, 16) + 1) % (1 << 32):08x}"
     names = {
         f".out.parquet.{pid}-{start}-{tag}-abcd1234.hconv-tmp": "live",  # this process: running
@@ -179,7 +179,7 @@ def test_remove_stale_temporaries_leaves_live_and_unknown_makers_alone(tmp_path,
     }
     for name in names:
         (tmp_path / name).write_text("x")
-    removed = tableio.remove_stale_temporaries(str(tmp_path))
+    removed = temporaries.remove_stale_temporaries(str(tmp_path))
     stale = [n for n, why in names.items() if why == "stale"]
     assert removed == [str(tmp_path / n) for n in stale]
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(n for n in names if n not in stale)
@@ -652,9 +652,9 @@ def test_output_full_disk_names_the_output(fmt, tmp_path, capsys, monkeypatch):
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from hconv.tables import tableio
+    from hconv.tables import csvio, parquetio
 
-    writer = tableio._CsvWriter if fmt == "csv" else tableio._ParquetWriter
+    writer = csvio.CsvWriter if fmt == "csv" else parquetio.ParquetWriter
 
     def full(self, table):
         raise OSError(errno.ENOSPC, "Error writing bytes to file. Detail: [errno 28] No space left on device")
@@ -726,9 +726,9 @@ def test_open_input_csv_error_leaves_no_python_read_on_pyarrow_threads(tmp_path,
     recorded here, deterministically, wherever the race would have gone."""
     import threading
 
-    from hconv.tables import pipeline, tableio
+    from hconv.tables import csvio, pipeline
 
-    monkeypatch.setattr(tableio, "CSV_BLOCK_BYTES", 1 << 18)
+    monkeypatch.setattr(csvio, "CSV_BLOCK_BYTES", 1 << 18)
     src = tmp_path / "bad.csv"
     data = _scene_csv(src, 20000)
     at = data.index(b",b", 100_000) + 2  # past the 64 KiB hconv checks itself, in pyarrow's first block
@@ -744,7 +744,7 @@ def test_open_input_csv_error_leaves_no_python_read_on_pyarrow_threads(tmp_path,
     def seen_open(path, mode="r", *args, **kwargs):
         return Seen(path, "r") if mode == "rb" else open(path, mode, *args, **kwargs)
 
-    monkeypatch.setattr(tableio, "open", seen_open, raising=False)
+    monkeypatch.setattr(csvio, "open", seen_open, raising=False)
     with pytest.raises(hconv.errors.InputError, match="bad.csv: column 'label' holds text that is not UTF-8"):
         pipeline.convert_file(str(src), str(tmp_path / "out.parquet"))
     assert not off_main, f"pyarrow's threads read the input through Python: {sorted(set(off_main))}"
@@ -814,14 +814,14 @@ def test_open_input_parquet_damaged_page_names_the_input_and_its_row_group(
 def test_convert_file_input_rewritten_while_read_is_refused(fmt, tmp_path, monkeypatch):
     """A file appended to, cut or rewritten in place while hconv reads it: what was read may mix
     two versions of it, which no later check would see."""
-    from hconv.tables import pipeline, tableio
+    from hconv.tables import csvio, parquetio, pipeline
 
     src = tmp_path / f"in.{fmt}"
     if fmt == "csv":
-        monkeypatch.setattr(tableio, "CSV_BLOCK_BYTES", 1 << 12)
+        monkeypatch.setattr(csvio, "CSV_BLOCK_BYTES", 1 << 12)
         _scene_csv(src, 2000)
     else:
-        monkeypatch.setattr(tableio, "PARQUET_BATCH_ROWS", 50)
+        monkeypatch.setattr(parquetio, "PARQUET_BATCH_ROWS", 50)
         _scene_parquet(src, groups=4)
     calls = []
 
@@ -839,11 +839,11 @@ def test_convert_file_input_rewritten_while_read_is_refused(fmt, tmp_path, monke
 
 
 def test_open_input_csv_without_a_line_end_says_so_not_that_it_is_empty(tmp_path, capsys, monkeypatch):
-    from hconv.tables import tableio
+    from hconv.tables import csvio
 
     monkeypatch.chdir(tmp_path)
     big = tmp_path / "one.csv"
-    big.write_bytes(b"Hx,Hy,Hz,Ixx,Iyy,Izz,Ixy,Ixz,Iyz" + b",1" * ((tableio.CSV_BLOCK_BYTES >> 1) + 10))
+    big.write_bytes(b"Hx,Hy,Hz,Ixx,Iyy,Izz,Ixy,Ixz,Iyz" + b",1" * ((csvio.CSV_BLOCK_BYTES >> 1) + 10))
     code, _, err = run_inprocess("convert", "one.csv", "out.parquet", capsys=capsys)
     assert (code, err.strip()) == (
         3,
@@ -880,9 +880,9 @@ def test_open_input_csv_row_cut_by_a_block_end_or_an_open_quote_is_named(
 ):
     """pyarrow splits a CSV into blocks; a row it cannot end within one came out as 'a row has 1
     values', naming no row, though the row had all its values."""
-    from hconv.tables import tableio
+    from hconv.tables import csvio
 
-    monkeypatch.setattr(tableio, "CSV_BLOCK_BYTES", 1 << 16)
+    monkeypatch.setattr(csvio, "CSV_BLOCK_BYTES", 1 << 16)
     monkeypatch.chdir(tmp_path)
     lines = _scene_csv(tmp_path / "in.csv", 3500).split(b"\n")
     lines[3000] = damage(lines[3000])

@@ -47,7 +47,7 @@ def __getattr__(name: str) -> object:  # keeps `import hconv` free of pyarrow
 
         return getattr(arrow, name)
     if name == "parquet_write_options":
-        from hconv.tables.tableio import parquet_write_options
+        from hconv.tables.parquetio import parquet_write_options
 
         return parquet_write_options
     if name == "convert_dataset":

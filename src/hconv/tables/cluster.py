@@ -17,7 +17,7 @@ Dask runs a task again when the worker running it dies. A task writes nothing bu
 through a temporary file committed whole, so a second run writes the same bytes again: it may
 replace an output at its own path (one the first run committed before it died), which the
 manifest has claimed as hconv's own before any task started. A killed worker cannot remove its
-temporary file, and its host may be another machine, where :func:`hconv.tables.tableio.remove_stale_temporaries`
+temporary file, and its host may be another machine, where :func:`hconv.tables.temporaries.remove_stale_temporaries`
 cannot tell that it died; so every temporary file of a run carries the run's tag in its name, and
 the driver removes that run's leftovers in OUT, and each worker in its temporary directory, once
 no task runs (:meth:`Session.close`).
@@ -46,9 +46,9 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 from hconv import errors
-from hconv.errors import HconvError, OutputError, UsageError, option
+from hconv.errors import HconvError, OutputError, UsageError, first_line, option
 from hconv.solve.engines import available_cores
-from hconv.tables import tableio
+from hconv.tables import temporaries
 from hconv.tables.dataset import (
     FileRecord,
     Part,
@@ -62,7 +62,7 @@ from hconv.tables.dataset import (
     split,
 )
 from hconv.tables.pipeline import default_threads
-from hconv.tables.storage import Place, first_line, remove_run_objects
+from hconv.tables.storage import Place, remove_run_objects
 
 EXTRA = "pip install 'hconv[dask]'"
 #: --cluster's values besides "local": the address of a running Dask scheduler.
@@ -341,7 +341,7 @@ class Session:
         # after the close, so that no task of a local cluster still writes
         _remove_run_temporaries(self.run_id)
         if self.dst is not None and self.dst.local:
-            tableio.remove_run_temporaries(self.dst.root, self.run_id, recursive=True)
+            temporaries.remove_run_temporaries(self.dst.root, self.run_id, recursive=True)
         elif self.dst is not None and self.split_files:  # the parts a killed worker or a stopped run left in OUT
             with contextlib.suppress(HconvError):
                 remove_run_objects(self.dst, self.run_id)
@@ -381,7 +381,7 @@ def _prepare_worker() -> str:
 
 
 def _remove_run_temporaries(run_id: str) -> list[str]:
-    return tableio.remove_run_temporaries(tempfile.gettempdir(), run_id)
+    return temporaries.remove_run_temporaries(tempfile.gettempdir(), run_id)
 
 
 class _StopRequestedError(Exception):

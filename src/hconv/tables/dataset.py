@@ -39,7 +39,7 @@ import numpy as np
 from hconv import interrupts
 from hconv.errors import HconvError, OutputError, UsageError, option
 from hconv.solve import methods
-from hconv.tables import storage, tableio
+from hconv.tables import output, parquetio, storage, temporaries
 from hconv.tables.formats import EXTENSIONS, FORMATS
 from hconv.tables.job import Job, check_job
 from hconv.tables.pipeline import Tally, check_callback, check_threads, convert_file
@@ -426,8 +426,8 @@ TASK_ROWS = 0
 
 def check_task_rows(task_rows: object) -> None:
     """UsageError unless ``task_rows`` is None (the default), 0 (no splitting) or at least one
-    batch (:data:`hconv.tables.tableio.PARQUET_BATCH_ROWS` rows)."""
-    least = tableio.PARQUET_BATCH_ROWS
+    batch (:data:`hconv.tables.parquetio.PARQUET_BATCH_ROWS` rows)."""
+    least = parquetio.PARQUET_BATCH_ROWS
     if task_rows is not None and (
         isinstance(task_rows, bool) or not isinstance(task_rows, int) or (task_rows != 0 and task_rows < least)
     ):
@@ -445,7 +445,7 @@ class Part:
     k: int  #: its place among the file's parts
     start: int
     stop: int
-    rel: str  #: the part file, relative to OUT: hidden, run-tagged (tableio.part_name)
+    rel: str  #: the part file, relative to OUT: hidden, run-tagged (temporaries.part_name)
 
 
 @dataclass
@@ -466,7 +466,7 @@ def split(task: Task, src: Place, task_rows: int, run: str) -> list[Part]:
     Parquet, of at least 2 row groups and more than ``task_rows`` rows (0: never), cut into
     ranges of about ``task_rows`` rows.
 
-    Each cut falls on a multiple of :data:`~hconv.tables.tableio.PARQUET_BATCH_ROWS` rows, where
+    Each cut falls on a multiple of :data:`~hconv.tables.parquetio.PARQUET_BATCH_ROWS` rows, where
     the whole file's reading starts a batch: hconv writes one row group per batch, so the parts'
     row groups are the whole conversion's and the joined file is its bytes. A file smaller than
     ``task_rows`` bytes is not opened to count its rows: no hconv input stores a row in less than
@@ -476,22 +476,22 @@ def split(task: Task, src: Place, task_rows: int, run: str) -> list[Part]:
     where = src.path(task.input.rel)
     try:
         if src.local:
-            rows, groups = tableio.parquet_shape(where)
+            rows, groups = parquetio.parquet_shape(where)
         else:
             with src.fs.open_input_file(where) as f:
-                rows, groups = tableio.parquet_shape(f)
+                rows, groups = parquetio.parquet_shape(f)
     except (OSError, ValueError):  # pyarrow's errors are one or the other
         return []  # converted whole: its task names what is wrong with it
     if groups < 2 or rows <= task_rows:
         return []
-    batch = tableio.PARQUET_BATCH_ROWS
+    batch = parquetio.PARQUET_BATCH_ROWS
     step = max(batch, round(task_rows / batch) * batch)
     cuts = list(range(0, rows, step)) + [rows]
     if rows - cuts[-2] < step // 2 and len(cuts) > 2:  # a short tail joins the part before it
         del cuts[-2]
     folder, name = os.path.split(task.output)
     return [
-        Part(k, a, b, os.path.join(folder, tableio.part_name(name, run, k)).replace(os.sep, "/"))
+        Part(k, a, b, os.path.join(folder, temporaries.part_name(name, run, k)).replace(os.sep, "/"))
         for k, (a, b) in enumerate(zip(cuts, cuts[1:]))
     ]
 
@@ -562,7 +562,7 @@ def join_parts(
         if all(storage.exists(dst, p.rel) for p in parts):
             local = [_local_input(dst, p.rel, cleanup, run)[0] for p in parts]
             staged = _staged(dst, task.output, cleanup, run)
-            tableio.join_parquet(local, staged)
+            parquetio.join_parquet(local, staged)
             with interrupts.held():
                 if dst.local:
                     _flushed(staged, dst.name(task.output))
@@ -679,7 +679,7 @@ def _flushed(path: str, shown: str) -> int:
         finally:
             os.close(fd)
     except OSError as exc:
-        raise tableio.write_failure(shown, exc) from None
+        raise output.write_failure(shown, exc) from None
 
 
 def _shown_output(dst: Place, rel: str, staged: str) -> str:
@@ -787,7 +787,7 @@ def convert_dataset(
                 say(f"running on {ran_on}")
                 outcomes = session.run(plan, keep, strict=strict, task_rows=rows)
                 if rows:
-                    parts_run = {"id": session.run_id, "driver": tableio.maker()}
+                    parts_run = {"id": session.run_id, "driver": temporaries.maker()}
             else:
                 outcomes = _in_process(plan, keep, strict=strict, threads=threads)
             if plan.todo:
@@ -798,7 +798,7 @@ def convert_dataset(
                     if error is not None:
                         failed[task.input.rel] = error
                         say(f"error: {error}")
-                        if getattr(error, "errno", None) in tableio.NO_ROOM:
+                        if getattr(error, "errno", None) in output.NO_ROOM:
                             stopped = error
                             break
                     if progress is not None:
@@ -918,13 +918,13 @@ def _remove_orphan_parts(plan: Plan, say: Callable[[str], None]) -> None:
     """Remove the parts (:func:`split`) of an earlier run whose driver was killed outright, as its
     manifest names them; left alone while that driver may still run (another host)."""
     before = (plan.manifest_before or {}).get("parts_run")
-    if not isinstance(before, dict) or not tableio.maker_gone(str(before.get("driver", ""))):
+    if not isinstance(before, dict) or not temporaries.maker_gone(str(before.get("driver", ""))):
         return
     run = str(before.get("id", ""))
     if not re.fullmatch(r"[0-9a-f]+", run):
         return
     if plan.dst.local:
-        gone = tableio.remove_run_temporaries(plan.dst.root, run, recursive=True)
+        gone = temporaries.remove_run_temporaries(plan.dst.root, run, recursive=True)
     else:
         gone = storage.remove_run_objects(plan.dst, run)
     if gone:
