@@ -25,7 +25,7 @@ from helpers import S3_ENV, free_port, need, run_hconv, run_inprocess, terminal_
 import hconv
 from hconv.errors import UsageError
 from hconv.tables import temporaries
-from hconv.tables.dataset import MANIFEST
+from hconv.tables.manifest import MANIFEST
 from hconv.tools.scene import make_scene
 
 distributed = need("distributed")

@@ -21,7 +21,7 @@ from helpers import run_hconv, run_inprocess, terminal_signals
 
 import hconv
 from hconv.tables import dataset, pipeline, storage
-from hconv.tables.dataset import MANIFEST
+from hconv.tables.manifest import MANIFEST
 from hconv.tools.scene import make_scene
 
 PARTS = ("date=2026-01-01/part-0.parquet", "date=2026-01-01/part-1.parquet", "date=2026-01-02/part-0.parquet")

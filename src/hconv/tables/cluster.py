@@ -1,5 +1,5 @@
 """A dataset's files converted on a Dask cluster: one task per file, each running
-:func:`hconv.tables.dataset.convert_one` on a worker, while the driver (the process that called
+:func:`hconv.tables.onefile.convert_one` on a worker, while the driver (the process that called
 :func:`~hconv.tables.dataset.convert_dataset`) collects the records and writes the manifest, as a
 run in one process does. Dask (``distributed``, the ``hconv[dask]`` extra) is imported only here,
 and only when a run asks for a cluster.
@@ -49,19 +49,11 @@ from hconv import errors
 from hconv.errors import HconvError, OutputError, UsageError, first_line, option
 from hconv.solve.engines import available_cores
 from hconv.tables import temporaries
-from hconv.tables.dataset import (
-    FileRecord,
-    Part,
-    PartRecord,
-    Plan,
-    Task,
-    convert_one,
-    convert_part,
-    join_parts,
-    remove_parts,
-    split,
-)
+from hconv.tables.manifest import FileRecord
+from hconv.tables.onefile import convert_one
+from hconv.tables.parts import Part, PartRecord, convert_part, join_parts, remove_parts, split
 from hconv.tables.pipeline import default_threads
+from hconv.tables.planning import Plan, Task
 from hconv.tables.storage import Place, remove_run_objects
 
 EXTRA = "pip install 'hconv[dask]'"
@@ -263,7 +255,7 @@ class Session:
         self, plan: Plan, keep: Callable[[FileRecord], None], *, strict: bool, task_rows: int
     ) -> Iterator[tuple[Task, HconvError | None]]:
         """Submit one task per file to convert, or for a large Parquet file one per part and one
-        joining them (:func:`hconv.tables.dataset.split`, ``task_rows``); (task, its error or
+        joining them (:func:`hconv.tables.parts.split`, ``task_rows``); (task, its error or
         None) as each file completes, its record handed to ``keep`` first. KeyboardInterrupt
         stops the tasks (see the module)."""
         import distributed

@@ -46,7 +46,7 @@ def open_parquet(path: str, name: str, job: Job, rows: tuple[int, int] | None = 
     first row; with ``rows`` (start, stop), only those rows, reading only the row groups that hold
     them, in the batches the whole file's reading gives them when ``start`` is a multiple of
     :data:`PARQUET_BATCH_ROWS` (so that a part's output row groups are the whole file's:
-    :func:`hconv.tables.dataset.split`)."""
+    :func:`hconv.tables.parts.split`)."""
     try:
         if os.path.getsize(path) == 0:
             raise InputError(f"{name}: the file is empty (0 bytes); it is not a Parquet file")
@@ -187,7 +187,7 @@ def join_parquet(parts: list[str], path: str) -> None:
     """Write the Parquet files ``parts`` (the parts of one output, in order, each written by
     hconv's writer) into ``path`` as one file, row group by row group: the same schema, metadata
     and writer options, so that the file is the one the whole conversion writes
-    (:func:`hconv.tables.dataset.join_parts`)."""
+    (:func:`hconv.tables.parts.join_parts`)."""
     writer: ParquetWriter | None = None
     try:
         for part in parts:

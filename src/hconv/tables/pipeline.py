@@ -229,7 +229,7 @@ def convert_file(
     fetched into ``src`` (:func:`hconv.tables.dataset.convert_dataset`); ``dst_name`` the same for
     the output, such as a dataset's output whose temporary file ``dst`` is.
     ``rows``: (start, stop), convert only those rows of a Parquet ``src`` (a part of a file
-    converted by one task of a cluster run: :func:`hconv.tables.dataset.convert_part`); messages
+    converted by one task of a cluster run: :func:`hconv.tables.parts.convert_part`); messages
     name the file's rows, the tally's ``worst_row`` counts from ``start``.
     Raises :class:`hconv.errors.HconvError` subclasses with one-line messages.
     """

@@ -114,7 +114,7 @@ def remove_stale_temporaries(directory: str) -> list[str]:
     return removed
 
 
-#: A part of one output converted by one task of a cluster run (hconv.tables.dataset.split):
+#: A part of one output converted by one task of a cluster run (hconv.tables.parts.split):
 #: ``.OUT.run-<hex>.part-<k>.hconv-tmp``, named without the process that wrote it, so that a task
 #: run again after its worker died writes the same part (the run removes its parts at its end).
 _PART_NAME = re.compile(r"^\..+\.run-[0-9a-f]+\.part-\d+\.hconv-tmp$")
