@@ -439,18 +439,6 @@ def test_check_workers_refuses_workers_of_another_hconv():
     assert session.describe() == "s, 1 worker"
 
 
-def test_remove_run_temporaries_takes_only_that_runs_files(tmp_path):
-    (tmp_path / "d=1").mkdir()
-    ours = tmp_path / "d=1" / ".part.parquet.run-abc123.99999-0-0000abcd-x1.hconv-tmp"
-    other_run = tmp_path / ".part.parquet.run-def456.99999-0-0000abcd-x1.hconv-tmp"
-    no_run = tmp_path / ".part.parquet.99999-0-0000abcd-x1.hconv-tmp"
-    for p in (ours, other_run, no_run):
-        p.write_bytes(b"")
-    assert temporaries.remove_run_temporaries(str(tmp_path), "abc123") == []  # not recursive
-    assert temporaries.remove_run_temporaries(str(tmp_path), "abc123", recursive=True) == [str(ours)]
-    assert other_run.exists() and no_run.exists() and not ours.exists()
-
-
 def test_convert_dataset_on_a_client_leaves_it_open(scheduler, tmp_path):
     data = tmp_path / "data"
     _write_dataset(data, files=2, rows=300)

@@ -438,24 +438,6 @@ def test_store_failure_names_the_common_causes(text, hint):
     assert (said == f"({text})") if hint is None else (hint in said)
 
 
-def test_remove_stale_temporaries_sweeps_a_killed_dataset_runs_fetched_and_staged_files(tmp_path, capsys):
-    """A dataset run killed outright leaves hconv-fetch- and hconv-stage- files in TMPDIR, and
-    .NAME.…hconv-tmp files beside outputs; the next run there removes those of ended processes."""
-    from hconv.tables import temporaries
-
-    pid, start, tag = temporaries._maker().split("-")
-    gone = f"{pid}-{int(start) + 1}-{tag}"  # this pid with another start: a process that has ended
-    names = [f"hconv-fetch-{gone}-abcd1234.hconv-tmp", f"hconv-stage-{gone}-abcd1234.hconv-tmp"]
-    names += [f".part-0.parquet.{gone}-abcd1234.hconv-tmp"]
-    for name in names:
-        (tmp_path / name).write_bytes(b"")
-    live = tmp_path / f"hconv-stage-{pid}-{start}-{tag}-abcd1234.hconv-tmp"
-    live.write_bytes(b"")
-    assert sorted(temporaries.remove_stale_temporaries(str(tmp_path))) == sorted(str(tmp_path / n) for n in names)
-    assert [p.name for p in tmp_path.iterdir()] == [live.name]
-    capsys.readouterr()
-
-
 def test_convert_dataset_glob_may_write_into_its_own_folder_unless_it_would_take_the_outputs(
     tmp_path, capsys, monkeypatch
 ):
