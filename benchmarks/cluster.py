@@ -29,7 +29,7 @@ from pathlib import Path
 
 from datasets import S3_ENV, free_port, moto_server, run, write_dataset
 
-from hconv.tools import bench
+from hconv.tools import leftovers
 
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 
@@ -178,8 +178,8 @@ def main() -> None:
     ap.add_argument("--split-only", action="store_true", help="only the large file, whole and split")
     ap.add_argument("--dir", default=None, help="where to write the datasets (default: a temporary directory)")
     a = ap.parse_args()
-    bench.remove_stale_folders(print, a.dir)  # of runs of this or hconv bench killed outright
-    work = Path(tempfile.mkdtemp(prefix=bench.folder_prefix("cluster-"), dir=a.dir))
+    leftovers.remove_stale_folders(print, a.dir)  # of runs of this or hconv bench killed outright
+    work = Path(tempfile.mkdtemp(prefix=leftovers.folder_prefix("cluster-"), dir=a.dir))
     print(f"this machine: {os.cpu_count()} cores; each figure is one run")
     try:
         split(work, a.rows, a.task_rows)

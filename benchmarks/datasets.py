@@ -30,7 +30,7 @@ from pathlib import Path
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from hconv.tools import bench
+from hconv.tools import leftovers
 from hconv.tools.scene import make_scene
 
 S3_ENV = {
@@ -161,8 +161,8 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--dir", default=None, help="where to write the datasets (default: a temporary directory)")
     a = ap.parse_args()
-    bench.remove_stale_folders(print, a.dir)  # of runs of this or hconv bench killed outright
-    work = Path(tempfile.mkdtemp(prefix=bench.folder_prefix("datasets-"), dir=a.dir))
+    leftovers.remove_stale_folders(print, a.dir)  # of runs of this or hconv bench killed outright
+    work = Path(tempfile.mkdtemp(prefix=leftovers.folder_prefix("datasets-"), dir=a.dir))
     try:
         local(work, a.rows, a.repeats)
         s3(work, a.s3_rows, a.repeats)

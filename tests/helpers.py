@@ -1,9 +1,10 @@
 """Shared test helpers: an independent 50-digit reference, random bodies and rotations built
-apart from hconv's own code, table shorthands, and the real CLI."""
+apart from hconv's own code, table shorthands, the real CLI, and consoles to print tables on."""
 
 from __future__ import annotations
 
 import importlib
+import io
 import os
 import signal
 import socket
@@ -14,6 +15,7 @@ import mpmath
 import numpy as np
 import pyarrow as pa
 import pytest
+from rich.console import Console
 
 from hconv.kernels.metrics import relative_error
 from hconv.tools.scene import cylinder_moments, rotate_tensors
@@ -268,3 +270,23 @@ def run_on_terminal(*args: str, columns: int = 80, cwd=None) -> tuple[int, str]:
     code = proc.wait(timeout=120)
     text = b"".join(chunks).decode().replace("\r\n", "\n")
     return code, re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", text)
+
+
+#: The characters of a rich table's box: none may show in text for tools.
+BOX = set("┏┓┗┛┃━┡┩╇┳┻│─└┘├┤┼┌┐")
+
+
+def terminal(width: int) -> Console:
+    return Console(file=io.StringIO(), width=width, force_terminal=True, color_system=None)
+
+
+def shown(console: Console) -> list[str]:
+    return console.file.getvalue().splitlines()  # type: ignore[attr-defined]
+
+
+def assert_fits(lines: list[str], width: int, names) -> None:
+    text = "\n".join(lines)
+    assert max(len(ln) for ln in lines) <= width, max(lines, key=len)
+    assert "…" not in text
+    for name in names:  # whole, on one line: neither cut nor wrapped inside
+        assert any(name in ln for ln in lines), name

@@ -3,21 +3,10 @@
 from __future__ import annotations
 
 import json
-import os
-import signal
-import subprocess
-import sys
-import tempfile
-import time
-from pathlib import Path
 
-import pytest
 from helpers import run_hconv
 
 import hconv
-from hconv.tools import bench
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_bench_command_small_run_writes_tables_json_and_chart(tmp_path):
@@ -64,91 +53,3 @@ def test_bench_rejects_rows_below_one_as_usage_error():
         assert (
             proc.returncode == 2 and "--rows" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
         )
-
-
-_LEFT_BY_KILL = """
-from hconv.tools import bench
-folder = bench.temporary_folder()
-open(folder.name + "/in.parquet", "wb").close()
-print(folder.name, flush=True)  # only now: the test kills this process once it reads the name
-input()
-"""
-
-
-def test_remove_stale_folders_removes_killed_runs_keeps_live_ones(tmp_path, monkeypatch):
-    """A bench run killed outright leaves its folder; the next run's start removes it, but never
-    the folder of a run still going, nor a folder it cannot tell is a bench run's."""
-    env = dict(os.environ, TMPDIR=str(tmp_path))
-    with subprocess.Popen(
-        [sys.executable, "-c", _LEFT_BY_KILL], stdin=subprocess.PIPE, stdout=subprocess.PIPE, env=env, text=True
-    ) as killed:
-        left = killed.stdout.readline().strip()
-        killed.send_signal(signal.SIGKILL)
-    assert killed.wait(timeout=60) == -signal.SIGKILL and os.path.isfile(os.path.join(left, "in.parquet"))
-    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
-    live, other = bench.temporary_folder(), tmp_path / "hconv-bench-datasets-x"
-    other.mkdir()
-    said: list[str] = []
-    with live:
-        assert bench.remove_stale_folders(said.append) == [left]
-        assert not os.path.exists(left) and os.path.isdir(live.name) and other.is_dir()
-        assert said == [f"removed {left}, left by a bench run that was killed"]
-
-
-_SCRIPT_LEFT_BY_KILL = """
-import sys, tempfile
-from hconv.tools import bench
-folder = tempfile.mkdtemp(prefix=bench.folder_prefix("datasets-"), dir=sys.argv[1])
-print(folder, flush=True)
-input()
-"""
-
-
-def test_remove_stale_folders_of_a_benchmark_script_in_its_own_directory(tmp_path):
-    """benchmarks/datasets.py and cluster.py name their folders with folder_prefix, in --dir or
-    the temporary directory: one left by a script killed outright is removed there too (before,
-    their own names were never matched)."""
-    with subprocess.Popen(
-        [sys.executable, "-c", _SCRIPT_LEFT_BY_KILL, str(tmp_path)],
-        stdin=subprocess.PIPE,
-        stdout=subprocess.PIPE,
-        text=True,
-    ) as killed:
-        left = killed.stdout.readline().strip()
-        killed.send_signal(signal.SIGKILL)
-    killed.wait(timeout=60)
-    assert os.path.dirname(left) == str(tmp_path) and os.path.isdir(left)
-    assert bench.remove_stale_folders(where=str(tmp_path)) == [left] and not os.path.exists(left)
-    for script in ("datasets.py", "cluster.py"):  # the scripts do name theirs so, and clean first
-        text = (ROOT / "benchmarks" / script).read_text()
-        assert "bench.folder_prefix(" in text and "bench.remove_stale_folders(print, a.dir)" in text
-
-
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the parent-death signal is Linux's")
-def test_child_dies_when_the_bench_is_killed():
-    """A bench killed outright must not leave its children running: its cold-start child went on
-    compiling for seconds and wrote into a folder the next run had removed (a newcomer trial)."""
-    code = (
-        "import sys\n"
-        "from hconv.tools import bench\n"
-        "bench._child([sys.executable, '-c', 'import os, time; print(os.getpid(), flush=True); time.sleep(60)'])\n"
-    )
-    parent = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
-    child = int(parent.stdout.readline())
-    os.kill(parent.pid, signal.SIGKILL)
-    parent.wait()
-    deadline = time.monotonic() + 5  # the kernel's signal takes a moment to land
-    while _running(child) and time.monotonic() < deadline:
-        time.sleep(0.05)
-    if _running(child):
-        os.kill(child, signal.SIGKILL)
-        raise AssertionError("the child outlived the killed bench")
-
-
-def _running(pid: int) -> bool:
-    """Alive and not a zombie waiting for whoever adopted it to reap it."""
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
-    except FileNotFoundError:
-        return False

@@ -125,9 +125,9 @@ def test_residual_of_refined_is_measured_against_a_longer_refinement(rng, monkey
     The early stop is planted in the numpy engine's general converter, so the test runs that
     (tests/test_vectorrows.py plants one in the path for covered runs)."""
     from hconv.kernels import linsolve
-    from hconv.solve import convert
+    from hconv.solve import blocks
 
-    monkeypatch.setattr(convert, "COMMON_PATH", False)
+    monkeypatch.setattr(blocks, "COMMON_PATH", False)
 
     I, H = spd_bodies(rng, 50, 1e10), rng.normal(size=(50, 3))
     assert np.nanmax(hconv.convert(H, I, method="refined").residual) <= 2 * EPS

@@ -1,7 +1,8 @@
-"""hconv bodies (hconv.tools.models, hconv.tools.modelxml, hconv.modelview): the inertias of
-URDF, SDF and MJCF models against hand-written models with known answers, rotations checked
-against independent parametrisations (elementary matrices, Rodrigues' formula), every status,
-untrusted input, the round trip into hconv convert, and MuJoCo itself where it is installed."""
+"""hconv bodies (hconv.tools.models, its readers urdf, sdf and mjcf, hconv.tools.inertial,
+hconv.tools.modelxml, hconv.modelview): the inertias of URDF, SDF and MJCF models against
+hand-written models with known answers, rotations checked against independent parametrisations
+(elementary matrices, Rodrigues' formula), every status, untrusted input, the round trip into
+hconv convert, and MuJoCo itself where it is installed."""
 
 from __future__ import annotations
 
@@ -26,7 +27,7 @@ from rich.console import Console
 
 from hconv import modelview
 from hconv.errors import InputError, UsageError
-from hconv.tools import models, modelxml
+from hconv.tools import models, modelxml, sdf
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples" / "models"
 
@@ -1013,8 +1014,8 @@ def test_read_sdf_frames_are_placed_once_each(tmp_path, monkeypatch):
     path = tmp_path / "chain.sdf"
     path.write_text(f"<sdf><model name='m'>{frames}<frame name='f{n}'/>{links}</model></sdf>")
     poses = []
-    pose_of = models._sdf_pose
-    monkeypatch.setattr(models, "_sdf_pose", lambda node: poses.append(node) or pose_of(node))
+    pose_of = sdf._pose
+    monkeypatch.setattr(sdf, "_pose", lambda node: poses.append(node) or pose_of(node))
     bodies = models.read_model(path).bodies
     assert len(bodies) == n and all(b.status == "ok" for b in bodies)
     np.testing.assert_allclose(bodies[-1].p_BC_B, [0.0, 0.0, n])

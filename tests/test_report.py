@@ -11,6 +11,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.csv as pacsv
 import pytest
+from helpers import BOX, assert_fits, shown, terminal
 from rich.console import Console
 
 from hconv import report
@@ -19,27 +20,10 @@ from hconv.tables.pipeline import Tally
 from hconv.tools import bench, compare, diagnose, stability
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples" / "data"
-BOX = set("┏┓┗┛┃━┡┩╇┳┻│─└┘├┤┼┌┐")
-
-
-def terminal(width: int) -> Console:
-    return Console(file=io.StringIO(), width=width, force_terminal=True, color_system=None)
 
 
 def pipe() -> Console:
     return Console(file=io.StringIO(), width=80, force_terminal=False)
-
-
-def shown(console: Console) -> list[str]:
-    return console.file.getvalue().splitlines()  # type: ignore[attr-defined]
-
-
-def assert_fits(lines: list[str], width: int, names) -> None:
-    text = "\n".join(lines)
-    assert max(len(ln) for ln in lines) <= width, max(lines, key=len)
-    assert "…" not in text
-    for name in names:  # whole, on one line: neither cut nor wrapped inside
-        assert any(name in ln for ln in lines), name
 
 
 def assert_plain(lines: list[str], names) -> list[list[str]]:
@@ -186,16 +170,6 @@ def test_summary_fits_terminal_and_is_plain_in_a_pipe():
     assert assert_plain(lines, ["ok"]) == [["ok", "1200"], ["invalid_input", "34"], ["total", "1234"]]
 
 
-def test_show_prints_a_list_when_even_one_column_beside_the_keys_is_too_wide():
-    cols = [report.Col("name"), report.Col("a"), report.Col("b", right=True)]
-    rows = [["document-principal", "x" * 50, "1e+300"]]
-    console = terminal(60)
-    report.show(console, cols, rows)
-    lines = shown(console)
-    assert_fits(lines, 60, ["document-principal", "x" * 50, "1e+300"])
-    assert lines[0].strip() == "document-principal" and not BOX & set("".join(lines))
-
-
 def test_diagnosis_tables_explain_a_hypothesis_with_no_omega_on_any_row(tmp_path):
     """Before: ordering-urdf on a diagonal sym6 tensor showed "0.0 % - - -" with no word why."""
     cols = {"Hx": [0.1], "Hy": [0.4], "Hz": [0.9], "Ixx": [1.0], "Iyy": [2.0], "Izz": [3.0]}
@@ -211,15 +185,6 @@ def test_diagnosis_tables_explain_a_hypothesis_with_no_omega_on_any_row(tmp_path
     console = terminal(80)
     report.diagnosis_tables(d, console)
     assert any(ln.startswith("-: ordering-urdf gives no ω on any row") for ln in shown(console))
-
-
-def test_note_wraps_on_a_terminal_without_trailing_spaces():
-    """Before: rich kept the space it wrapped at on the end of each line."""
-    console = terminal(40)
-    report.note(console, "every row is explained by at least one hypothesis, and then some more words")
-    lines = shown(console)
-    assert len(lines) > 1 and all(ln == ln.rstrip() and len(ln) <= 40 for ln in lines)
-    assert " ".join(lines) == "every row is explained by at least one hypothesis, and then some more words"
 
 
 @pytest.mark.parametrize(

@@ -17,7 +17,7 @@ import pytest
 from helpers import assert_same_answers, hard_bodies, mp_solve, physical_bodies, random_rotations, rel_err, spd_bodies
 
 import hconv
-from hconv.solve import convert, rows
+from hconv.solve import blocks, rows
 from hconv.solve.status import CODE, PRECEDENCE
 
 EPS = np.finfo(float).eps
@@ -33,7 +33,7 @@ def test_convert_rows_same_answers_as_numpy_engine(engine, method, diagnostics, 
     I, H = hard_bodies(rng, shape)
     # the numpy engine's general converter: its path for covered runs is the row code's own
     # arithmetic (tests/test_vectorrows.py), so the reference here is the other path
-    monkeypatch.setattr(convert, "COMMON_PATH", False)
+    monkeypatch.setattr(blocks, "COMMON_PATH", False)
     ref = hconv.convert(H, I, method=method, diagnostics=diagnostics, engine="numpy")
     got = hconv.convert(H, I, method=method, diagnostics=diagnostics, engine=engine)
     assert got.engine == engine and ref.engine == "numpy"

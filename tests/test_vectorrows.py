@@ -8,22 +8,20 @@ the ``residual`` within 2 eps of its (it decides refinement per block: docs/engi
 
 from __future__ import annotations
 
-import threading
-
 import numpy as np
 import pytest
 from helpers import assert_same_answers, hard_bodies, mp_solve, physical_bodies, rel_err, same_bits, spd_bodies
 
 import hconv
 from hconv.kernels.inertia import Sym3
-from hconv.solve import convert, vectorrows
+from hconv.solve import blocks, vectorrows
 
 EPS = np.finfo(float).eps
 
 
 def _general(monkeypatch: pytest.MonkeyPatch, *args: object, **kwargs: object) -> hconv.Result:
     with monkeypatch.context() as m:
-        m.setattr(convert, "COMMON_PATH", False)
+        m.setattr(blocks, "COMMON_PATH", False)
         return hconv.convert(*args, **kwargs)
 
 
@@ -106,57 +104,3 @@ def test_convert_block_residual_of_refined_sees_an_early_stop(rng, monkeypatch):
     true = rel_err(res.w, mp_solve(I, H))
     assert true.max() > 1e-14  # one step is not enough at cond 1e10 ...
     np.testing.assert_allclose(res.residual, true, rtol=1e-2, atol=1e-16)  # ... and the residual says so
-
-
-def test_convert_blocks_threads_give_the_same_bits(rng, monkeypatch):
-    monkeypatch.setattr(convert, "THREADED_BLOCK_ROWS", 1000)
-    n = 3 * convert.THREADED_BLOCK_ROWS + 17
-    I, H = physical_bodies(rng, n), rng.normal(size=(n, 3))
-    I[5, 0, 0] = np.nan  # a row for the general converter inside a threaded block
-    monkeypatch.setattr(convert.engines, "available_cores", lambda: 2)
-    assert convert.block_threads(4) == 2
-    both = hconv.convert(H, I, method="refined", engine="numpy")
-    monkeypatch.setattr(convert, "MAX_BLOCK_THREADS", 1)
-    one = hconv.convert(H, I, method="refined", engine="numpy")
-    for a, b in [
-        (both.w, one.w),
-        (both.cond, one.cond),
-        (both.status_code, one.status_code),
-        (both.residual, one.residual),
-    ]:
-        assert same_bits(a, b)
-    assert both.status[5] == "invalid_input" and (both.status == "ok").mean() > 0.99
-
-
-def test_block_threads_one_off_the_main_thread(monkeypatch):
-    monkeypatch.setattr(convert.engines, "available_cores", lambda: 8)
-    assert convert.block_threads(1) == 1
-    assert convert.block_threads(100) == convert.MAX_BLOCK_THREADS
-    seen = []
-    t = threading.Thread(target=lambda: seen.append(convert.block_threads(100)))
-    t.start()
-    t.join()
-    assert seen == [1]
-
-
-def test_convert_blocks_stop_at_a_block_that_fails(rng, monkeypatch):
-    """An exception in one block (Ctrl-C arrives as one) stops the call: the blocks not yet
-    started never start."""
-    monkeypatch.setattr(convert, "THREADED_BLOCK_ROWS", 1000)
-    n = 200 * convert.THREADED_BLOCK_ROWS
-    I, H = physical_bodies(rng, 2)[np.zeros(n, int)], np.ones((n, 3))
-    monkeypatch.setattr(convert.engines, "available_cores", lambda: 2)
-    calls = []
-    real = convert._convert_common
-
-    def failing(*args: object) -> None:
-        calls.append(1)
-        if len(calls) == 3:
-            raise KeyboardInterrupt
-        real(*args)
-
-    monkeypatch.setattr(convert, "_convert_common", failing)
-    with pytest.raises(KeyboardInterrupt):
-        hconv.convert(H, I, engine="numpy")
-    # the other thread may finish a few blocks before the main thread sees the failure, not all
-    assert 3 <= len(calls) < 100

@@ -19,7 +19,7 @@ from rich.console import Console
 from rich.table import Table
 from rich.text import Text
 
-from hconv import report
+from hconv import terminal
 from hconv.tools.models import Body, Model
 
 _HEADERS = ("body", "m kg", "I1 kg·m²", "I2 kg·m²", "I3 kg·m²", "status")
@@ -68,8 +68,8 @@ def show(model: Model, console: Console | None = None) -> None:
         for note in model.notes:
             out.write(f"# note: {' '.join(note.split())}\n")
         return
-    report.note(console, Text(title, style="bold"))  # report.note: wrapped, no trailing spaces
-    report.note(console, principal)
+    terminal.note(console, Text(title, style="bold"))  # terminal.note: wrapped, no trailing spaces
+    terminal.note(console, principal)
     t = Table(box=box.SIMPLE_HEAD, pad_edge=False, show_edge=False, header_style="bold")
     for k, h in enumerate(_HEADERS):
         t.add_column(h, justify="left" if k in (0, 5) else "right", no_wrap=True)
@@ -80,8 +80,8 @@ def show(model: Model, console: Console | None = None) -> None:
     else:  # one body per paragraph: a name or a number is never cut
         for b in model.bodies:
             c = _cells(b)
-            report.note(console, Text(c[0], style="bold"))
-            report.note(console, f"  m {c[1]} kg · I1, I2, I3 {c[2]}, {c[3]}, {c[4]} kg·m² · {c[5]}")
+            terminal.note(console, Text(c[0], style="bold"))
+            terminal.note(console, f"  m {c[1]} kg · I1, I2, I3 {c[2]}, {c[3]}, {c[4]} kg·m² · {c[5]}")
     if any(b.reason for b in model.bodies):
         console.print()
     for b in model.bodies:
@@ -89,9 +89,9 @@ def show(model: Model, console: Console | None = None) -> None:
             line = Text()
             line.append(_cell(b.name), style="bold")
             line.append(f" ({b.status}): {b.reason}")
-            report.note(console, line)
+            terminal.note(console, line)
     for note in model.notes:
-        report.note(console, f"note: {note}")
+        terminal.note(console, f"note: {note}")
 
 
 def _width(t: Table) -> int:

@@ -38,8 +38,8 @@ from hconv.errors import UsageError
 from hconv.kernels import frames
 from hconv.kernels.inertia import Sym3
 from hconv.kernels.spectrum import eigenvalues
+from hconv.solve import blocks, forms, methods, status, units
 from hconv.solve import convert as core
-from hconv.solve import forms, methods, status, units
 from hconv.solve.options import Conventions
 
 #: Rounding a vector through a rotation costs about this many cond(I)·eps in ω.
@@ -198,7 +198,7 @@ def _solve(
         engine=engine,
     )
     if eps_C is not None:
-        res = _cancellation(res, eps_C, core.error_k(method, precision, solved_form.diagonal, extra_k), precision)
+        res = _cancellation(res, eps_C, blocks.error_k(method, precision, solved_form.diagonal, extra_k), precision)
     w_B, axis_B, code = res.w, res.null_axis, res.status_code
     w_out, axis_out = w_B, axis_B
     if R_WB is not None and conv.w_frame == "world":

@@ -18,42 +18,19 @@ Diagnostics per row:
 * ``cond``: the 2-norm condition number of I, |moment|max / |moment|min.
 * ``status``: see :mod:`hconv.solve.status`.
 
-The numpy engine converts in blocks of rows: a run the row engines cover by
-:mod:`hconv.solve.vectorrows` (the row code's arithmetic, a block at a time), every other run,
-and the rows that module leaves, by :func:`_convert_block`; a call from the main thread shares
-its blocks among the cores (:func:`block_threads`). docs/engines.md has the why and the figures.
+The numpy engine, which converts in blocks of rows, is :mod:`hconv.solve.blocks`; the row engines
+(``numba``, ``python``) are dispatched here, and the rows they leave go to it.
 """
 
 from __future__ import annotations
 
-import threading
 import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
-from itertools import chain
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from hconv.errors import UsageError
-from hconv.kernels import frames, linsolve
-from hconv.kernels.inertia import Sym3, max_abs, pinv_moments, principal_frame
-from hconv.kernels.metrics import relative_error
-from hconv.kernels.spectrum import eigenvalues
-from hconv.solve import engines, forms, methods, options, rows, status, units, vectorrows
-
-#: Rows per kernel block: small enough that a block's temporaries stay in cache.
-BLOCK_ROWS = 16384
-#: The numpy engine converts the runs the row engines cover by :mod:`hconv.solve.vectorrows`
-#: (False: every row by the general block converter, which tests compare it with).
-COMMON_PATH = True
-#: Rows per block when a call's blocks run on threads: fewer numpy calls than BLOCK_ROWS, so
-#: less waiting on the GIL, which each call takes between its operations (docs/engines.md).
-THREADED_BLOCK_ROWS = 65536
-#: Most threads one call's blocks run on: beyond a few, the Python between numpy's operations
-#: (which holds the GIL) sets the pace.
-MAX_BLOCK_THREADS = 4
+from hconv.solve import arguments, blocks, engines, forms, methods, options, rows, status
 
 
 @dataclass(frozen=True)
@@ -86,130 +63,6 @@ class Result:
     def counts(self) -> dict[str, int]:
         """Rows per status, in precedence order."""
         return status.counts(np.atleast_1d(self.status_code))
-
-
-def _as_float(name: str, given_a: ArrayLike, quantities: list[type] | None = None) -> np.ndarray:
-    """Argument ``name`` (H, I or r) as float64 numbers in SI, appending to ``quantities`` the
-    class of the pint Quantity it was, if it was one. The rule for numbers that carry a unit or
-    a mask is in the docstring of :func:`convert`; :mod:`hconv.solve.units` finds the units."""
-    a: Any = given_a  # an array, or an object that holds one with a unit or a mask
-    scale = 1.0
-    if type(a) is not np.ndarray:  # a plain ndarray (the common case) holds bare numbers
-        a, scale = _unwrapped(name, a, quantities)
-    mask = np.ma.getmaskarray(a) if isinstance(a, np.ma.MaskedArray) else None
-    try:
-        given = np.asarray(np.ma.getdata(a) if mask is not None else a)
-        if given.dtype.kind not in "iuf":  # float64 would drop an imaginary part, parse text, count truths
-            if given.dtype.kind == "O":
-                _refuse_units_numpy_drops(name, list(given.flat))
-            raise UsageError(
-                f"{name} must hold real numbers, got {_dtype_text(given.dtype)}; {_dtype_fix(name, given.dtype)}"
-            )
-        out = np.asarray(given, dtype=np.float64)
-    except UsageError:
-        raise
-    except (TypeError, ValueError) as exc:
-        if "inhomogeneous" in str(exc):  # numpy's words for nested sequences of unequal lengths
-            raise ValueError(f"{name} must be a rectangular array of numbers: its rows differ in length") from None
-        raise ValueError(f"{name} must be numeric: {exc}") from None
-    if scale != 1.0:
-        out = out * scale
-    if mask is not None and mask.any():
-        out = np.where(mask, np.nan, out)  # a new array: the caller's is never written
-    return out
-
-
-def _unwrapped(name: str, a: Any, quantities: list[type] | None) -> tuple[Any, float]:
-    """The numbers that ``a`` holds and the factor from their unit to SI: a pint Quantity's
-    magnitude (its class appended to ``quantities``), an xarray DataArray's values in its
-    ``units``; UsageError for numbers whose unit or mask numpy would drop and hconv does not read."""
-    scale = 1.0
-    if units.is_xarray(a):
-        unit, data = units.labelled_unit(a), getattr(a, "data", None)
-        if units.is_pint(data):
-            a = data  # pint-xarray: the Quantity holds the unit
-        elif unit is not None:
-            scale, a = units.factor(name, unit, f"{name}.attrs['units']"), a.values
-    if units.is_pint(a):
-        if quantities is not None:
-            quantities.append(type(a))
-        scale, a = units.pint_factor(name, a, name), a.magnitude
-    _refuse_units_numpy_drops(name, a)
-    return a, scale
-
-
-def _refuse_units_numpy_drops(name: str, a: object) -> None:
-    """UsageError when ``a`` carries a unit hconv does not read, or is a list or tuple holding
-    numbers with units or masks, which ``np.asarray`` would make bare numbers of."""
-    what = units.foreign(a)
-    if what is not None:
-        si = units.SI[name]
-        raise UsageError(
-            f"{name} is {what}, which hconv does not read; pass a pint Quantity "
-            f"or plain numbers in {si} (e.g. {name}.to_value({si!r}))"
-        )
-    if isinstance(a, (list, tuple)):
-        held = _held(a)
-        if held is not None:
-            raise UsageError(f"{name} holds {held}")
-
-
-def _held(items: list | tuple) -> str | None:
-    """What the first item of nested ``items`` that carries a unit or a mask is, and the fix;
-    None when there is none. Looked at a nesting level at a time, by the set of the items' types,
-    which costs plain numbers (the common case) less than ``np.asarray`` on them
-    (docs/measurements.md)."""
-    level, kinds = items, set(map(type, items))
-    while True:
-        for x in level if kinds - _PLAIN else ():
-            found = None if type(x) in _PLAIN else _carried(x)
-            if found is not None:
-                return found
-        if not kinds & _NESTED:
-            return None
-        inner = level if kinds <= _NESTED else [x for x in level if type(x) in _NESTED]
-        kinds = set(map(type, chain.from_iterable(inner)))
-        if kinds <= _PLAIN - _NESTED:  # plain numbers all: the level need not be built
-            return None
-        level = list(chain.from_iterable(inner))
-
-
-def _carried(x: object) -> str | None:
-    """What item ``x`` of a list is, and the fix, when numpy would drop its unit or mask."""
-    if units.is_pint(x):
-        return (
-            "pint Quantities, whose units numpy would drop; pass one Quantity of the whole array, "
-            "e.g. ureg.Quantity(np.array(values), 'g*cm**2/s')"
-        )
-    if isinstance(x, np.ma.MaskedArray):
-        return "masked arrays, whose masks numpy would drop; pass one masked array, e.g. np.ma.stack(...)"
-    if units.labelled_unit(x) is not None:
-        return "xarray DataArrays with units, which numpy would drop; pass one DataArray"
-    what = units.foreign(x)
-    return (
-        None if what is None else f"{what} and others like it, whose units numpy would drop; pass plain numbers in SI"
-    )
-
-
-#: Lists and tuples: :func:`_held` looks inside them.
-_NESTED = frozenset({list, tuple})
-#: Types that hold a plain number: the items of a list that :func:`_held` passes at once.
-_PLAIN = frozenset({float, int, np.float64, np.float32, np.int64, np.int32, np.ndarray, list, tuple})
-
-
-def _count(k: int, noun: str) -> str:
-    return f"{k} {noun}" + ("" if k == 1 else "s")
-
-
-def _dtype_text(dtype: np.dtype) -> str:
-    kinds = {"b": "booleans", "c": "complex", "U": "text", "S": "bytes", "O": "Python objects"}
-    return f"{kinds.get(dtype.kind, 'values')} (dtype {dtype})"
-
-
-def _dtype_fix(name: str, dtype: np.dtype) -> str:
-    if dtype.kind == "c":
-        return f"pass {name}.real if the imaginary part is meant to be zero"
-    return f"convert it to numbers first, e.g. np.asarray({name}, dtype=float)"
 
 
 def convert(
@@ -261,35 +114,9 @@ def convert(
       pass one of them for the whole array.
     """
     m = _checked(method, precision, degenerate, degenerate_rtol)
-    quantities: list[type] = []  # the classes of the pint Quantities given, in argument order
-    H = _as_float("H", H, quantities)
-    I = _as_float("I", I, quantities)
-    single = H.ndim == 1
-    if single:
-        if H.shape != (3,):
-            raise ValueError(f"Expected H to have shape (3,) or (N, 3), got {H.shape}")
-        if I.shape not in ((3,), (6,), (3, 3)):
-            raise ValueError(f"Expected one body's I to have shape (3,), (6,) or (3, 3), got {I.shape}")
-        H, I = H[None], I[None]
-        r = None if r is None else _as_float("r", r, quantities)[None]
-    if H.ndim != 2 or H.shape[1] != 3:
-        raise ValueError(f"Expected H to have shape (3,) or (N, 3), got {H.shape}")
-    n = H.shape[0]
-    if I.ndim not in (2, 3) or I.shape[1:] not in ((3,), (6,), (3, 3)):
-        one = "; (3,), (6,) and (3, 3) are one body's, for H of shape (3,)" if I.shape in ((3,), (6,), (3, 3)) else ""
-        raise ValueError(
-            f"Expected I to have shape ({n}, 3), ({n}, 6) or ({n}, 3, 3) for H of shape {H.shape}, got {I.shape}{one}"
-        )
-    if I.shape[0] != n:
-        one = "; a (3, 3) I is one body's tensor, for H of shape (3,)" if I.shape == (3, 3) else ""
-        raise ValueError(f"I holds {_count(I.shape[0], 'tensor')} but H holds {_count(n, 'vector')}{one}")
-    if r is not None:
-        r = _as_float("r", r, quantities)
-        if r.shape != (n, 3):
-            raise ValueError(
-                f"Expected r to have shape {(3,) if single else (n, 3)}, got {r.shape[1:] if single else r.shape}"
-            )
-    elif m.needs_r:
+    args = arguments.read(H, I, r)
+    H, I, r, single = args.H, args.I, args.r, args.single
+    if r is None and m.needs_r:
         raise ValueError(f"method {m.name!r} needs the offset r [m]; pass r=...")
     form, values = forms.from_array(I)
     res = convert_columns(
@@ -317,8 +144,8 @@ def convert(
             None if res.null_dim is None else res.null_dim[0],
             res.engine,
         )
-    if quantities:  # ω in the registry of the first Quantity given (pint refuses to mix registries)
-        res = replace(res, w=quantities[0](res.w, res.unit))
+    if args.quantities:  # ω in the registry of the first Quantity given (pint refuses to mix registries)
+        res = replace(res, w=args.quantities[0](res.w, res.unit))
     return res
 
 
@@ -366,11 +193,11 @@ def convert_columns(
     residual = np.empty(n) if diagnostics else None
     deg = None
     if degenerate != "error":
-        deg = _Degenerate(np.full((n, 3), np.nan), np.zeros(n, dtype=np.int8))
-    opts = _BlockOptions(m, dtype, form.diagonal, degenerate_rtol, extra_k)
+        deg = blocks.Degenerate(np.full((n, 3), np.nan), np.zeros(n, dtype=np.int8))
+    opts = blocks.Options(m, dtype, form.diagonal, degenerate_rtol, extra_k)
     covered = engines.covers(m, precision, degenerate, form.name, degenerate_rtol)
     start = time.perf_counter()
-    _convert_blocks(n, opts, form, I, H, r, w, cond, code, residual, deg, covered)
+    blocks.convert_blocks(n, opts, form, I, H, r, w, cond, code, residual, deg, covered)
     if covered:
         engines.spend(time.perf_counter() - start)  # auto's count of what numba would have saved
     axis, dim = (None, None) if deg is None else (deg.axis, deg.dim)
@@ -390,7 +217,7 @@ def _convert_rows(
     code = np.empty(n, dtype=np.uint8)
     residual = np.empty(n if diagnostics else 0)
     fallback = np.zeros(n, dtype=bool)
-    cond_limit = _cond_limit(m, extra_k)
+    cond_limit = blocks.ill_conditioned_above(m, extra_k)
     nine = rows.FORMS[form.name]
     if used == "numba":
         from hconv.solve import compiled  # numba's import: only here, when it runs
@@ -444,290 +271,3 @@ def _python_rows(
         cond[i], code[i], fallback[i] = c, k, fb
         if diagnostics:
             residual[i] = res
-
-
-def _cond_limit(m: methods.Method, extra_k: float) -> float:
-    """cond above which a float64 answer of ``m`` on a full tensor is ``ill_conditioned``."""
-    k = extra_k + (m.error_k or {}).get(64, 0.0)
-    return status.ILL_CONDITIONED_TOL / (k * float(np.finfo(np.float64).eps)) if k else np.inf
-
-
-def error_k(m: methods.Method, precision: int, diagonal: bool, extra_k: float = 0.0) -> float:
-    """K of the bound K·cond(I)·eps on an exact-family answer's error (``ill_conditioned``), with
-    ``extra_k`` for what the caller rounded before (0 for the other methods: no such bound).
-    The division is correctly rounded, so on diagonal tensors the method adds nothing that grows
-    with cond."""
-    if not m.exact:
-        return 0.0
-    return extra_k if diagonal else extra_k + (m.error_k or {}).get(precision, 0.0)
-
-
-def _convert_blocks(
-    n: int,
-    opts: _BlockOptions,
-    form: forms.Form,
-    I: np.ndarray,
-    H: np.ndarray,
-    r: np.ndarray | None,
-    w: np.ndarray,
-    cond: np.ndarray,
-    code: np.ndarray,
-    residual: np.ndarray | None,
-    deg: _Degenerate | None,
-    covered: bool,
-) -> None:
-    """Every block of rows: by :mod:`hconv.solve.vectorrows` when the run is ``covered`` (the
-    rows it leaves by :func:`_convert_block`), else by :func:`_convert_block`; on
-    :func:`block_threads` threads (numpy lets go of the GIL inside each operation on a block, so
-    the blocks of one call share the cores)."""
-    common = covered and COMMON_PATH
-    threads = block_threads(-(-n // THREADED_BLOCK_ROWS))
-    size = BLOCK_ROWS if threads == 1 else THREADED_BLOCK_ROWS
-    cond_limit = _cond_limit(opts.m, opts.extra_k)
-
-    def one(lo: int) -> None:
-        sl = slice(lo, min(n, lo + size))
-        # every row that would warn gets a status instead; set here, as errstate is per thread
-        with np.errstate(all="ignore"):
-            if common:
-                res = None if residual is None else residual[sl]
-                _convert_common(opts, form, I[:, sl], H[:, sl], w[sl], cond[sl], code[sl], res, cond_limit)
-                return
-            _convert_block(
-                opts,
-                *form.as_sym3(I[:, sl]),
-                H[:, sl],
-                None if r is None else r[:, sl],
-                w[sl],
-                cond[sl],
-                code[sl],
-                None if residual is None else residual[sl],
-                None if deg is None else _Degenerate(deg.axis[sl], deg.dim[sl]),
-            )
-
-    starts = range(0, n, size)
-    if threads == 1:
-        for lo in starts:
-            one(lo)
-        return
-    pool = ThreadPoolExecutor(threads, thread_name_prefix="hconv-blocks")
-    try:
-        for _ in pool.map(one, starts):  # re-raises a block's exception here
-            pass
-    finally:
-        # on an exception or Ctrl-C, the blocks not yet started never start
-        pool.shutdown(wait=True, cancel_futures=True)
-
-
-def block_threads(blocks: int) -> int:
-    """Threads for a call of ``blocks`` blocks: one per core (at most :data:`MAX_BLOCK_THREADS`)
-    when called from the main thread, else 1: a call from another thread is already part of
-    its caller's parallelism (the file pipeline's batch threads, a Dask worker's task)."""
-    if blocks < 2 or threading.current_thread() is not threading.main_thread():
-        return 1
-    return max(1, min(blocks, MAX_BLOCK_THREADS, engines.available_cores()))
-
-
-def _convert_common(
-    opts: _BlockOptions,
-    form: forms.Form,
-    I: np.ndarray,
-    H: np.ndarray,
-    w_out: np.ndarray,
-    cond_out: np.ndarray,
-    code_out: np.ndarray,
-    res_out: np.ndarray | None,
-    cond_limit: float,
-) -> None:
-    """One block of a run the row engines cover: :mod:`hconv.solve.vectorrows` converts it, and
-    the general :func:`_convert_block` the rows that module leaves."""
-    sym, asym = form.as_sym3(I)
-    Hc = np.ascontiguousarray(H)
-    b = vectorrows.convert_block(sym, asym, Hc, opts.m.refines, res_out is not None, cond_limit)
-    w_out[:] = b.w.T
-    cond_out[:] = b.cond
-    code_out[:] = b.code
-    if res_out is not None:
-        res_out[:] = b.residual
-    rest = np.flatnonzero(b.fallback)
-    if rest.size:
-        k = rest.size
-        w, cond, code = np.empty((k, 3)), np.empty(k), np.empty(k, dtype=np.uint8)
-        res = None if res_out is None else np.empty(k)
-        _convert_block(opts, sym.take(rest), asym[rest], Hc[:, rest], None, w, cond, code, res, None)
-        w_out[rest], cond_out[rest], code_out[rest] = w, cond, code
-        if res_out is not None:
-            res_out[rest] = res
-
-
-@dataclass(frozen=True)
-class _BlockOptions:
-    m: methods.Method
-    dtype: type
-    diagonal: bool  #: I holds diagonal tensors (principal moments in their own frame)
-    degenerate_rtol: float | None
-    extra_k: float
-
-
-@dataclass(frozen=True)
-class _Degenerate:
-    """Outputs for pinv/lock: views into the caller's arrays."""
-
-    axis: np.ndarray  #: (n, 3)
-    dim: np.ndarray  #: (n,) int8
-
-
-def _convert_block(
-    o: _BlockOptions,
-    I: Sym3,
-    asym: np.ndarray,
-    H: np.ndarray,
-    r: np.ndarray | None,
-    w_out: np.ndarray,
-    cond_out: np.ndarray,
-    code_out: np.ndarray,
-    res_out: np.ndarray | None,
-    deg: _Degenerate | None,
-) -> None:
-    """One block of rows, ``H`` and ``r`` ``(3, n)``; writes into the ``*_out`` views (and
-    ``deg``'s, for pinv/lock)."""
-    m, dtype = o.m, o.dtype
-    n = H.shape[1]
-    H = np.ascontiguousarray(H)  # a copy of the block: contiguous rows, and the caller's never written
-    r_used = np.ascontiguousarray(r) if m.needs_r else None
-    columns = [*I, *H] + ([] if r_used is None else list(r_used))
-    limit = np.finfo(dtype).max  # a finite float64 beyond float32's range is no usable input there
-    with np.errstate(invalid="ignore"):
-        invalid = ~(max_abs(columns) <= limit)  # NaN compares false, so NaN rows are invalid too
-    if invalid.any():
-        # Stand-ins keep the kernels quiet; these rows' outputs are replaced below.
-        keep = ~invalid
-        I = Sym3(*(np.where(keep, c, d) for c, d in zip(I, (1.0, 1.0, 1.0, 0.0, 0.0, 0.0))))
-        H = np.where(keep, H, 0.0)
-        if r_used is not None:
-            r_used = np.where(keep, r_used, 1.0)
-
-    if o.diagonal:
-        moments = np.stack([I.xx, I.yy, I.zz])
-        lam = np.sort(moments, axis=0)
-    else:
-        lam = eigenvalues(I)  # (3, n), ascending
-    a0, a1, a2 = np.abs(lam[0]), np.abs(lam[1]), np.abs(lam[2])
-    big = np.maximum(a0, a2)
-    small = np.minimum(np.minimum(a0, a1), a2)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        cond = np.where(small > 0, big / np.where(small > 0, small, 1.0), np.inf)
-    singular = small <= status.singular_rtol(dtype) * big
-    tol = np.zeros(n)  # a moment at or below tol counts as zero (degenerate)
-    if o.degenerate_rtol is not None:
-        tol = o.degenerate_rtol * (a0 + a1 + a2)
-        singular |= small <= tol
-    tol = np.maximum(tol, status.singular_rtol(dtype) * big)
-    dropped = singular & ~invalid & ~asym if deg is not None else np.zeros(n, dtype=bool)
-    k_extra = error_k(m, 8 * np.dtype(dtype).itemsize, o.diagonal, o.extra_k)
-    cond_limit = status.ILL_CONDITIONED_TOL / (k_extra * float(np.finfo(dtype).eps)) if k_extra else np.inf
-    flags = {
-        "invalid_input": invalid,
-        "not_symmetric": asym & ~invalid,
-        "singular": singular & ~dropped,
-        "not_positive_definite": (lam[0] < -tol) | ((lam[0] < 0) & ~dropped),
-        "degenerate": dropped,
-        "not_physical": lam[2] - lam[1] - lam[0] > status.TRIANGLE_RTOL * (a0 + a1 + a2),
-        "ill_conditioned": cond > cond_limit,
-    }
-
-    if o.diagonal and m.exact:
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            w = H.astype(dtype) / moments.astype(dtype)
-        own: dict[str, np.ndarray] = {}
-    else:
-        w, own = m.kernel(I.astype(dtype), H.astype(dtype), None if r_used is None else r_used.astype(dtype))
-    for name, mask in own.items():
-        flags[name] = flags[name] | mask if name in flags else mask
-    if deg is not None and dropped.any():
-        flags["singular"] &= ~dropped  # a method's own singular flag does not apply to these rows
-        w[:, dropped] = _pseudo_inverse(I.take(dropped), H[:, dropped], tol[dropped], o.diagonal, deg, dropped)
-    no_answer = np.zeros(n, dtype=bool)
-    for s in m.nan_on:
-        if s in flags:
-            no_answer |= flags[s]
-    # A finite row that still gives a non-finite ω must never pass as ok.
-    lost = ~(np.isfinite(w[0]) & np.isfinite(w[1]) & np.isfinite(w[2])) & ~no_answer
-    flags["overflow"] = lost & ~invalid
-    w[:, no_answer | lost] = np.nan
-
-    if m.exact:
-        # ω so small that the spacing of subnormal numbers alone exceeds the promise.
-        grid = float(np.finfo(dtype).smallest_subnormal) / status.ILL_CONDITIONED_TOL
-        wmax = max_abs(w)
-        flags["inaccurate"] = (wmax > 0) & (wmax < grid)
-    w_out[:] = w.T
-    cond[invalid] = np.nan
-    cond_out[:] = cond
-    code_out[:] = status.combine(n, flags)
-    if res_out is not None:
-        # Rows with an answer to measure; the rest keep NaN.
-        ok = ~(invalid | flags["not_symmetric"] | flags["singular"] | dropped | no_answer | lost)
-        res_out[:] = np.nan
-        every = bool(ok.all())
-        if every or ok.any():
-            rows = slice(None) if every else ok  # a slice copies nothing
-            res = _residual(
-                o, I if every else I.take(ok), H[:, rows], w[:, rows], moments[:, rows] if o.diagonal else None
-            )
-            res_out[rows] = res
-            if m.exact:
-                # The safety net under the a-priori statuses: an exact-family answer measured off
-                # by more than the promise (subnormal numbers on the way, say) is never ok.
-                bad = np.zeros(n, dtype=bool)
-                bad[rows] = res > status.ILL_CONDITIONED_TOL
-                code_out[:] = status.merge(code_out, bad, "inaccurate")
-
-
-def _residual(o: _BlockOptions, I: Sym3, H: np.ndarray, w: np.ndarray, moments: np.ndarray | None) -> np.ndarray:
-    """‖ω − I⁻¹H‖ / ‖I⁻¹H‖ for rows that have an answer: ``H``, ``w`` (and ``moments``) ``(3, k)``;
-    returns ``(k,)``.
-
-    The reference I⁻¹H is solved in float64 from the inputs. An exact-family answer is its own
-    starting point: the first refinement step's correction is then its error, measured with a
-    residual in double precision, and further steps run until the reference is correct to
-    rounding; the error so measured is itself right to a relative cond·eps (6 digits at cond 1e10).
-    The other methods answer something else, so their reference starts from scratch.
-    """
-    w = w.astype(np.float64, copy=False)
-    if moments is not None:  # H_i / I_i in float64 is the correctly rounded reference
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            ref = H / moments
-    else:
-        ref = linsolve.solve_refined(I, H, x0=w if o.m.exact else None)
-    # H = 0 gives I⁻¹H = 0: an answer of 0 is exact, anything else infinitely off.
-    return relative_error(w, ref)
-
-
-def _pseudo_inverse(
-    I: Sym3, H: np.ndarray, tol: np.ndarray, diagonal: bool, deg: _Degenerate, rows: np.ndarray
-) -> np.ndarray:
-    """ω = I⁺·H on degenerate rows, in float64: moments at or below ``tol`` ``(k,)`` are dropped.
-
-    ``H`` is ``(3, k)``; writes the dropped axis (when exactly one) and the count into ``deg``
-    at ``rows``. Returns ω as ``(3, k)``.
-    """
-    # The principal frame: for a diagonal tensor the coordinate axes themselves.
-    if diagonal:
-        S, R = np.stack([I.xx, I.yy, I.zz]), np.broadcast_to(np.eye(3)[..., None], (3, 3, H.shape[1]))
-    else:
-        S, R = principal_frame(I)  # (3, k) moments; (3, 3, k) axes, column j for moment j
-    inv, zero = pinv_moments(S, tol)
-    w = frames.to_world(R, inv * frames.to_body(R, H))
-    count = zero.sum(axis=0)
-    axis = np.full((3, S.shape[1]), np.nan)
-    one = count == 1
-    if one.any():
-        cols = np.arange(S.shape[1])
-        picked = R[:, np.argmax(zero, axis=0), cols]  # (3, k): the axis of the dropped moment
-        # A sign is arbitrary for an axis; make its largest component positive, so output is stable.
-        sign = np.sign(picked[np.argmax(np.abs(picked), axis=0), cols])
-        axis[:, one] = (picked * sign)[:, one]
-    deg.axis[rows] = axis.T
-    deg.dim[rows] = count
-    return w

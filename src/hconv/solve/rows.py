@@ -391,7 +391,7 @@ def verdict(
     """The statuses of one row from its :func:`numbers`, with no branch (``&`` and selects, not
     ``and`` and ``if``): ``(cond, status code, FALLBACK | NO_ANSWER | ANSWER, safe)``, ``safe``
     1.0 where the inputs lie within the double-double residual's range (0.0 otherwise). Each test
-    is the numpy engine's (convert._convert_block, spectrum.eigenvalues), and a row that any of
+    is the numpy engine's (blocks._convert_block, spectrum.eigenvalues), and a row that any of
     them cannot settle is FALLBACK."""
     # x·0 is 0 for a finite x and NaN for NaN or an infinity (max and comparisons would skip a NaN)
     finite = (xx + yy + zz + xy + xz + yz + h0 + h1 + h2) * 0.0 == 0.0

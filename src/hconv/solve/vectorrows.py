@@ -1,6 +1,6 @@
 """The numpy engine's path for the rows the row engines cover: :mod:`hconv.solve.rows`, a block at a time.
 
-:func:`hconv.solve.convert.convert_columns` sends every block of a run the row engines cover
+:func:`hconv.solve.blocks.convert_blocks` sends every block of a run the row engines cover
 (:func:`hconv.solve.engines.covers`: ``exact`` or ``refined``, six or nine numbers, float64,
 ``degenerate="error"``) here first. This does, with one numpy expression per step over all the
 block's rows, what :func:`hconv.solve.rows.convert_rows` does row by row: factor once, take the

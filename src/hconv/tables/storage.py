@@ -374,6 +374,9 @@ def put(local_path: str, where: Place, rel: str) -> int:
             source_filesystem=_LOCAL,
             destination_filesystem=where.fs,
             chunk_size=FETCH_BUFFER,
+            # on this thread: an fsspec store is Python, which a pyarrow thread still running
+            # as the interpreter exits after an error would call into, and abort the process
+            use_threads=False,
         )
         stored = where.fs.get_file_info(target).size
     except OSError as exc:

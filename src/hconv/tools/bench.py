@@ -14,17 +14,12 @@ import functools
 import importlib.util
 import os
 import platform
-import re
-import shutil
-import signal
 import statistics
 import subprocess
 import sys
-import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -32,7 +27,8 @@ from hconv.kernels.inertia import Sym3
 from hconv.kernels.metrics import relative_error
 from hconv.solve import convert as core
 from hconv.solve import methods, options
-from hconv.tools import stability
+from hconv.solve.blocks import BLOCK_ROWS
+from hconv.tools import leftovers, stability
 from hconv.tools.scene import make_scene
 
 PRECISIONS = (64, 32)
@@ -40,7 +36,7 @@ ACCURACY_CONDS = (1e1, 1e4, 1e8)
 #: refined against lapack on rows of one condition number each: its steps grow with cond
 REFINED_CONDS = (1e4, 1e8, 1e10, 1e12)
 #: rows per condition number there (16 blocks)
-REFINED_ROWS = 16 * core.BLOCK_ROWS
+REFINED_ROWS = 16 * BLOCK_ROWS
 
 
 @dataclass
@@ -107,11 +103,11 @@ def kernel_rates(
         dt = options.DTYPES[prec]
         blocks = [
             (
-                I.take(slice(lo, lo + core.BLOCK_ROWS)).astype(dt),
-                H[:, lo : lo + core.BLOCK_ROWS].astype(dt),
-                r[:, lo : lo + core.BLOCK_ROWS].astype(dt),
+                I.take(slice(lo, lo + BLOCK_ROWS)).astype(dt),
+                H[:, lo : lo + BLOCK_ROWS].astype(dt),
+                r[:, lo : lo + BLOCK_ROWS].astype(dt),
             )
-            for lo in range(0, n, core.BLOCK_ROWS)
+            for lo in range(0, n, BLOCK_ROWS)
         ]
         for name, m in methods.METHODS.items():
             if keys is None or f"{name}/{prec}" in keys:
@@ -225,31 +221,11 @@ def yardstick(I: Sym3, H: np.ndarray, tmp: str, repeats: int) -> tuple[float | N
     got: dict = {"compiled": [], "exact": []}
     for _ in range(repeats):
         for which in got:
-            out = _child([sys.executable, "-c", _YARDSTICK, path, which], check=True, capture_output=True, text=True)
+            out = leftovers.child(
+                [sys.executable, "-c", _YARDSTICK, path, which], check=True, capture_output=True, text=True
+            )
             got[which].append(float(out.stdout.strip().splitlines()[-1]))
     return statistics.median(got["compiled"]), statistics.median(got["exact"])
-
-
-def _child(args: list, **kwargs: Any) -> subprocess.CompletedProcess:
-    """``subprocess.run`` for a child that must not outlive this process: a bench killed outright
-    left its cold-start child compiling for seconds, writing into a folder the next run had
-    removed. Not for the commands the bench times by the clock (a fork with this hook copies the
-    bench's page tables first, where a plain spawn does not)."""
-    return subprocess.run(args, preexec_fn=die_with_parent, **kwargs)
-
-
-def die_with_parent() -> None:
-    """In the child, before it runs: the kernel kills it when its parent ends (Linux; elsewhere
-    nothing), and it ends at once if the parent has already gone."""
-    parent = os.getppid()
-    try:
-        import ctypes
-
-        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-    except (OSError, AttributeError):
-        return
-    if os.getppid() != parent:
-        os._exit(1)
 
 
 def _command(args: list) -> Callable[[], object]:
@@ -258,13 +234,13 @@ def _command(args: list) -> Callable[[], object]:
 
 def _peak_rss_mb(args: list) -> float:
     """Peak RSS of a command, measured from a fresh wrapper process whose only child it is."""
-    code = (  # the measured command dies with its wrapper, as the wrapper with the bench (_child)
+    code = (  # the measured command dies with its wrapper, as the wrapper with the bench (leftovers.child)
         "import resource, subprocess, sys\n"
-        "from hconv.tools.bench import die_with_parent\n"
+        "from hconv.tools.leftovers import die_with_parent\n"
         "subprocess.run(sys.argv[1:], check=True, capture_output=True, preexec_fn=die_with_parent)\n"
         "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)"
     )
-    out = _child([sys.executable, "-c", code, *args], check=True, capture_output=True, text=True)
+    out = leftovers.child([sys.executable, "-c", code, *args], check=True, capture_output=True, text=True)
     return int(out.stdout.strip()) / 1024.0
 
 
@@ -414,13 +390,13 @@ def cold_start(repeats: int = 3) -> dict:
     for name, (engine, cache) in cases.items():
         runs = []
         for _ in range(repeats if cache is None else 1):  # a compile takes seconds: once
-            with temporary_folder("cold-") as tmp:
+            with leftovers.temporary_folder("cold-") as tmp:
                 env = dict(os.environ)
                 env.pop("HCONV_ENGINE", None)
                 if cache:
                     env["NUMBA_CACHE_DIR"] = tmp
                 args = [sys.executable, "-c", _COLD, "100", engine]
-                proc = _child(args, capture_output=True, text=True, env=env, check=True)
+                proc = leftovers.child(args, capture_output=True, text=True, env=env, check=True)
             runs.append([float(x) for x in proc.stdout.split()[:3]])
         imp, first, second = (statistics.median(r[k] for r in runs) for k in range(3))
         out[name] = {"import_s": imp, "first_call_s": first, "second_call_s": second}
@@ -494,52 +470,6 @@ def user_targets(user: dict) -> list[list]:
     return rows
 
 
-#: A bench run's temporary folder, ``hconv-bench.<maker>.<kind>…``: it names the process that made
-#: it, so that a later run can remove it once that process is gone (killed outright, it could not).
-_FOLDER = re.compile(r"^hconv-bench\.([^.]+)\.")
-
-
-def temporary_folder(kind: str = "") -> tempfile.TemporaryDirectory[str]:
-    """A temporary folder for this bench run, named as :func:`remove_stale_folders` recognises."""
-    return tempfile.TemporaryDirectory(prefix=folder_prefix(kind))
-
-
-def folder_prefix(kind: str = "") -> str:
-    """The start of a bench folder's name, ``hconv-bench.<maker>.<kind>``, for this process (the
-    scripts in benchmarks/ name theirs so too)."""
-    from hconv.tables import temporaries
-
-    return f"hconv-bench.{temporaries.maker()}.{kind}"
-
-
-def remove_stale_folders(log: Callable[[str], None] = lambda s: None, where: str | None = None) -> list[str]:
-    """Remove the folders of bench runs killed outright (kill -9, the OOM killer), which stayed in
-    ``where`` (default: the temporary directory), saying so through ``log``; returns their paths.
-    A folder whose run still goes, or may (made on another host sharing the directory), is left
-    alone."""
-    from hconv.tables import temporaries
-
-    removed: list[str] = []
-    try:
-        entries = list(os.scandir(where or tempfile.gettempdir()))
-    except OSError:
-        return removed  # making this run's folder will say what is wrong with the directory
-    for entry in entries:
-        m = _FOLDER.match(entry.name)
-        if not m or not temporaries.maker_gone(m.group(1)):
-            continue
-        try:
-            if not entry.is_dir(follow_symlinks=False):
-                continue
-        except OSError:
-            continue
-        shutil.rmtree(entry.path, ignore_errors=True)  # another run may be removing it too
-        if not os.path.lexists(entry.path):
-            log(f"removed {entry.path}, left by a bench run that was killed")
-            removed.append(entry.path)
-    return removed
-
-
 def run(
     rows: int = 2_000_000,
     repeats: int = 3,
@@ -551,7 +481,7 @@ def run(
     from hconv.tables import pipeline
     from hconv.tools import generate
 
-    remove_stale_folders(log)
+    leftovers.remove_stale_folders(log)
     res = Result(rows=rows, machine=describe_machine())
     log("what users call: hconv.convert against numpy.linalg.solve")
     res.user = user_calls(rows, repeats, seed)
@@ -566,7 +496,7 @@ def run(
     log("accuracy")
     res.accuracy = accuracy(seed=seed)
     hconv_cmd = [sys.executable, "-m", "hconv"]
-    with temporary_folder() as tmp:
+    with leftovers.temporary_folder() as tmp:
         log("compiled-loop yardstick")
         compiled, exact_fresh = yardstick(I, H, tmp, repeats)
         src, dst = os.path.join(tmp, "in.parquet"), os.path.join(tmp, "out.parquet")

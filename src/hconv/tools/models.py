@@ -1,23 +1,13 @@
 """``hconv bodies``: the inertias of a robot model, read from URDF, SDF or MJCF, and checked.
 
-Conventions (stated once, here; hconv's own are in :mod:`hconv.kernels.inertia`):
+A format's reader (:mod:`hconv.tools.urdf`, :mod:`hconv.tools.sdf`, :mod:`hconv.tools.mjcf`, told
+apart by the root element) hands over each body's inertial as the file gives it
+(:class:`hconv.tools.inertial.ReadBody`, whose module states the frames every format shares);
+here each one is turned into B, reduced to its principal moments and axes, and checked.
 
-* B is a body's own frame: the URDF or SDF link frame, the MJCF body frame. Every format gives a
-  body's inertia about its centre of mass C, in an inertial frame I placed in B by a pose: C's
-  position ``p_BC_B`` [m] and a rotation ``R_BI`` whose columns are I's axes in B
-  (``v_B = R_BI·v_I``). The tensor in B is ``I_C_B = R_BI · I_C_I · R_BIᵀ`` [kg·m²].
-* Products of inertia are tensor entries, ``Ixy = -∫xy dm``, in URDF (``ixy``), SDF (``<ixy>``)
-  and MJCF (``fullinertia``'s fourth number), as in hconv, so they are taken as they stand.
-* URDF ``rpy`` and SDF ``<pose>``'s roll, pitch, yaw turn about the fixed axes X, then Y, then Z:
-  ``R = Rz(yaw)·Ry(pitch)·Rx(roll)``; radians, unless SDF says ``degrees="true"``. SDF's
-  ``rotation_format="quat_xyzw"`` gives x y z qx qy qz qw.
-* MJCF: ``quat`` is (w, x, y, z). ``axisangle`` and ``euler`` are in ``<compiler angle>``'s unit,
-  which is **degrees unless angle="radian"**. ``euler`` follows ``<compiler eulerseq>`` (default
-  ``xyz``): a lower-case letter turns about the moving frame's axis (intrinsic), an upper-case one
-  about the parent's fixed axis (extrinsic). ``xyaxes`` gives I's x and y axes (y is made
-  orthogonal to x); ``zaxis`` the z axis, reached by the smallest rotation from (0, 0, 1).
-  ``fullinertia`` is (ixx, iyy, izz, ixy, ixz, iyz) in B, with no orientation. Where several
-  ``<compiler>`` elements set an attribute, the last counts for the whole model, as in MuJoCo.
+Conventions (stated once, here; the input's are in :mod:`hconv.tools.inertial` and the readers,
+hconv's own in :mod:`hconv.kernels.inertia`):
+
 * Output: the principal moments ``I1 <= I2 <= I3`` about C, and the unit quaternion
   ``q_B = (qw, qx, qy, qz)``, qw >= 0, that turns principal-axis vectors into B: ``I_C_B =
   R(q_B)·diag(I1, I2, I3)·R(q_B)ᵀ``, which is how ``hconv convert`` reads I1, I2, I3 with q.
@@ -31,23 +21,23 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hconv.kernels.frames import quaternion_matrix
 from hconv.kernels.inertia import Sym3, principal_frame
 from hconv.solve import forms, status, units
 from hconv.solve.options import check_choice
 from hconv.tables.sets import VECTOR_SETS
-from hconv.tools.modelxml import Budget, Node, clip, error, expand_includes, quote, read
+from hconv.tools import mjcf, sdf, urdf
+from hconv.tools.inertial import ReadBody
+from hconv.tools.modelxml import Budget, error, read
 
 if TYPE_CHECKING:
     import pyarrow as pa
 
-#: A body's status, in order of precedence: the first that applies is the body's, and its reason
 #: names the others that apply too.
 STATUSES: dict[str, str] = {
     "ok": "the inertia is one a solid body can have",
@@ -65,7 +55,6 @@ STATUSES: dict[str, str] = {
 OUTPUT_FORMS = ("sym6", "principal")
 STATUS_COLUMN = "inertia_status"  # not "status": hconv convert writes that one, and refuses an input with it
 REASON_COLUMN = "inertia_reason"
-_ORIENTATIONS = ("quat", "axisangle", "euler", "xyaxes", "zaxis")
 
 
 @dataclass(frozen=True, slots=True)
@@ -138,7 +127,7 @@ def read_model(path: str | os.PathLike) -> Model:
     shown = os.fspath(path)
     budget = Budget(shown)
     root = read(Path(path), shown, budget)
-    readers = {"robot": ("URDF", _urdf), "sdf": ("SDF", _sdf), "mujoco": ("MJCF", _mjcf)}
+    readers = {"robot": ("URDF", urdf.bodies), "sdf": ("SDF", sdf.bodies), "mujoco": ("MJCF", mjcf.bodies)}
     if root.tag not in readers:
         raise error(
             root,
@@ -162,44 +151,7 @@ def write_bodies(
         out.write(table)
 
 
-# --- rotations (small, per body) -----------------------------------------------------------
-
-
-def _rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """``Rz(yaw)·Ry(pitch)·Rx(roll)``: URDF's and SDF's fixed-axis X, Y, Z."""
-    cr, sr, cp, sp, cy, sy = (
-        math.cos(roll),
-        math.sin(roll),
-        math.cos(pitch),
-        math.sin(pitch),
-        math.cos(yaw),
-        math.sin(yaw),
-    )
-    return np.array(
-        [
-            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-            [-sp, cp * sr, cp * cr],
-        ]
-    )
-
-
-def _matrix(q: list[float] | np.ndarray) -> np.ndarray:
-    """The rotation of a quaternion (w, x, y, z), normalised (hconv's kernel)."""
-    R, _ = quaternion_matrix(np.asarray(q, dtype=np.float64)[:, None])
-    return R[:, :, 0]
-
-
-def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The Hamilton product ``a·b`` of (w, x, y, z) quaternions: first b, then a."""
-    return np.array(
-        [
-            a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
-            a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
-            a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
-            a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0],
-        ]
-    )
+# --- the checks ----------------------------------------------------------------------------
 
 
 def _quat(R: np.ndarray) -> np.ndarray:
@@ -223,536 +175,6 @@ def _quat(R: np.ndarray) -> np.ndarray:
     return (-v if v[0] < 0 else v) + 0.0  # + 0.0: no -0.0 in the output
 
 
-def _unit(v: list[float], node: Node, what: str) -> np.ndarray:
-    a = np.asarray(v, dtype=np.float64)
-    n = float(np.linalg.norm(a))
-    if not n > 0:
-        raise error(node, f"{what} has zero length", f"give a non-zero {what}")
-    return a / n
-
-
-# --- what the readers hand over ----------------------------------------------------------
-
-
-@dataclass(slots=True)
-class _Raw:
-    """A body as read: the inertial's numbers in its own frame, or why there are none."""
-
-    name: str
-    source: str
-    m: float = math.nan
-    p_BC_B: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
-    R_BI: np.ndarray = field(default_factory=lambda: np.eye(3))
-    I_C_I: np.ndarray | None = None
-    status: str | None = None  #: no_inertial or unresolved_frame, with ``notes`` saying why
-    notes: list[str] = field(default_factory=list)
-
-
-def _tensor(ixx: float, iyy: float, izz: float, ixy: float, ixz: float, iyz: float) -> np.ndarray:
-    return np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]], dtype=np.float64)
-
-
-def _walk(root: Node) -> list[Node]:
-    """Every element under ``root``, in document order, without recursion."""
-    out, stack = [], [root]
-    while stack:
-        n = stack.pop()
-        out.append(n)
-        stack.extend(reversed(n.children))
-    return out
-
-
-def _name(node: Node, what: str) -> str:
-    name = node.attrib.get("name", "").strip()
-    if not name:
-        raise error(node, "has no name", f'name the {what}: <{node.tag} name="...">')
-    return name
-
-
-def _lines(at: list[int]) -> str:
-    """``3, 9, 12``; the first five and the count when there are more: a note stays a line."""
-    shown = ", ".join(map(str, at[:5]))
-    return shown if len(at) <= 5 else f"{shown}, … ({len(at):,} in all)"
-
-
-# --- URDF ----------------------------------------------------------------------------------
-
-
-def _urdf(root: Node, path: Path, shown: str, budget: Budget) -> tuple[list[_Raw], list[str]]:
-    # Only an unexpanded macro counts: many URDFs made by xacro keep its namespace declaration.
-    xacro = next((n for n in _walk(root) if n.tag.startswith("xacro:")), None)
-    if xacro is not None:
-        raise error(
-            xacro,
-            "is xacro, a macro language that makes URDF",
-            "run xacro first (xacro model.urdf.xacro > model.urdf) and give hconv the URDF",
-        )
-    raws = []
-    lines: dict[str, list[int]] = {}  # link name -> the lines it is given at
-    for link in root.findall("link"):
-        name = budget.name(_name(link, "link"), link)
-        lines.setdefault(name, []).append(link.line)
-        inertial = link.find("inertial")
-        if inertial is None:
-            raws.append(
-                _Raw(
-                    name,
-                    f"{shown}, line {link.line}",
-                    status="no_inertial",
-                    notes=["no <inertial>: URDF leaves its mass and inertia undefined, and simulators differ"],
-                )
-            )
-            continue
-        origin = inertial.find("origin")
-        xyz = origin.numbers("xyz", (3,), "0 0 0") if origin is not None else [0.0] * 3
-        rpy = origin.numbers("rpy", (3,), "0 0 0") if origin is not None else [0.0] * 3
-        mass = inertial.find("mass")
-        if mass is None:
-            raise error(inertial, "has no <mass>", 'add <mass value="..."/> in kg (URDF requires it)')
-        m = mass.required("value", (1,), 'give the mass in kg: <mass value="1.5"/>')[0]
-        inertia = inertial.find("inertia")
-        if inertia is None:
-            raise error(
-                inertial,
-                "has no <inertia>",
-                'add <inertia ixx="..." ixy="..." ixz="..." iyy="..." iyz="..." izz="..."/> (URDF requires it)',
-            )
-        fix = "URDF's <inertia> needs all of ixx, ixy, ixz, iyy, iyz, izz (kg·m²)"
-        six = {a: inertia.required(a, (1,), fix)[0] for a in ("ixx", "iyy", "izz", "ixy", "ixz", "iyz")}
-        raws.append(
-            _Raw(
-                name,
-                f"{shown}, line {inertial.line}",
-                m,
-                np.asarray(xyz, dtype=np.float64),
-                _rpy(*(rpy or [0.0] * 3)),
-                _tensor(*six.values()),
-            )
-        )
-    # Both are listed, as the file gives them, but a parser that keys links by name keeps one
-    notes = [
-        f"{shown}: link {quote(name)} is given {len(at)} times (lines {_lines(at)}); URDF requires "
-        "unique link names, and urdfdom refuses the model: rename or remove all but one"
-        for name, at in lines.items()
-        if len(at) > 1
-    ]
-    return raws, notes
-
-
-# --- SDF -----------------------------------------------------------------------------------
-
-_Pose = tuple[np.ndarray, np.ndarray]  # (p, R): v_parent = R·v + p
-
-
-def _compose(a: _Pose, b: _Pose) -> _Pose:
-    return a[0] + a[1] @ b[0], a[1] @ b[1]
-
-
-def _invert(a: _Pose) -> _Pose:
-    return -(a[1].T @ a[0]), a[1].T
-
-
-def _bool(node: Node, name: str) -> bool:
-    v = node.attrib.get(name, "false").strip().lower()
-    if v not in ("true", "false", "1", "0"):
-        raise error(node, f"has {name}={quote(v)}", f'write {name}="true" or {name}="false"')
-    return v in ("true", "1")
-
-
-def _sdf_pose(owner: Node) -> tuple[_Pose, str | None]:
-    """``owner``'s ``<pose>`` and the frame it is relative to (None: the default)."""
-    pose = owner.find("pose")
-    if pose is None:
-        return (np.zeros(3), np.eye(3)), None
-    ref = (pose.attrib.get("relative_to") or pose.attrib.get("frame") or "").strip() or None
-    kind = pose.attrib.get("rotation_format", "euler_rpy").strip()
-    if kind == "euler_rpy":
-        v = pose.numbers("", (6,), "0 0 0 0 0 0") or [0.0] * 6
-        angles = [math.radians(a) for a in v[3:]] if _bool(pose, "degrees") else v[3:]
-        return (np.asarray(v[:3]), _rpy(*angles)), ref
-    if kind == "quat_xyzw":
-        v = pose.numbers("", (7,), "0 0 0 0 0 0 1") or [0.0] * 6 + [1.0]
-        q = _unit([v[6], v[3], v[4], v[5]], pose, "quaternion")
-        return (np.asarray(v[:3]), _matrix(q)), ref
-    raise error(pose, f"has rotation_format={quote(kind)}", 'write rotation_format="euler_rpy" or "quat_xyzw"')
-
-
-class _UnresolvedError(Exception):
-    """An SDF frame hconv cannot place; the message says which and why."""
-
-
-class _TooDeepError(_UnresolvedError):
-    """Placing a frame passed through more than :data:`_MAX_NESTED` nested models' frames: not
-    the frame's own failing, since from a frame further down the chain the rest may be short."""
-
-
-#: The most frames of nested models that placing one frame may pass through (``a::b::link``, or a
-#: nested model placed relative to a frame of another): models nest a few deep, and each is a
-#: level of recursion here, which must stay within Python's stack.
-_MAX_NESTED = 200
-_Path = tuple[str, ...]  # a frame's name split at "::": ("inner", "link") is link in nested model inner
-_MODEL: _Path = ("__model__",)
-
-
-class _Frames:
-    """The SDF frames of a file placed in their models' frames, each frame once: a file of many
-    links relative to the end of a long chain of frames is placed in time linear in its size."""
-
-    def __init__(self) -> None:
-        self._elements: dict[int, dict[str, Node]] = {}
-        self._placed: dict[tuple[int, _Path], _Pose | str] = {}  # a pose, or why there is none
-
-    def place(self, model: Node, path: _Path, outer: tuple = ()) -> _Pose:
-        """The pose of frame ``path`` (a link, frame, joint or nested model of ``model``, or
-        ``__model__``; ``("inner", "name")`` a frame of the nested model ``inner``, as SDF scopes
-        names) in ``model``'s frame, following relative_to and attached_to. ``outer``: the
-        (model, frame) pairs being placed further up, so that a nested model placed relative to
-        its own frame is a cycle."""
-        got = self._placed.get((id(model), path))
-        if isinstance(got, str):
-            raise _UnresolvedError(got)
-        return got if got is not None else self._place(model, path, outer)
-
-    def _elements_of(self, model: Node) -> dict[str, Node]:
-        if id(model) not in self._elements:
-            self._elements[id(model)] = {
-                c.attrib.get("name", "").strip(): c
-                for c in model.children
-                if c.tag in ("link", "frame", "joint", "model")
-            }
-        return self._elements[id(model)]
-
-    def _place(self, model: Node, path: _Path, outer: tuple) -> _Pose:
-        seen: list[_Path] = []  # the frames of model walked, from path on
-        try:
-            if (id(model), path) in outer:
-                raise _UnresolvedError(
-                    f"frame {quote('::'.join(path))} is placed relative to itself through a nested model: a cycle"
-                )
-            if len(outer) >= _MAX_NESTED:
-                raise _TooDeepError(
-                    f"placing it passes through more than {_MAX_NESTED} frames of nested models; hconv follows "
-                    f"{_MAX_NESTED}"
-                )
-            outer = (*outer, (id(model), path))
-            elements = self._elements_of(model)
-            scope = model.attrib.get("name", "").strip()
-            chain: list[_Pose] = []
-            walked: set[_Path] = set()
-            base: _Pose = (np.zeros(3), np.eye(3))  # where the chain ends: the model's frame, or another's
-            while path != _MODEL:
-                got = self._placed.get((id(model), path)) if seen else None
-                if got is not None:  # placed before: the chain ends there
-                    if isinstance(got, str):
-                        raise _UnresolvedError(got)
-                    base = got
-                    break
-                if len(path) > 1:
-                    sub = elements.get(path[0])
-                    if sub is None or sub.tag != "model":
-                        raise _UnresolvedError(
-                            f"frame {quote('::'.join(path))} names {quote(path[0])}, which is not a model nested in "
-                            f"model {quote(scope)} (SDF names reach only into nested models, never out to an "
-                            "enclosing one)"
-                        )
-                    # the nested model's frame in this one, then the frame in the nested model's
-                    base = _compose(self.place(model, path[:1], outer), self.place(sub, path[1:], outer))
-                    break
-                name = path[0]
-                if name == "world":
-                    raise _UnresolvedError("frame 'world': hconv reads no model's place in a world")
-                if path in walked:
-                    cycle = " → ".join(p[0] for p in [*seen, path])
-                    raise _UnresolvedError(f"frames {clip(cycle)} form a cycle")
-                node = elements.get(name)
-                if node is None:
-                    raise _UnresolvedError(
-                        f"there is no frame {quote(name)} in model {quote(scope)} (SDF resolves a name in the "
-                        "model that holds it, and in nested models as inner::name)"
-                    )
-                seen.append(path)
-                walked.add(path)
-                pose, ref = _sdf_pose(node)
-                chain.append(pose)
-                if ref is None:
-                    if node.tag == "frame":
-                        ref = node.attrib.get("attached_to", "").strip() or None
-                    elif node.tag == "joint":
-                        child = node.find("child")
-                        ref = child.text.strip() if child is not None else None
-                path = tuple(ref.split("::")) if ref else _MODEL
-        except _UnresolvedError as exc:
-            if isinstance(exc, _TooDeepError):
-                raise  # kept for no frame: see _TooDeepError
-            for p in seen or [path]:  # each frame of the chain fails the same way: walked once
-                self._placed[(id(model), p)] = str(exc)
-            raise
-        out = base
-        for p, pose in zip(reversed(seen), reversed(chain)):
-            out = _compose(out, pose)
-            self._placed[(id(model), p)] = out
-        return out
-
-
-def _sdf(root: Node, path: Path, shown: str, budget: Budget) -> tuple[list[_Raw], list[str]]:
-    notes = []
-    tops = root.findall("model") + [m for w in root.findall("world") for m in w.findall("model")]
-    for n in _walk(root):
-        if n.tag == "include":
-            uri = n.find("uri")
-            notes.append(
-                f"{n.where}: hconv does not follow SDF includes "
-                f"({quote(uri.text.strip()) if uri is not None else 'no uri'}); "
-                "run hconv bodies on the included model's file"
-            )
-    frames = _Frames()
-    # depth first, in the file's order; a stack, not a queue: popping a list's front is quadratic
-    work = [(m, "" if len(tops) == 1 else _name(m, "model") + "::") for m in reversed(tops)]
-    raws = []
-    while work:
-        model, prefix = work.pop()
-        for link in model.findall("link"):
-            name = budget.name(prefix + _name(link, "link"), link)
-            raws.append(_sdf_link(model, link, name, shown, frames))
-        work.extend((sub, prefix + _name(sub, "model") + "::") for sub in reversed(model.findall("model")))
-    return raws, notes
-
-
-def _sdf_link(model: Node, link: Node, name: str, shown: str, frames: _Frames) -> _Raw:
-    inertial = link.find("inertial")
-    if inertial is None:
-        return _Raw(
-            name,
-            f"{shown}, line {link.line}",
-            status="no_inertial",
-            notes=["no <inertial>: SDF's defaults apply, m = 1 kg and I = diag(1, 1, 1) kg·m², a placeholder"],
-        )
-    source = f"{shown}, line {inertial.line}"
-    if _bool(inertial, "auto"):
-        return _Raw(
-            name,
-            source,
-            status="no_inertial",
-            notes=['<inertial auto="true">: the simulator computes it from the collisions; hconv does not'],
-        )
-    pose, ref = _sdf_pose(inertial)
-    if ref is not None and ref != link.attrib.get("name", "").strip():
-        try:
-            link_in_model = frames.place(model, (link.attrib["name"].strip(),))
-            pose = _compose(_compose(_invert(link_in_model), frames.place(model, tuple(ref.split("::")))), pose)
-        except _UnresolvedError as exc:
-            why = f"the inertial's pose is relative to {quote(ref)}: {exc}"
-            return _Raw(name, source, status="unresolved_frame", notes=[why])
-    notes = []
-    mass = inertial.find("mass")
-    if mass is None:
-        m = 1.0
-        notes.append("no <mass>: SDF's default, 1 kg")
-    else:
-        m = (mass.numbers("", (1,)) or [math.nan])[0]
-    inertia = inertial.find("inertia")
-    values = []
-    defaulted = []
-    for k, entry in enumerate(("ixx", "iyy", "izz", "ixy", "ixz", "iyz")):
-        node = inertia.find(entry) if inertia is not None else None
-        if node is None:
-            values.append(1.0 if k < 3 else 0.0)
-            if k < 3:
-                defaulted.append(entry)
-        else:
-            values.append((node.numbers("", (1,)) or [math.nan])[0])
-    if defaulted:
-        notes.append(f"no {', '.join(defaulted)}: SDF's default, 1 kg·m², a placeholder")
-    return _Raw(name, source, m, pose[0], pose[1], _tensor(*values), notes=notes)
-
-
-# --- MJCF ----------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class _Compiler:
-    degrees: bool = True  # MuJoCo's default angle is degree
-    eulerseq: str = "xyz"
-    inertiafromgeom: str = "auto"
-
-
-def _compiler(root: Node) -> tuple[_Compiler, list[str]]:
-    """The compiler settings that decide angles, for the whole model (the last of each counts)."""
-    degrees, seq, fromgeom, notes = True, "xyz", "auto", []
-    for c in root.findall("compiler"):
-        a = c.attrib
-        if "angle" in a:
-            if a["angle"] not in ("degree", "radian"):
-                raise error(c, f"has angle={quote(a['angle'])}", 'write angle="degree" or angle="radian"')
-            degrees = a["angle"] == "degree"
-        if "eulerseq" in a:
-            seq = a["eulerseq"]
-            if len(seq) != 3 or any(ch not in "xyzXYZ" for ch in seq):
-                raise error(c, f"has eulerseq={quote(seq)}", "give three of x, y, z, X, Y, Z, such as xyz or XYZ")
-        if "inertiafromgeom" in a:
-            fromgeom = a["inertiafromgeom"]
-            if fromgeom not in ("false", "true", "auto"):
-                raise error(c, f"has inertiafromgeom={quote(fromgeom)}", 'write "false", "true" or "auto"')
-        if _bool(c, "balanceinertia"):
-            notes.append(
-                f'{c.where}: balanceinertia="true": MuJoCo raises the moments of bodies that break the '
-                "triangle inequality; hconv lists the file's values"
-            )
-        for bound in ("boundmass", "boundinertia"):
-            if bound in a and c.numbers(bound, (1,)) != [0.0]:
-                notes.append(f"{c.where}: {bound}: MuJoCo raises smaller values to it; hconv lists the file's values")
-    if fromgeom == "true":
-        notes.append(
-            'compiler inertiafromgeom="true": MuJoCo ignores every <inertial> and computes the inertia '
-            "from the geoms; hconv lists the file's values"
-        )
-    return _Compiler(degrees, seq, fromgeom), notes
-
-
-def _mjcf(root: Node, path: Path, shown: str, budget: Budget) -> tuple[list[_Raw], list[str]]:
-    expand_includes(root, path, shown, budget)
-    comp, notes = _compiler(root)
-    for n in _walk(root):
-        if n.tag in ("replicate", "attach", "composite", "flexcomp"):
-            notes.append(
-                f"{n.where}: MuJoCo makes bodies from <{n.tag}> that hconv does not list; "
-                "save the compiled model (mj_saveLastXML) to check them"
-            )
-    top = [b for wb in root.findall("worldbody") for b in _child_bodies(wb)]
-    stack = [(b, "world", k) for k, b in reversed(list(enumerate(top, 1)))]
-    raws = []
-    listed: set[int] = set()
-    while stack:
-        body, parent, k = stack.pop()
-        listed.add(id(body))
-        name = budget.name(body.attrib.get("name", "").strip() or f"{parent}/body[{k}]", body)
-        raws.append(_mjcf_body(body, name, comp, shown))
-        stack.extend(reversed([(c, name, j) for j, c in enumerate(_child_bodies(body), 1)]))
-    notes += _misplaced_bodies(root, listed)
-    return raws, notes
-
-
-def _misplaced_bodies(root: Node, listed: set[int]) -> list[str]:
-    """A note per outermost <body> that the body tree does not reach (``listed``: the ids of
-    those it does): MuJoCo's schema refuses a body anywhere but in <worldbody>, a <body>, a
-    <frame> or a <replicate>, so leaving it out without a word would hide a model MuJoCo rejects."""
-    notes = []
-    stack = [(c, root) for c in reversed(root.children)]
-    while stack:
-        node, parent = stack.pop()
-        if node.tag == "body" and id(node) not in listed:
-            if parent is root:  # a file made to be included, or a <worldbody> forgotten
-                why = (
-                    f"is at the top of <{root.tag}>, not in <worldbody>, so hconv does not list it (MuJoCo "
-                    "refuses it there); a fragment made for <include>? Run hconv bodies on the model that "
-                    "includes it"
-                )
-            else:
-                at = (
-                    ""
-                    if (parent.file, parent.line) == (node.file, node.line)
-                    else f" ({parent.file}, line {parent.line})"
-                )
-                why = (
-                    f"is inside <{parent.tag}>{at}, where MuJoCo reads no body (it refuses the model), so "
-                    "hconv does not list it; move it into <worldbody> or a <body>"
-                )
-            notes.append(f"{node.where}{_named(node)} {why}")
-            continue  # its own bodies go with it
-        stack.extend((c, node) for c in reversed(node.children))
-    return notes
-
-
-def _named(node: Node) -> str:
-    name = node.attrib.get("name", "").strip()
-    return f" {quote(name)}" if name else ""
-
-
-def _child_bodies(node: Node) -> list[Node]:
-    """The bodies directly under ``node``, looking through <frame> and <replicate>."""
-    out, stack = [], list(reversed(node.children))
-    while stack:
-        c = stack.pop()
-        if c.tag == "body":
-            out.append(c)
-        elif c.tag in ("frame", "replicate"):
-            stack.extend(reversed(c.children))
-    return out
-
-
-def _mjcf_body(body: Node, name: str, comp: _Compiler, shown: str) -> _Raw:
-    inertial = body.find("inertial")
-    if inertial is None:
-        why = {
-            "auto": "MuJoCo infers the mass and inertia from the body's geoms; hconv does not",
-            "true": "MuJoCo infers the mass and inertia from the body's geoms; hconv does not",
-            "false": 'with inertiafromgeom="false" MuJoCo gives it m = 0 and I = 0',
-        }[comp.inertiafromgeom]
-        return _Raw(name, f"{shown}, line {body.line}", status="no_inertial", notes=[f"no <inertial>: {why}"])
-    pos = inertial.required("pos", (3,), 'give the centre of mass: pos="x y z" (MuJoCo requires it)')
-    m = inertial.required("mass", (1,), 'give the mass in kg: mass="1.5" (MuJoCo requires it)')[0]
-    diag = inertial.numbers("diaginertia", (3,))
-    full = inertial.numbers("fullinertia", (6,))
-    given = [a for a in _ORIENTATIONS if a in inertial.attrib]
-    if len(given) > 1:
-        raise error(inertial, f"has both {given[0]} and {given[1]}", "give one orientation (MuJoCo allows one)")
-    if diag is not None and full is not None:
-        raise error(inertial, "has both diaginertia and fullinertia", "give one of them")
-    if full is not None and given:
-        raise error(
-            inertial,
-            f"has fullinertia with {given[0]}",
-            "fullinertia is in the body frame and takes no orientation: drop one",
-        )
-    notes = []
-    if full is not None:
-        I_C_I = _tensor(*full)
-    elif diag is not None:
-        I_C_I = np.diag(diag)
-    else:
-        I_C_I = np.zeros((3, 3))
-        notes.append("no diaginertia or fullinertia: MuJoCo takes I = 0")
-    R = _mjcf_rotation(inertial, given[0] if given else None, comp)
-    return _Raw(name, f"{shown}, line {inertial.line}", m, np.asarray(pos), R, I_C_I, notes=notes)
-
-
-def _mjcf_rotation(node: Node, kind: str | None, comp: _Compiler) -> np.ndarray:
-    """R_BI from MJCF's orientation attribute ``kind`` (see the module's conventions)."""
-    scale = math.pi / 180 if comp.degrees else 1.0
-    if kind is None:
-        return np.eye(3)
-    if kind == "quat":
-        return _matrix(_unit(node.required("quat", (4,), ""), node, "quat"))
-    if kind == "axisangle":
-        v = node.required(kind, (4,), "")
-        axis = _unit(v[:3], node, "axisangle's axis")
-        half = v[3] * scale / 2
-        return _matrix([math.cos(half), *(math.sin(half) * axis)])
-    if kind == "euler":
-        q = np.array([1.0, 0.0, 0.0, 0.0])
-        for ch, a in zip(comp.eulerseq, node.required(kind, (3,), "")):
-            r = np.zeros(4)
-            r[0], r["xyz".index(ch.lower()) + 1] = math.cos(a * scale / 2), math.sin(a * scale / 2)
-            q = _qmul(q, r) if ch.islower() else _qmul(r, q)  # moving axes: right; fixed axes: left
-        return _matrix(q)
-    if kind == "xyaxes":
-        v = node.required(kind, (6,), "")
-        x = _unit(v[:3], node, "xyaxes' x axis")
-        y = np.asarray(v[3:]) - x * float(np.dot(x, v[3:]))
-        y = _unit(list(y), node, "xyaxes' y axis, less its part along x,")
-        return np.column_stack([x, y, np.cross(x, y)])
-    z = _unit(node.required("zaxis", (3,), ""), node, "zaxis")
-    axis = np.cross([0.0, 0.0, 1.0], z)
-    s = float(np.linalg.norm(axis))
-    half = math.atan2(s, z[2]) / 2
-    if s < 1e-10:  # z along ±(0, 0, 1): the turn (none, or half a turn) is about x, as MuJoCo's
-        axis, s = np.array([1.0, 0.0, 0.0]), 1.0
-    return _matrix([math.cos(half), *(math.sin(half) * axis / s)])
-
-
-# --- the checks ----------------------------------------------------------------------------
-
-
 def _g(x: float) -> str:
     return f"{x:.3g}"
 
@@ -769,7 +191,7 @@ def _sym3(I: np.ndarray) -> Sym3:
     return Sym3(I[:, 0, 0], I[:, 1, 1], I[:, 2, 2], I[:, 0, 1], I[:, 0, 2], I[:, 1, 2])
 
 
-def _check(raws: list[_Raw]) -> list[Body]:
+def _check(raws: list[ReadBody]) -> list[Body]:
     """Each body's tensor in B, principal moments and axes, status and reason."""
     n = len(raws)
     have = np.array([r.status is None for r in raws], dtype=bool)

@@ -169,6 +169,32 @@ def error(node: Node, problem: str, fix: str) -> InputError:
     return InputError(f"{node.where} {problem}; {fix}")
 
 
+def walk(root: Node) -> list[Node]:
+    """Every element under ``root``, in document order, without recursion."""
+    out, stack = [], [root]
+    while stack:
+        n = stack.pop()
+        out.append(n)
+        stack.extend(reversed(n.children))
+    return out
+
+
+def required_name(node: Node, what: str) -> str:
+    """The element's ``name``; InputError asking for one, ``what`` being what it names."""
+    name = node.attrib.get("name", "").strip()
+    if not name:
+        raise error(node, "has no name", f'name the {what}: <{node.tag} name="...">')
+    return name
+
+
+def flag(node: Node, name: str) -> bool:
+    """Boolean attribute ``name`` (true, false, 1 or 0; false when absent)."""
+    v = node.attrib.get(name, "false").strip().lower()
+    if v not in ("true", "false", "1", "0"):
+        raise error(node, f"has {name}={quote(v)}", f'write {name}="true" or {name}="false"')
+    return v in ("true", "1")
+
+
 def parse_numbers(raw: str, counts: tuple[int, ...], node: Node, what: str) -> list[float]:
     """``raw`` as ``counts`` finite numbers (decimal notation only: no nan, inf, hex or 1_000).
 
