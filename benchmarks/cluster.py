@@ -122,16 +122,16 @@ def split(work: Path, rows: int, task_rows: int) -> None:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from hconv.tables import dataset, pipeline, storage, tableio
+    from hconv.tables import parquetio, parts, pipeline, planning, storage
     from hconv.tools.scene import make_scene
 
     big = work / "split" / "big.parquet"
     big.parent.mkdir(parents=True)
     pq.write_table(pa.table(make_scene(rows, seed=1, cond_max=1e6)), big, row_group_size=-(-rows // 16))
-    task = dataset.Task(
+    task = planning.Task(
         storage.Listed("big.parquet", big.stat().st_size, None), "big.parquet", "parquet", "parquet", False
     )
-    parts = dataset.split(task, storage.place(str(big.parent)), task_rows, "0")
+    parts = parts.split(task, storage.place(str(big.parent)), task_rows, "0")
     print(f"one file of {rows:,} rows in 16 row groups; --task-rows {task_rows}: {len(parts)} parts")
     t0 = time.perf_counter()
     pipeline.convert_file(str(big), str(work / "whole.parquet"), threads=1, force=True)
@@ -143,7 +143,7 @@ def split(work: Path, rows: int, task_rows: int) -> None:
         pipeline.convert_file(str(big), paths[-1], threads=1, force=True, rows=(p.start, p.stop))
         each.append(time.perf_counter() - t0)
     t0 = time.perf_counter()
-    tableio.join_parquet(paths, str(work / "joined.parquet"))
+    parquetio.join_parquet(paths, str(work / "joined.parquet"))
     join = time.perf_counter() - t0
     same = (work / "joined.parquet").read_bytes() == (work / "whole.parquet").read_bytes()
     print(

@@ -14,7 +14,7 @@ import pytest
 
 import hconv
 from hconv.errors import InputError, UsageError
-from hconv.tables import tableio
+from hconv.tables import parquetio
 from hconv.tables.pipeline import convert_file
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "data"
@@ -248,7 +248,7 @@ def test_hconvs_writer_takes_its_settings_from_parquet_write_options(tmp_path, m
         asked.append(schema)
         return {"compression": "gzip", "use_dictionary": False}
 
-    monkeypatch.setattr(tableio, "parquet_write_options", gzip_everything)
+    monkeypatch.setattr(parquetio, "parquet_write_options", gzip_everything)
     convert_file(str(EXAMPLES / "scene.parquet"), str(tmp_path / "out.parquet"))
     assert len(asked) == 1 and asked[0].names[-3:] == ["residual", "cond", "status"]
     assert {(c, d) for _, c, d in _chunk_settings(tmp_path / "out.parquet")} == {("GZIP", False)}

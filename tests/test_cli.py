@@ -692,13 +692,13 @@ def test_convert_file_write_failure_midway_leaves_nothing(tmp_path, monkeypatch,
     """A full disk on the writer thread: the error reaches the caller and no file is left."""
     import errno
 
-    from hconv.tables import pipeline, tableio
+    from hconv.tables import output, pipeline
 
     n = 300_000
     t = pa.table({c: rng.normal(size=n) + (3.0 if c in ("Ixx", "Iyy", "Izz") else 0.0) for c in CONTRACT[:9]})
     pq.write_table(t, tmp_path / "in.parquet")
     calls = {"n": 0}
-    real = tableio.Output.write
+    real = output.Output.write
 
     def failing(self, table):
         calls["n"] += 1
@@ -706,7 +706,7 @@ def test_convert_file_write_failure_midway_leaves_nothing(tmp_path, monkeypatch,
             raise OSError(errno.ENOSPC, "No space left on device")
         return real(self, table)
 
-    monkeypatch.setattr(tableio.Output, "write", failing)
+    monkeypatch.setattr(output.Output, "write", failing)
     with pytest.raises(OSError, match="No space left"):
         pipeline.convert_file(str(tmp_path / "in.parquet"), str(tmp_path / "out.parquet"))
     assert calls["n"] == 3

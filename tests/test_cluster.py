@@ -24,8 +24,8 @@ from helpers import S3_ENV, free_port, need, run_hconv, run_inprocess, terminal_
 
 import hconv
 from hconv.errors import UsageError
-from hconv.tables import tableio
-from hconv.tables.dataset import MANIFEST
+from hconv.tables import temporaries
+from hconv.tables.manifest import MANIFEST
 from hconv.tools.scene import make_scene
 
 distributed = need("distributed")
@@ -55,7 +55,7 @@ def _same_as_one_process(out: Path, data: Path, tmp: Path) -> dict:
     proc = run_hconv("convert", str(data), str(ref), "--quiet")
     assert proc.returncode == 0, proc.stderr.decode()
     got, want = _files(out), _files(ref)
-    assert [p for p in got if p.endswith(tableio.TEMP_SUFFIX)] == []
+    assert [p for p in got if p.endswith(temporaries.TEMP_SUFFIX)] == []
     assert set(got) == set(want)
     for rel in want:
         if rel != MANIFEST:
@@ -171,7 +171,7 @@ def test_convert_cluster_failing_file_is_named_and_the_others_finish(scheduler, 
     m = json.loads((tmp_path / "out" / MANIFEST).read_text())
     assert m["complete"] is False and [f["input"] for f in m["failed"]] == ["day=1/broken.parquet"]
     assert len(m["files"]) == 4
-    assert not [p for p in (tmp_path / "out").rglob("*") if p.name.endswith(tableio.TEMP_SUFFIX)]
+    assert not [p for p in (tmp_path / "out").rglob("*") if p.name.endswith(temporaries.TEMP_SUFFIX)]
 
 
 def test_convert_cluster_worker_killed_midfile_loses_nothing_and_leaves_no_temporary(scheduler, tmp_path):
@@ -182,7 +182,7 @@ def test_convert_cluster_worker_killed_midfile_loses_nothing_and_leaves_no_tempo
         _write_dataset(data, files=6, rows=50_000)
         out = tmp_path / "out"
         driver = _driver(scheduler, tmp_path)
-        _kill_while_writing(victim, driver, out, "*" + tableio.TEMP_SUFFIX)  # while it writes an output
+        _kill_while_writing(victim, driver, out, "*" + temporaries.TEMP_SUFFIX)  # while it writes an output
         _, err = driver.communicate(timeout=120)
         assert driver.returncode == 0, err.decode()
     finally:
@@ -258,7 +258,7 @@ def test_convert_cluster_worker_killed_during_parts_loses_nothing(scheduler, tmp
         _write_large(data, rows=600_000, group=60_000)
         out = tmp_path / "out"
         driver = _driver(scheduler, tmp_path, "--task-rows", "65536")
-        _kill_while_writing(victim, driver, out, "*.part-*" + tableio.TEMP_SUFFIX)  # while it writes a part
+        _kill_while_writing(victim, driver, out, "*.part-*" + temporaries.TEMP_SUFFIX)  # while it writes a part
         _, err = driver.communicate(timeout=120)
         assert driver.returncode == 0, err.decode()
     finally:
@@ -437,18 +437,6 @@ def test_check_workers_refuses_workers_of_another_hconv():
     session = cluster.Session(_FakeClient({"tcp://w:1": hconv.__version__}), "s", None)
     session.check_workers(1.0)
     assert session.describe() == "s, 1 worker"
-
-
-def test_remove_run_temporaries_takes_only_that_runs_files(tmp_path):
-    (tmp_path / "d=1").mkdir()
-    ours = tmp_path / "d=1" / ".part.parquet.run-abc123.99999-0-0000abcd-x1.hconv-tmp"
-    other_run = tmp_path / ".part.parquet.run-def456.99999-0-0000abcd-x1.hconv-tmp"
-    no_run = tmp_path / ".part.parquet.99999-0-0000abcd-x1.hconv-tmp"
-    for p in (ours, other_run, no_run):
-        p.write_bytes(b"")
-    assert tableio.remove_run_temporaries(str(tmp_path), "abc123") == []  # not recursive
-    assert tableio.remove_run_temporaries(str(tmp_path), "abc123", recursive=True) == [str(ours)]
-    assert other_run.exists() and no_run.exists() and not ours.exists()
 
 
 def test_convert_dataset_on_a_client_leaves_it_open(scheduler, tmp_path):

@@ -21,7 +21,7 @@ from helpers import run_hconv, run_inprocess, terminal_signals
 
 import hconv
 from hconv.tables import dataset, pipeline, storage
-from hconv.tables.dataset import MANIFEST
+from hconv.tables.manifest import MANIFEST
 from hconv.tools.scene import make_scene
 
 PARTS = ("date=2026-01-01/part-0.parquet", "date=2026-01-01/part-1.parquet", "date=2026-01-02/part-0.parquet")
@@ -438,24 +438,6 @@ def test_store_failure_names_the_common_causes(text, hint):
     assert (said == f"({text})") if hint is None else (hint in said)
 
 
-def test_remove_stale_temporaries_sweeps_a_killed_dataset_runs_fetched_and_staged_files(tmp_path, capsys):
-    """A dataset run killed outright leaves hconv-fetch- and hconv-stage- files in TMPDIR, and
-    .NAME.…hconv-tmp files beside outputs; the next run there removes those of ended processes."""
-    from hconv.tables import tableio
-
-    pid, start, tag = tableio._maker().split("-")
-    gone = f"{pid}-{int(start) + 1}-{tag}"  # this pid with another start: a process that has ended
-    names = [f"hconv-fetch-{gone}-abcd1234.hconv-tmp", f"hconv-stage-{gone}-abcd1234.hconv-tmp"]
-    names += [f".part-0.parquet.{gone}-abcd1234.hconv-tmp"]
-    for name in names:
-        (tmp_path / name).write_bytes(b"")
-    live = tmp_path / f"hconv-stage-{pid}-{start}-{tag}-abcd1234.hconv-tmp"
-    live.write_bytes(b"")
-    assert sorted(tableio.remove_stale_temporaries(str(tmp_path))) == sorted(str(tmp_path / n) for n in names)
-    assert [p.name for p in tmp_path.iterdir()] == [live.name]
-    capsys.readouterr()
-
-
 def test_convert_dataset_glob_may_write_into_its_own_folder_unless_it_would_take_the_outputs(
     tmp_path, capsys, monkeypatch
 ):
@@ -506,18 +488,18 @@ def test_convert_dataset_removes_parts_of_a_run_whose_driver_was_killed(driver_e
     """A cluster run splitting files (--task-rows) whose driver was killed outright leaves its
     parts in OUT, hidden; its manifest names the run and the driver, and the next run removes
     them once the driver has surely ended, never while it may still run."""
-    from hconv.tables import tableio
+    from hconv.tables import temporaries
 
     data = _dataset(tmp_path / "data")
     out = tmp_path / "out"
     dataset.convert_dataset(data, out)
-    pid, start, tag = tableio.maker().split("-")
-    driver = f"{pid}-{int(start) + 1}-{tag}" if driver_ended else tableio.maker()
+    pid, start, tag = temporaries.maker().split("-")
+    driver = f"{pid}-{int(start) + 1}-{tag}" if driver_ended else temporaries.maker()
     m = _manifest(out)
     m["parts_run"] = {"id": "0123abcd", "driver": driver}
     (out / MANIFEST).write_text(json.dumps(m))
-    parts = [out / "date=2026-01-01" / tableio.part_name("part-0.parquet", "0123abcd", k) for k in range(2)]
-    other = out / "date=2026-01-01" / tableio.part_name("part-0.parquet", "99999999", 0)  # another run's
+    parts = [out / "date=2026-01-01" / temporaries.part_name("part-0.parquet", "0123abcd", k) for k in range(2)]
+    other = out / "date=2026-01-01" / temporaries.part_name("part-0.parquet", "99999999", 0)  # another run's
     for p in [*parts, other]:
         p.write_bytes(b"PAR1")
     said: list[str] = []
@@ -531,14 +513,14 @@ def test_stage_beside_a_long_name_or_its_part_fits_a_file_name(length, tmp_path)
     """A cluster run's temporary file beside an output (or beside a part of a split file) added
     the run's tag, the maker and a suffix to the whole name: past about 150 bytes of input name,
     "File name too long"."""
-    from hconv.tables import tableio
+    from hconv.tables import temporaries
 
     name = "é" * (length // 2 - 4) + ".parquet"  # two bytes a character
-    for beside in (name, tableio.part_name(name, "0123abcd", 3)):
+    for beside in (name, temporaries.part_name(name, "0123abcd", 3)):
         path = storage.stage(str(tmp_path / beside), run="0123abcd")
         base = os.path.basename(path)
-        assert len(os.fsencode(base)) <= 255 and tableio.is_run_temporary(base, "0123abcd")
-        assert tableio.remove_run_temporaries(str(tmp_path), "0123abcd") == [path]
+        assert len(os.fsencode(base)) <= 255 and temporaries.is_run_temporary(base, "0123abcd")
+        assert temporaries.remove_run_temporaries(str(tmp_path), "0123abcd") == [path]
 
 
 @pytest.mark.parametrize(
@@ -594,11 +576,11 @@ def test_convert_dataset_stops_on_a_full_disk_naming_the_file(tmp_path, capsys, 
     run stops there (no other file could be written either), the manifest lists the first."""
     import errno
 
-    from hconv.tables import tableio
+    from hconv.tables import parquetio
 
     monkeypatch.chdir(tmp_path)
     _dataset(tmp_path / "data", rows=20)
-    real, calls = tableio._ParquetWriter.write, []
+    real, calls = parquetio.ParquetWriter.write, []
 
     def fills(self, table):
         calls.append(1)
@@ -606,7 +588,7 @@ def test_convert_dataset_stops_on_a_full_disk_naming_the_file(tmp_path, capsys, 
             raise OSError(errno.ENOSPC, "Error writing bytes to file. Detail: [errno 28] No space left on device")
         real(self, table)
 
-    monkeypatch.setattr(tableio._ParquetWriter, "write", fills)
+    monkeypatch.setattr(parquetio.ParquetWriter, "write", fills)
     code, err = _hconv("convert", "data", "out", "-q", capsys=capsys)
     assert code == 4, err
     assert err.splitlines() == [

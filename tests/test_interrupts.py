@@ -34,7 +34,7 @@ import pytest
 from helpers import terminal_signals
 
 from hconv.errors import INTERRUPTED
-from hconv.tables.dataset import MANIFEST
+from hconv.tables.manifest import MANIFEST
 from hconv.tables.pipeline import convert_file
 from hconv.tools.scene import make_scene
 

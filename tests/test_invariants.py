@@ -22,7 +22,7 @@ import pytest
 from helpers import run_inprocess
 
 from hconv import METHODS
-from hconv.tables import tableio
+from hconv.tables import csvio, parquetio
 from hconv.tools.scene import make_scene
 
 TRICKY_TEXT = ["007", "a,b", 'say "hi"', "", "1.50", " padded ", "ünï", "NaN", "-0", "1e400"]
@@ -53,9 +53,9 @@ def inputs(tmp_path_factory):
 def test_convert_rows_in_equal_rows_out_at_any_batch_size(inputs, tmp_path, capsys, monkeypatch, method, fmt):
     d, t = inputs
     outs = []
-    for rows, block, threads in ((7, 512, 3), (333, 4096, 2), (tableio.PARQUET_BATCH_ROWS, tableio.CSV_BLOCK_BYTES, 1)):
-        monkeypatch.setattr(tableio, "PARQUET_BATCH_ROWS", rows)
-        monkeypatch.setattr(tableio, "CSV_BLOCK_BYTES", block)
+    for rows, block, threads in ((7, 512, 3), (333, 4096, 2), (parquetio.PARQUET_BATCH_ROWS, csvio.CSV_BLOCK_BYTES, 1)):
+        monkeypatch.setattr(parquetio, "PARQUET_BATCH_ROWS", rows)
+        monkeypatch.setattr(csvio, "CSV_BLOCK_BYTES", block)
         dst = tmp_path / f"out-{rows}.{fmt}"
         code, _, err = run_inprocess(
             "convert",
@@ -110,7 +110,7 @@ def test_convert_csv_passthrough_is_byte_for_byte(tmp_path, capsys):
 @pytest.mark.parametrize("when", ["write", "close"])
 def test_convert_full_disk_is_one_line_and_leaves_nothing(inputs, tmp_path, capsys, monkeypatch, fmt, when):
     d, _ = inputs
-    writer = tableio._CsvWriter if fmt == "csv" else tableio._ParquetWriter
+    writer = csvio.CsvWriter if fmt == "csv" else parquetio.ParquetWriter
     real = getattr(writer, when)
     calls = []
 
@@ -122,8 +122,8 @@ def test_convert_full_disk_is_one_line_and_leaves_nothing(inputs, tmp_path, caps
         real(self, *table)
 
     monkeypatch.setattr(writer, when, full)
-    monkeypatch.setattr(tableio, "PARQUET_BATCH_ROWS", 100)
-    monkeypatch.setattr(tableio, "CSV_BLOCK_BYTES", 4096)
+    monkeypatch.setattr(parquetio, "PARQUET_BATCH_ROWS", 100)
+    monkeypatch.setattr(csvio, "CSV_BLOCK_BYTES", 4096)
     code, _, err = run_inprocess("convert", str(d / "in.parquet"), str(tmp_path / f"out.{fmt}"), "-q", capsys=capsys)
     assert len(calls) >= (2 if when == "write" else 1)
     assert code == 4 and len(err.strip().splitlines()) == 1 and "No space left on device" in err, err

@@ -58,7 +58,7 @@ def _two_row_groups(path, second_H):
 
 
 def test_parquet_list_length_is_fixed_by_the_first_batch(tmp_path, monkeypatch):
-    monkeypatch.setattr("hconv.tables.tableio.PARQUET_BATCH_ROWS", 5)  # one batch per row group
+    monkeypatch.setattr("hconv.tables.parquetio.PARQUET_BATCH_ROWS", 5)  # one batch per row group
     _two_row_groups(tmp_path / "bad.parquet", [1.0, 2.0])
     with pytest.raises(InputError, match=r"list column 'H' holds 2 values in row 6, but H needs 3 \(Hx, Hy, Hz\)"):
         pipeline.convert_file(str(tmp_path / "bad.parquet"), str(tmp_path / "out.parquet"), threads=2)
@@ -106,7 +106,7 @@ def test_read_list_column_null_row_is_invalid_input_not_an_error():
 
 
 def test_parquet_inertia_list_length_change_in_a_later_batch_names_its_row(tmp_path, monkeypatch):
-    monkeypatch.setattr("hconv.tables.tableio.PARQUET_BATCH_ROWS", 5)
+    monkeypatch.setattr("hconv.tables.parquetio.PARQUET_BATCH_ROWS", 5)
     writer = pq.ParquetWriter(tmp_path / "in.parquet", _list_table([[1.0, 2.0, 3.0]], [[1.0, 2.0, 3.0]]).schema)
     writer.write_table(_list_table([[1.0, 2.0, 3.0]] * 5, [[1.0, 2.0, 3.0, 0.0, 0.0, 0.0]] * 5))
     writer.write_table(_list_table([[1.0, 2.0, 3.0]] * 5, [[1.0, 2.0, 3.0]] * 5))

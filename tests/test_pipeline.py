@@ -17,7 +17,7 @@ import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 import pytest
 
-from hconv.tables import csvtypes, pipeline, tableio
+from hconv.tables import csvio, csvtypes, pipeline
 from hconv.tables.job import Job
 from hconv.tools.scene import make_scene
 
@@ -179,7 +179,7 @@ def check_late_misfits(out: pa.Table, src: Path, n: int = 1000) -> None:
 
 
 def test_convert_file_csv_to_parquet_later_block_that_does_not_fit_types_from_whole_file(tmp_path, monkeypatch):
-    monkeypatch.setattr(tableio, "CSV_BLOCK_BYTES", 512)  # about 25 rows a block: the misfits come late
+    monkeypatch.setattr(csvio, "CSV_BLOCK_BYTES", 512)  # about 25 rows a block: the misfits come late
     src, dst = tmp_path / "in.csv", tmp_path / "out.parquet"
     src.write_text(late_misfits())
     text = pacsv.ConvertOptions(column_types={"code": pa.string()}, include_columns=["code"])
@@ -192,7 +192,7 @@ def test_convert_file_csv_to_parquet_later_block_that_does_not_fit_types_from_wh
 
 
 def test_convert_file_stdin_csv_to_parquet_types_from_whole_file(tmp_path, monkeypatch):
-    monkeypatch.setattr(tableio, "CSV_BLOCK_BYTES", 512)
+    monkeypatch.setattr(csvio, "CSV_BLOCK_BYTES", 512)
     src, dst = tmp_path / "in.csv", tmp_path / "out.parquet"
     src.write_text(late_misfits())
     monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BytesIO(src.read_bytes())))

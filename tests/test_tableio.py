@@ -1,5 +1,5 @@
-"""Tables in and out: the temporary files hconv makes (stdin's spool, the output's atomic
-temporary) and what it says about an input it cannot read."""
+"""Opening an input (hconv.tables.tableio and its readers): stdin's spool, the temporary file a
+killed run leaves, and what hconv says about an input it cannot read."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from pathlib import Path
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
-from helpers import run_hconv, run_inprocess, run_on_terminal, terminal_signals
+from helpers import run_hconv, run_inprocess, terminal_signals
 
 import hconv.errors
 
@@ -161,31 +161,6 @@ def test_output_removes_the_temporary_file_of_a_killed_run_and_says_so(left, tmp
     assert not stale.exists() and out.exists()
     assert [p.name for p in tmp_path.iterdir() if p.name.endswith(".hconv-tmp")] == []
     assert list(spools.iterdir()) == []
-
-
-@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="start times come from Linux's /proc")
-def test_remove_stale_temporaries_leaves_live_and_unknown_makers_alone(tmp_path, capsys):
-    from hconv.tables import tableio
-
-    pid, start, tag = tableio._maker().split("-")
-    other_tag = f"{(int(tag, 16) + 1) % (1 << 32):08x}"
-    names = {
-        f".out.parquet.{pid}-{start}-{tag}-abcd1234.hconv-tmp": "live",  # this process: running
-        f"hconv-stdout-{pid}-{start}-{tag}-abcd1234.hconv-tmp": "live",
-        f".out.csv.{pid}-{int(start) + 1}-{tag}-abcd1234.hconv-tmp": "stale",  # its pid, another start: reused
-        f".out.csv.1-1-{other_tag}-abcd1234.hconv-tmp": "other host",  # pid 1 there means nothing here
-        ".out.csv.abcd1234.hconv-tmp": "old name",  # an earlier hconv's: no maker to check
-        "notes.txt": "not hconv's",
-    }
-    for name in names:
-        (tmp_path / name).write_text("x")
-    removed = tableio.remove_stale_temporaries(str(tmp_path))
-    stale = [n for n, why in names.items() if why == "stale"]
-    assert removed == [str(tmp_path / n) for n in stale]
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(n for n in names if n not in stale)
-    assert capsys.readouterr().err == (
-        f"hconv: removed stale temporary file {tmp_path / stale[0]} left by a run that was killed (pid {pid})\n"
-    )
 
 
 def _as(kind: str, text: bytes) -> bytes:
@@ -412,80 +387,6 @@ def test_open_input_named_pipe_is_read_like_stdin(tmp_path):
     assert list(spools.iterdir()) == []  # the spool is gone
 
 
-def test_output_force_refuses_a_path_that_is_not_a_regular_file(tmp_path, capsys, monkeypatch):
-    """Before: --force renamed a file over a FIFO (as root, over /dev/full), exit 0."""
-    monkeypatch.chdir(tmp_path)
-    Path("in.csv").write_bytes(SCENE_CSV.read_bytes())
-    os.mkfifo("ff.csv")
-    code, _, err = run_inprocess("convert", "in.csv", "ff.csv", "--force", capsys=capsys)
-    assert (code, err) == (
-        4,
-        "hconv: error: ff.csv: is not a regular file (a named pipe (FIFO)); hconv writes OUT by renaming a "
-        "finished file into place; give a file path, or - to write to stdout\n",
-    )
-    assert Path("ff.csv").is_fifo()
-
-
-def test_output_force_through_a_symlink_writes_its_target_and_keeps_the_link(tmp_path, capsys, monkeypatch):
-    """Before: the link itself was replaced by a file, its target left as it was."""
-    monkeypatch.chdir(tmp_path)
-    Path("in.csv").write_bytes(SCENE_CSV.read_bytes())
-    Path("real").mkdir()
-    Path("real/out.csv").write_text("old\n")
-    os.symlink("real/out.csv", "link.csv")
-    code, _, err = run_inprocess("convert", "in.csv", "link.csv", "-q", capsys=capsys)
-    assert (code, err) == (4, "hconv: error: link.csv: already exists; pass --force to overwrite it\n")
-    code, _, err = run_inprocess("convert", "in.csv", "link.csv", "--force", "-q", capsys=capsys)
-    assert (code, err) == (0, "")
-    assert os.readlink("link.csv") == "real/out.csv"
-    assert Path("real/out.csv").read_text().startswith(SCENE_CSV.read_text().split(",", 1)[0])
-    assert [p.name for p in Path("real").iterdir()] == ["out.csv"]  # the temporary went beside the target
-
-
-def test_output_parquet_to_stdout_on_a_terminal_is_refused(tmp_path):
-    """Before: `hconv convert in.csv - --to parquet` wrote binary Parquet onto the terminal."""
-    code, shown = run_on_terminal("convert", str(SCENE_CSV), "-", "--to", "parquet", "-q", cwd=tmp_path)
-    assert (code, shown) == (2, "hconv: error: Parquet is binary: redirect stdout (> out.parquet) or use --to csv\n")
-
-
-@pytest.mark.parametrize(
-    "args, message",
-    [
-        (
-            ["in.csv", "out.csv", "--to", "parquet"],
-            "out.csv: the name says CSV but --to parquet says Parquet; name it out.parquet, or drop --to",
-        ),
-        (
-            ["in.csv", "out.parquet", "--from", "parquet"],
-            "in.csv: the name says CSV but --from parquet says Parquet; name it in.parquet, or drop --from",
-        ),
-        (
-            ["generate", "g.pq", "--rows", "5", "--to", "csv"],
-            "g.pq: the name says Parquet but --to csv says CSV; name it g.csv, or drop --to",
-        ),
-    ],
-)
-def test_format_of_extension_contradicting_from_or_to_is_refused(args, message, tmp_path, capsys, monkeypatch):
-    """Before: `hconv convert in.csv out.csv --to parquet` wrote Parquet into out.csv, exit 0."""
-    monkeypatch.chdir(tmp_path)
-    Path("in.csv").write_bytes(SCENE_CSV.read_bytes())
-    command = [] if args[0] == "generate" else ["convert"]
-    code, _, err = run_inprocess(*command, *args, capsys=capsys)
-    assert (code, err) == (2, f"hconv: error: {message}\n")
-    assert not Path(args[1]).exists() or args[1] == "in.csv"
-
-
-def test_format_of_extension_contradicting_from_or_to_python_names_the_keyword(tmp_path):
-    from hconv.errors import UsageError
-    from hconv.tables.pipeline import convert_file
-
-    (tmp_path / "in.csv").write_bytes(SCENE_CSV.read_bytes())
-    with pytest.raises(
-        UsageError, match=r"the name says CSV but dst_format='parquet' says Parquet; .* or drop dst_format$"
-    ):
-        convert_file(str(tmp_path / "in.csv"), str(tmp_path / "out.csv"), dst_format="parquet")
-
-
 def _scene_with(tmp_path, column) -> str:
     import pyarrow.parquet as pq
 
@@ -580,37 +481,6 @@ def test_open_input_compressed_hint_names_a_file_that_does_not_exist_with_its_ex
     )
 
 
-@pytest.mark.parametrize(
-    "args, message",
-    [
-        (["", "o.csv"], "the input path is empty (''); give a file path, or - for stdin"),
-        (["", "o.csv", "--from", "csv"], "the input path is empty (''); give a file path, or - for stdin"),
-        ([str(SCENE_CSV), "", "--to", "csv"], "the output path is empty (''); give a file path, or - for stdout"),
-    ],
-)
-def test_format_of_empty_path_says_it_is_empty(args, message, tmp_path, capsys, monkeypatch):
-    """Before: 'hconv: error: : does not exist' (an unset shell variable as IN)."""
-    monkeypatch.chdir(tmp_path)
-    code, _, err = run_inprocess("convert", *args, capsys=capsys)
-    assert (code, err) == (2, f"hconv: error: {message}\n")
-
-
-def test_csv_writer_csv_to_csv_text_columns_come_out_byte_for_byte(tmp_path):
-    """Before: one value needing quotes made every text value of its batch quoted (1 -> "1",
-    02134 -> "02134"), though docs/input.md promises them back exactly as they went in."""
-    from hconv.tables.pipeline import convert_file
-
-    rows = ['1,02134,plain text,"a,b",,"say ""hi""",007', '2,00501,x y,z,,"line\nbreak",1e3']
-    text = "id,zip,label,note,empty,quote,code,Hx,Hy,Hz,I1,I2,I3\n" + "".join(r + ",1,2,3,1,2,4\n" for r in rows)
-    (tmp_path / "in.csv").write_text(text)
-    convert_file(str(tmp_path / "in.csv"), str(tmp_path / "out.csv"))
-    out = (tmp_path / "out.csv").read_text()
-    assert out.startswith("id,zip,label,note,empty,quote,code,Hx,")
-    body = out.split("\n", 1)[1]
-    assert body.startswith(rows[0] + ",1,2,3,1,2,4,")
-    assert "\n" + rows[1] + ",1,2,3,1,2,4," in body
-
-
 def test_csv_writer_parquet_empty_string_and_null_stay_distinct(tmp_path):
     """Unquoted, both were an empty field; a null stays empty and the empty string is quoted."""
     import pyarrow as pa
@@ -643,68 +513,6 @@ def test_open_input_csv_nan_in_a_numeric_column_stays_nan_and_an_empty_field_sta
     assert first[0].lower() == "nan" and first[1] == "" and first[2].lower() in ("nan", "-nan")
 
 
-@pytest.mark.parametrize("fmt", ["csv", "parquet"])
-def test_output_full_disk_names_the_output(fmt, tmp_path, capsys, monkeypatch):
-    """A full disk while writing: the message names OUT, as every output error does (it said
-    ``output: Error writing bytes to file. Detail: [errno 28] ...``)."""
-    import errno
-
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
-    from hconv.tables import tableio
-
-    writer = tableio._CsvWriter if fmt == "csv" else tableio._ParquetWriter
-
-    def full(self, table):
-        raise OSError(errno.ENOSPC, "Error writing bytes to file. Detail: [errno 28] No space left on device")
-
-    monkeypatch.setattr(writer, "write", full)
-    pq.write_table(pa.table({"Hx": [1.0], "Hy": [2.0], "Hz": [3.0], "I": [2.0]}), tmp_path / "in.parquet")
-    out = tmp_path / f"out.{fmt}"
-    code, _, err = run_inprocess("convert", str(tmp_path / "in.parquet"), str(out), "-q", capsys=capsys)
-    assert (
-        code == 4
-        and err == f"hconv: error: {out}: could not be written (No space left on device); nothing was written\n"
-    )
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.parquet"]
-
-
-def test_output_to_stdout_on_a_full_disk_names_stdout(tmp_path):
-    (tmp_path / "in.csv").write_text("Hx,Hy,Hz,I\n1,2,3,2\n")
-    with open("/dev/full", "wb") as full:
-        proc = subprocess.run(
-            [sys.executable, "-m", "hconv", "convert", "in.csv", "-", "--to", "csv", "-q"],
-            stdout=full, stderr=subprocess.PIPE, cwd=tmp_path, timeout=120,
-        )  # fmt: skip
-    err = proc.stderr.decode()
-    assert (
-        proc.returncode == 4
-        and err == "hconv: error: stdout: could not be written (No space left on device); nothing was written\n"
-    )
-
-
-@pytest.mark.parametrize("through", ["file link", "folder link", "hard link"])
-def test_output_that_is_the_input_through_a_link_is_refused_and_the_input_kept(through, tmp_path, capsys):
-    """OUT names the input by another path: refused as the input, even with --force, never the
-    input replaced by its own conversion."""
-    src = tmp_path / "a.parquet"
-    code, _, err = run_inprocess("generate", str(src), "--rows", "5", capsys=capsys)
-    before = src.read_bytes()
-    if through == "file link":
-        out = tmp_path / "link_to_a.parquet"
-        out.symlink_to("a.parquet")
-    elif through == "folder link":
-        (tmp_path / "here").symlink_to(".")
-        out = tmp_path / "here" / "a.parquet"
-    else:
-        out = tmp_path / "also_a.parquet"
-        os.link(src, out)
-    code, _, err = run_inprocess("convert", str(src), str(out), "--force", capsys=capsys)
-    assert code == 4 and err == f"hconv: error: {out}: is the input file; write the output to another path\n"
-    assert src.read_bytes() == before
-
-
 # --- what pyarrow reads, and what it says when it cannot -------------------------------------
 
 
@@ -726,9 +534,9 @@ def test_open_input_csv_error_leaves_no_python_read_on_pyarrow_threads(tmp_path,
     recorded here, deterministically, wherever the race would have gone."""
     import threading
 
-    from hconv.tables import pipeline, tableio
+    from hconv.tables import csvio, pipeline
 
-    monkeypatch.setattr(tableio, "CSV_BLOCK_BYTES", 1 << 18)
+    monkeypatch.setattr(csvio, "CSV_BLOCK_BYTES", 1 << 18)
     src = tmp_path / "bad.csv"
     data = _scene_csv(src, 20000)
     at = data.index(b",b", 100_000) + 2  # past the 64 KiB hconv checks itself, in pyarrow's first block
@@ -744,7 +552,7 @@ def test_open_input_csv_error_leaves_no_python_read_on_pyarrow_threads(tmp_path,
     def seen_open(path, mode="r", *args, **kwargs):
         return Seen(path, "r") if mode == "rb" else open(path, mode, *args, **kwargs)
 
-    monkeypatch.setattr(tableio, "open", seen_open, raising=False)
+    monkeypatch.setattr(csvio, "open", seen_open, raising=False)
     with pytest.raises(hconv.errors.InputError, match="bad.csv: column 'label' holds text that is not UTF-8"):
         pipeline.convert_file(str(src), str(tmp_path / "out.parquet"))
     assert not off_main, f"pyarrow's threads read the input through Python: {sorted(set(off_main))}"
@@ -814,14 +622,14 @@ def test_open_input_parquet_damaged_page_names_the_input_and_its_row_group(
 def test_convert_file_input_rewritten_while_read_is_refused(fmt, tmp_path, monkeypatch):
     """A file appended to, cut or rewritten in place while hconv reads it: what was read may mix
     two versions of it, which no later check would see."""
-    from hconv.tables import pipeline, tableio
+    from hconv.tables import csvio, parquetio, pipeline
 
     src = tmp_path / f"in.{fmt}"
     if fmt == "csv":
-        monkeypatch.setattr(tableio, "CSV_BLOCK_BYTES", 1 << 12)
+        monkeypatch.setattr(csvio, "CSV_BLOCK_BYTES", 1 << 12)
         _scene_csv(src, 2000)
     else:
-        monkeypatch.setattr(tableio, "PARQUET_BATCH_ROWS", 50)
+        monkeypatch.setattr(parquetio, "PARQUET_BATCH_ROWS", 50)
         _scene_parquet(src, groups=4)
     calls = []
 
@@ -839,11 +647,11 @@ def test_convert_file_input_rewritten_while_read_is_refused(fmt, tmp_path, monke
 
 
 def test_open_input_csv_without_a_line_end_says_so_not_that_it_is_empty(tmp_path, capsys, monkeypatch):
-    from hconv.tables import tableio
+    from hconv.tables import csvio
 
     monkeypatch.chdir(tmp_path)
     big = tmp_path / "one.csv"
-    big.write_bytes(b"Hx,Hy,Hz,Ixx,Iyy,Izz,Ixy,Ixz,Iyz" + b",1" * ((tableio.CSV_BLOCK_BYTES >> 1) + 10))
+    big.write_bytes(b"Hx,Hy,Hz,Ixx,Iyy,Izz,Ixy,Ixz,Iyz" + b",1" * ((csvio.CSV_BLOCK_BYTES >> 1) + 10))
     code, _, err = run_inprocess("convert", "one.csv", "out.parquet", capsys=capsys)
     assert (code, err.strip()) == (
         3,
@@ -880,9 +688,9 @@ def test_open_input_csv_row_cut_by_a_block_end_or_an_open_quote_is_named(
 ):
     """pyarrow splits a CSV into blocks; a row it cannot end within one came out as 'a row has 1
     values', naming no row, though the row had all its values."""
-    from hconv.tables import tableio
+    from hconv.tables import csvio
 
-    monkeypatch.setattr(tableio, "CSV_BLOCK_BYTES", 1 << 16)
+    monkeypatch.setattr(csvio, "CSV_BLOCK_BYTES", 1 << 16)
     monkeypatch.chdir(tmp_path)
     lines = _scene_csv(tmp_path / "in.csv", 3500).split(b"\n")
     lines[3000] = damage(lines[3000])

@@ -20,14 +20,13 @@ from hconv import interrupts
 
 interrupts.end_quietly_while_starting()  # first: the imports below take most of the command's start
 
-__version__ = "0.1.0"
-
 from hconv.solve.convert import Result, convert  # noqa: E402
 from hconv.solve.forms import FORMS  # noqa: E402
 from hconv.solve.methods import METHODS  # noqa: E402
 from hconv.solve.options import Conventions, Options  # noqa: E402
 from hconv.solve.status import STATUSES  # noqa: E402
 from hconv.tables.job import Job  # noqa: E402
+from hconv.version import __version__  # noqa: E402
 
 __all__ = [
     "convert",
@@ -56,7 +55,7 @@ def __getattr__(name: str) -> object:  # keeps `import hconv` free of pyarrow
 
         return getattr(arrow, name)
     if name == "parquet_write_options":
-        from hconv.tables.tableio import parquet_write_options
+        from hconv.tables.parquetio import parquet_write_options
 
         return parquet_write_options
     if name == "convert_dataset":

@@ -54,7 +54,7 @@ class _PlainUsage(TyperCommand):
 
 def _print_version(value: bool) -> None:
     if value:
-        from hconv import __version__
+        from hconv.version import __version__
 
         print(f"hconv {__version__}")
         raise typer.Exit(0)

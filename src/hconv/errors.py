@@ -64,6 +64,12 @@ def entries(name: str, pairs: dict[str, str]) -> str:
 INTERRUPTED = "interrupted; no output was written"
 
 
+def first_line(exc: BaseException) -> str:
+    """The first line of an exception's message (its type's name if it has none), for a one-line error."""
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
 class HconvError(Exception):
     """Base class; ``exit_code`` is what the CLI exits with."""
 

@@ -22,12 +22,12 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from hconv import __version__
 from hconv.errors import InputError, UsageError
 from hconv.solve import bodies, methods, options, status, units
 from hconv.tables import layout, storage
 from hconv.tables.job import Job
 from hconv.tables.sets import QUANTITY
+from hconv.version import __version__
 
 _STATUS_TYPE = pa.dictionary(pa.int8(), pa.string())
 

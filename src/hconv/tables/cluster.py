@@ -1,5 +1,5 @@
 """A dataset's files converted on a Dask cluster: one task per file, each running
-:func:`hconv.tables.dataset.convert_one` on a worker, while the driver (the process that called
+:func:`hconv.tables.onefile.convert_one` on a worker, while the driver (the process that called
 :func:`~hconv.tables.dataset.convert_dataset`) collects the records and writes the manifest, as a
 run in one process does. Dask (``distributed``, the ``hconv[dask]`` extra) is imported only here,
 and only when a run asks for a cluster.
@@ -17,7 +17,7 @@ Dask runs a task again when the worker running it dies. A task writes nothing bu
 through a temporary file committed whole, so a second run writes the same bytes again: it may
 replace an output at its own path (one the first run committed before it died), which the
 manifest has claimed as hconv's own before any task started. A killed worker cannot remove its
-temporary file, and its host may be another machine, where :func:`hconv.tables.tableio.remove_stale_temporaries`
+temporary file, and its host may be another machine, where :func:`hconv.tables.temporaries.remove_stale_temporaries`
 cannot tell that it died; so every temporary file of a run carries the run's tag in its name, and
 the driver removes that run's leftovers in OUT, and each worker in its temporary directory, once
 no task runs (:meth:`Session.close`).
@@ -46,23 +46,15 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 from hconv import errors
-from hconv.errors import HconvError, OutputError, UsageError, option
+from hconv.errors import HconvError, OutputError, UsageError, first_line, option
 from hconv.solve.engines import available_cores
-from hconv.tables import tableio
-from hconv.tables.dataset import (
-    FileRecord,
-    Part,
-    PartRecord,
-    Plan,
-    Task,
-    convert_one,
-    convert_part,
-    join_parts,
-    remove_parts,
-    split,
-)
+from hconv.tables import temporaries
+from hconv.tables.manifest import FileRecord
+from hconv.tables.onefile import convert_one
+from hconv.tables.parts import Part, PartRecord, convert_part, join_parts, remove_parts, split
 from hconv.tables.pipeline import default_threads
-from hconv.tables.storage import Place, first_line, remove_run_objects
+from hconv.tables.planning import Plan, Task
+from hconv.tables.storage import Place, remove_run_objects
 
 EXTRA = "pip install 'hconv[dask]'"
 #: --cluster's values besides "local": the address of a running Dask scheduler.
@@ -238,7 +230,7 @@ class Session:
 
     def check_workers(self, timeout: float) -> None:
         """UsageError unless the cluster has a worker within ``timeout`` and each runs this hconv."""
-        from hconv import __version__
+        from hconv.version import __version__
 
         try:
             self.client.wait_for_workers(1, timeout=timeout)
@@ -263,7 +255,7 @@ class Session:
         self, plan: Plan, keep: Callable[[FileRecord], None], *, strict: bool, task_rows: int
     ) -> Iterator[tuple[Task, HconvError | None]]:
         """Submit one task per file to convert, or for a large Parquet file one per part and one
-        joining them (:func:`hconv.tables.dataset.split`, ``task_rows``); (task, its error or
+        joining them (:func:`hconv.tables.parts.split`, ``task_rows``); (task, its error or
         None) as each file completes, its record handed to ``keep`` first. KeyboardInterrupt
         stops the tasks (see the module)."""
         import distributed
@@ -341,7 +333,7 @@ class Session:
         # after the close, so that no task of a local cluster still writes
         _remove_run_temporaries(self.run_id)
         if self.dst is not None and self.dst.local:
-            tableio.remove_run_temporaries(self.dst.root, self.run_id, recursive=True)
+            temporaries.remove_run_temporaries(self.dst.root, self.run_id, recursive=True)
         elif self.dst is not None and self.split_files:  # the parts a killed worker or a stopped run left in OUT
             with contextlib.suppress(HconvError):
                 remove_run_objects(self.dst, self.run_id)
@@ -373,15 +365,15 @@ def _cli() -> bool:
 def _prepare_worker() -> str:
     """On a worker: its allocator tuned as the hconv command's is (without it, block temporaries
     are faulted in anew for every block: hconv.kernels.allocator); its hconv version."""
-    from hconv import __version__
     from hconv.kernels import allocator
+    from hconv.version import __version__
 
     allocator.tune()
     return __version__
 
 
 def _remove_run_temporaries(run_id: str) -> list[str]:
-    return tableio.remove_run_temporaries(tempfile.gettempdir(), run_id)
+    return temporaries.remove_run_temporaries(tempfile.gettempdir(), run_id)
 
 
 class _StopRequestedError(Exception):

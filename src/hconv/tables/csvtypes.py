@@ -1,6 +1,6 @@
 """Types for the columns hconv passes through from CSV into Parquet.
 
-CSV holds text only. hconv reads the columns it does not use as text (:mod:`hconv.tables.tableio`),
+CSV holds text only. hconv reads the columns it does not use as text (:mod:`hconv.tables.csvio`),
 so that CSV output gives them back byte for byte. Parquet output holds types, so there each such
 column gets the type pyarrow's CSV reader would infer for it (:data:`CANDIDATES`, in pyarrow's
 order; text that fits none stays text), with these exceptions, each where pyarrow would change a

@@ -1,7 +1,7 @@
 """The file formats hconv reads and writes, and the extensions that name them.
 
-Kept apart from :mod:`hconv.tables.tableio` (which needs pyarrow) so that the CLI can offer the
-choices without importing pyarrow.
+Kept apart from the readers and writers (:mod:`hconv.tables.csvio`, :mod:`hconv.tables.parquetio`,
+which need pyarrow) so that the CLI can offer the choices without importing pyarrow.
 """
 
 from __future__ import annotations

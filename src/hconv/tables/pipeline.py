@@ -25,10 +25,13 @@ import pyarrow as pa
 from hconv import interrupts
 from hconv.errors import StrictError, UsageError, option
 from hconv.solve import engines, methods, options, status
-from hconv.tables import csvtypes, tableio
+from hconv.tables import csvio, csvtypes
 from hconv.tables.arrow import convert_batch
+from hconv.tables.inputs import Input
 from hconv.tables.job import Job
-from hconv.tables.tableio import Input, Output, format_of, open_input
+from hconv.tables.output import Output
+from hconv.tables.sniff import format_of
+from hconv.tables.tableio import open_input
 
 
 @dataclass
@@ -88,7 +91,7 @@ def main_thread_signals() -> None:
 
 
 class BackgroundWriter:
-    """Writes tables to an :class:`~hconv.tables.tableio.Output` on a second thread, so that encoding
+    """Writes tables to an :class:`~hconv.tables.output.Output` on a second thread, so that encoding
     and compressing one batch (pyarrow releases the GIL) overlaps converting the next.
 
     At most ``depth`` tables wait in the queue, so memory stays bounded. Leaving the ``with``
@@ -228,7 +231,7 @@ def convert_file(
     fetched into ``src`` (:func:`hconv.tables.dataset.convert_dataset`); ``dst_name`` the same for
     the output, such as a dataset's output whose temporary file ``dst`` is.
     ``rows``: (start, stop), convert only those rows of a Parquet ``src`` (a part of a file
-    converted by one task of a cluster run: :func:`hconv.tables.dataset.convert_part`); messages
+    converted by one task of a cluster run: :func:`hconv.tables.parts.convert_part`); messages
     name the file's rows, the tally's ``worst_row`` counts from ``start``.
     Raises :class:`hconv.errors.HconvError` subclasses with one-line messages.
     """
@@ -244,7 +247,7 @@ def convert_file(
     t0 = time.perf_counter()
     with open_input(src, fin, job, name, rows) as inp:
         if fout == "csv":
-            tableio.check_csv_columns(inp.schema, inp.name)  # before converting anything
+            csvio.check_csv_columns(inp.schema, inp.name)  # before converting anything
         # CSV's text columns get types in Parquet, the first block's (csvtypes); CSV keeps them as they were
         typed = fout != "csv" and bool(inp.text) and not job.keep_text
         run = functools.partial(_convert, job=job, strict=strict, threads=threads, progress=progress)
@@ -254,8 +257,8 @@ def convert_file(
             tally = None
         if tally is None:  # outside the except block, so that the first pass's batches are freed
             inp.batches = iter(())
-            types = csvtypes.whole_file(tableio.text_batches(inp))
-            with tableio.reopen(inp, job) as again:
+            types = csvtypes.whole_file(csvio.text_batches(inp))
+            with csvio.reopen(inp, job) as again:
                 tally = run(again, Output(dst, fout, force=force, input_path=src, shown=dst_name), types=types)
     tally.seconds = time.perf_counter() - t0
     return tally

@@ -5,7 +5,7 @@ fsspec's for a scheme pyarrow has none for, when fsspec and that scheme's packag
 What is atomic where
 --------------------
 Locally, every file is written to a temporary file beside it and renamed into place
-(:class:`hconv.tables.tableio.Output`); a rename within a directory is atomic.
+(:class:`hconv.tables.output.Output`); a rename within a directory is atomic.
 
 Object storage has no rename, and needs none: S3, GCS and Azure make an object visible only once
 its upload is complete (a PUT, or the CompleteMultipartUpload that ends a multipart upload), and
@@ -41,8 +41,8 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.fs as pafs
 
-from hconv.errors import InputError, OutputError, UsageError, option
-from hconv.tables import tableio
+from hconv.errors import InputError, OutputError, UsageError, first_line, option
+from hconv.tables import temporaries
 from hconv.tables.formats import EXTENSIONS
 
 _URI = re.compile(r"^([A-Za-z][A-Za-z0-9+.-]*)://")
@@ -135,11 +135,6 @@ class Place:
 def inside(path: str, folder: str) -> bool:
     """Whether ``path`` is ``folder`` or inside it (both absolute, written alike)."""
     return path == folder or path.startswith(folder.rstrip("/") + "/")
-
-
-def first_line(exc: BaseException) -> str:
-    text = str(exc).strip()
-    return text.splitlines()[0] if text else type(exc).__name__
 
 
 #: What object stores say (pyarrow's S3 error names, and the services' own codes) when a request
@@ -354,15 +349,15 @@ def stage(beside: str | None = None, kind: str = "stage", run: str | None = None
     output ``beside`` (renamed over it) or in the temporary directory (for :func:`put`); or, with
     ``kind="fetch"``, to :func:`fetch` an input into. ``run``: the tag of a run on a cluster, in
     the name, so that the run can remove what its killed workers left
-    (:func:`hconv.tables.tableio.remove_run_temporaries`). The caller removes it."""
+    (:func:`hconv.tables.temporaries.remove_run_temporaries`). The caller removes it."""
     if beside is None:
-        fd, path = tableio.temporary_file(tableio.run_prefix(f"hconv-{kind}-", run))
+        fd, path = temporaries.temporary_file(temporaries.run_prefix(f"hconv-{kind}-", run))
     else:
         # the name cut, as the one-file writer cuts it: with the run's tag, the maker and the
         # suffix, a long output name (or a part's, itself a long name) passed 255 bytes
         name = os.fsdecode(os.fsencode(os.path.basename(beside))[:120])
-        prefix = tableio.run_prefix(f".{name}.", run)
-        fd, path = tableio.temporary_file(prefix, os.path.dirname(beside) or ".")
+        prefix = temporaries.run_prefix(f".{name}.", run)
+        fd, path = temporaries.temporary_file(prefix, os.path.dirname(beside) or ".")
     os.close(fd)
     return path
 
@@ -423,10 +418,10 @@ def remove(where: Place, rel: str) -> None:
 
 def remove_run_objects(where: Place, run: str) -> list[str]:
     """Remove the temporary objects (parts) of the run ``run`` under the object-storage place
-    ``where``: :func:`hconv.tables.tableio.remove_run_temporaries` for a prefix; their names."""
+    ``where``: :func:`hconv.tables.temporaries.remove_run_temporaries` for a prefix; their names."""
     gone = []
     for f in where.list():
-        if tableio.is_run_temporary(f.rel.rsplit("/", 1)[-1], run):
+        if temporaries.is_run_temporary(f.rel.rsplit("/", 1)[-1], run):
             remove(where, f.rel)
             gone.append(f.rel)
     return gone
@@ -440,7 +435,7 @@ def write_bytes(where: Place, rel: str, data: bytes) -> None:
         tmp = ""
         try:
             os.makedirs(os.path.dirname(target), exist_ok=True)
-            fd, tmp = tableio.temporary_file(f".{os.path.basename(target)}.", os.path.dirname(target))
+            fd, tmp = temporaries.temporary_file(f".{os.path.basename(target)}.", os.path.dirname(target))
             with os.fdopen(fd, "wb") as f:
                 f.write(data)
                 f.flush()

@@ -419,8 +419,9 @@ def _roofline(src: str, dst: str) -> None:
 
     from hconv.tables.arrow import output_fields
     from hconv.tables.job import Job
+    from hconv.tables.output import Output
     from hconv.tables.pipeline import BackgroundWriter
-    from hconv.tables.tableio import Output, open_input
+    from hconv.tables.tableio import open_input
 
     job = Job()
     fields = output_fields(job)

@@ -143,8 +143,10 @@ def compare_file(
 
     import pyarrow as pa
 
+    from hconv.tables.output import Output
     from hconv.tables.pipeline import BackgroundWriter
-    from hconv.tables.tableio import Output, format_of, open_input
+    from hconv.tables.sniff import format_of
+    from hconv.tables.tableio import open_input
 
     check_job(job)
     job = job or Job()

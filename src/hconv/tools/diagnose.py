@@ -483,7 +483,8 @@ def diagnose_file(
     deviations from the conventions, column names and units ``job`` declares."""
     import pyarrow as pa
 
-    from hconv.tables.tableio import format_of, open_input
+    from hconv.tables.sniff import format_of
+    from hconv.tables.tableio import open_input
 
     if not (tol > 0 and np.isfinite(tol)):  # an infinite tol explains every row by every hypothesis
         raise UsageError(f"{option('tol')} must be a positive finite number, got {tol}")

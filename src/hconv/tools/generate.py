@@ -8,8 +8,9 @@ import time
 import pyarrow as pa
 
 from hconv.errors import UsageError, option
+from hconv.tables.output import Output
 from hconv.tables.pipeline import BackgroundWriter
-from hconv.tables.tableio import Output, format_of
+from hconv.tables.sniff import format_of
 from hconv.tools.scene import check_scene, iter_scene, make_scene
 
 

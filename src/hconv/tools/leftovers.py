@@ -28,9 +28,9 @@ def temporary_folder(kind: str = "") -> tempfile.TemporaryDirectory[str]:
 def folder_prefix(kind: str = "") -> str:
     """The start of a bench folder's name, ``hconv-bench.<maker>.<kind>``, for this process (the
     scripts in benchmarks/ name theirs so too)."""
-    from hconv.tables import tableio
+    from hconv.tables import temporaries
 
-    return f"hconv-bench.{tableio.maker()}.{kind}"
+    return f"hconv-bench.{temporaries.maker()}.{kind}"
 
 
 def remove_stale_folders(log: Callable[[str], None] = lambda s: None, where: str | None = None) -> list[str]:
@@ -38,7 +38,7 @@ def remove_stale_folders(log: Callable[[str], None] = lambda s: None, where: str
     ``where`` (default: the temporary directory), saying so through ``log``; returns their paths.
     A folder whose run still goes, or may (made on another host sharing the directory), is left
     alone."""
-    from hconv.tables import tableio
+    from hconv.tables import temporaries
 
     removed: list[str] = []
     try:
@@ -47,7 +47,7 @@ def remove_stale_folders(log: Callable[[str], None] = lambda s: None, where: str
         return removed  # making this run's folder will say what is wrong with the directory
     for entry in entries:
         m = _FOLDER.match(entry.name)
-        if not m or not tableio.maker_gone(m.group(1)):
+        if not m or not temporaries.maker_gone(m.group(1)):
             continue
         try:
             if not entry.is_dir(follow_symlinks=False):

@@ -143,7 +143,8 @@ def write_bodies(
     model: Model, dst: str, *, form: str = "sym6", dst_format: str | None = None, force: bool = False
 ) -> None:
     """Write ``model.table(form)`` to ``dst`` (``-`` for stdout) through hconv's atomic writer."""
-    from hconv.tables.tableio import Output, format_of
+    from hconv.tables.output import Output
+    from hconv.tables.sniff import format_of
 
     table = model.table(form)
     with Output(dst, format_of(dst, dst_format, "dst_format"), force=force, input_path=model.path) as out:

@@ -1,0 +1,380 @@
+"""CSV in and out. Reading refuses, with the reason, a file that is not comma-separated UTF-8
+text, reads the columns hconv does not use as text (:attr:`~hconv.tables.inputs.Input.text`) so
+that CSV output gives them back exactly as they went in (into Parquet the pipeline gives them
+types: :mod:`hconv.tables.csvtypes`), and names the row, column and value of what pyarrow cannot
+read. Writing quotes only the values that must be, and puts ω's unit into a ``w_unit`` column.
+
+pyarrow is given native files only (see :func:`open_csv`)."""
+
+from __future__ import annotations
+
+import csv
+import io
+import re
+from collections.abc import Iterator
+
+import pyarrow as pa
+import pyarrow.compute as pc
+import pyarrow.csv as pacsv
+
+from hconv.errors import InputError, first_line
+from hconv.solve import forms
+from hconv.tables import csvtypes, layout, sets
+from hconv.tables.inputs import FileStat, Input, changed_while_read, unreadable
+from hconv.tables.job import Job
+from hconv.tables.sniff import rename_or_pass, what_it_is
+
+CSV_BLOCK_BYTES = 4 << 20
+UNIT_COLUMN = layout.UNIT_COLUMN
+
+
+def _sniff_csv(path: str, name: str) -> None:
+    """Refuse, with the reason, a file that is not comma-separated UTF-8 text (first 64 KiB)."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(1 << 16)
+    except OSError as exc:
+        raise unreadable(name, exc) from None
+    if not head:
+        return  # the empty file has its own message
+    what = what_it_is(head, path, name, "csv")
+    if what:
+        raise InputError(f"{name}: {what}")
+    if b"\x00" in head or head.startswith(b"\x89PNG") or head.startswith(b"PAR1"):
+        parquet = f" (it looks like Parquet: {rename_or_pass(name, 'parquet')})"
+        raise InputError(f"{name}: is not a text file, so not CSV" + (parquet if head.startswith(b"PAR1") else ""))
+    head = head[3:] if head.startswith(b"\xef\xbb\xbf") else head
+    cut = head.rfind(b"\n") + 1 if len(head) == 1 << 16 else len(head)
+    try:
+        head[: cut or len(head)].decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = head[: exc.start].count(b"\n") + 1
+        raise InputError(
+            f"{name}: line {line} is not UTF-8 text; convert the file to UTF-8 first "
+            "(for example: iconv -f latin1 -t utf-8)"
+        ) from None
+    first = head.split(b"\n", 1)[0].decode("utf-8").strip("\r")
+    if not first.strip():
+        raise InputError(f"{name}: the first line is blank; a CSV needs a header line naming the columns")
+    if "," not in first:
+        for sep, word in ((";", "semicolons"), ("\t", "tabs"), ("|", "bars")):
+            if sep in first:
+                raise InputError(
+                    f"{name}: the header is separated by {word}, but hconv reads comma-separated CSV; "
+                    f"convert the delimiter to commas first"
+                )
+
+
+def _header_hint(names: list) -> str:
+    """Why a header may not have matched: spaces around names, or a first line that is no header."""
+    known = sets.all_names()
+    spaced = [n for n in names if n != n.strip() and n.strip() in known]
+    if spaced:
+        return f" (the header has spaces around {', '.join(repr(n) for n in spaced[:3])}; remove them)"
+    if not any(n.strip() in known for n in names):
+        return f" (the first line, {','.join(names)[:50]!r}, names none of hconv's columns: is it a CSV header?)"
+    return ""
+
+
+def _one_line(path: str, name: str) -> bytes | None:
+    """The bytes of a CSV file that is one line with no line end (a header and no rows, written
+    without its newline), which pyarrow takes for an empty file; None for a file with a line end
+    in its first block. InputError for a file with none in its first block: no CSV reader reads
+    a line longer than a block, and such a file is rarely a CSV (a 100 MB file without a newline
+    was called empty)."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(1 << 16)
+            if not head or b"\n" in head or b"\r" in head:
+                return None
+            head += f.read(CSV_BLOCK_BYTES + 1 - len(head))
+    except OSError as exc:
+        raise unreadable(name, exc) from None
+    if b"\n" in head or b"\r" in head:
+        return None
+    if len(head) <= CSV_BLOCK_BYTES:
+        return head
+    raise InputError(
+        f"{name}: has no line end in its first {CSV_BLOCK_BYTES >> 20} MiB; a CSV is a header line and one "
+        f"line per row, each shorter than that: is it a CSV?"
+    )
+
+
+def open_csv(path: str, name: str, job: Job) -> Input:
+    _sniff_csv(path, name)
+    one_line = _one_line(path, name)
+    ropts = pacsv.ReadOptions(block_size=CSV_BLOCK_BYTES)
+
+    def source() -> pa.NativeFile:
+        """The file as pyarrow reads it: a native file, never a Python file object. pyarrow reads
+        ahead on its own threads, which may still be reading when an error is raised here; one
+        that holds a Python object needs the interpreter, and if the interpreter is exiting by
+        then the process aborts (SIGABRT, 'terminate called without an active exception', about
+        one run in ten on a file with bad UTF-8 in its first block). A native file needs no
+        interpreter, and pyarrow keeps it open for as long as its threads use it."""
+        if one_line is not None:  # a header without its newline: read it with one
+            return pa.BufferReader(one_line + b"\n")
+        return pa.OSFile(path)
+
+    try:
+        with pacsv.open_csv(source(), read_options=ropts) as probe:
+            names = probe.schema.names
+    except pa.ArrowInvalid as exc:
+        if "Empty CSV file" in str(exc):
+            raise InputError(
+                f"{name}: the file is empty; a CSV needs a header line naming the columns "
+                f"{', '.join(sets.VECTOR_SETS['H'])} and the inertia "
+                f"({'; or '.join(', '.join(f.columns) for f in forms.FORMS.values() if not f.extends)})"
+            ) from None
+        raise _csv_parse_error(path, name, exc) from None
+    except OSError as exc:
+        raise unreadable(name, exc) from None
+    try:
+        plan = layout.plan(pa.schema([(n, pa.float64()) for n in names]), job, name)
+    except InputError as exc:
+        raise InputError(f"{exc}{_header_hint(names)}") from None
+    nums = set(plan.numeric)
+    types = {n: (pa.float64() if n in nums else pa.string()) for n in names}
+    # NaN is a float value, not a missing one: pyarrow's default null markers include its
+    # spellings, which turned a file's NaN into a null (an empty field in CSV output).
+    copts = pacsv.ConvertOptions(column_types=types, strings_can_be_null=False, null_values=csvtypes.NULLS.to_pylist())
+    try:
+        f = source()
+        fd = None if one_line is not None else f.fileno()
+        at_open = None if fd is None else FileStat.of(fd)
+    except OSError as exc:
+        raise unreadable(name, exc) from None
+    try:  # the reader parses its first block here already, so bad values can show up now
+        reader = pacsv.open_csv(f, read_options=ropts, convert_options=copts)
+    except pa.ArrowInvalid as exc:  # f is left to pyarrow, whose read-ahead may still be using it
+        raise changed_while_read(name, fd, at_open) or _csv_value_error(path, name, names, ropts, exc) from None
+    total = f.size()
+
+    def batches() -> Iterator[pa.RecordBatch]:
+        while True:
+            try:
+                batch = reader.read_next_batch()
+            except StopIteration:
+                break
+            except pa.ArrowInvalid as exc:
+                raise changed_while_read(name, fd, at_open) or _csv_value_error(path, name, names, ropts, exc) from None
+            except (OSError, pa.ArrowException, MemoryError) as exc:  # all the reader raises is the input's
+                raise changed_while_read(name, fd, at_open) or InputError(
+                    f"{name}: cannot be read ({first_line(exc)}); check the file"
+                ) from None
+            yield batch
+        changed = changed_while_read(name, fd, at_open)
+        if changed:
+            raise changed
+
+    text = tuple(n for n in names if n not in nums)
+    return Input(name, reader.schema, batches(), total, f.tell, plan, [], text, path)
+
+
+def reopen(inp: Input, job: Job) -> Input:
+    """A CSV input read again from its first row, as a new Input; ``inp`` must stay open
+    meanwhile (for stdin it holds the spooled copy)."""
+    return open_csv(inp.path, inp.name, job)
+
+
+def text_batches(inp: Input) -> Iterator[pa.RecordBatch]:
+    """A CSV input's text columns (:attr:`Input.text`) from its first row, block by block, as
+    text; stops early where the file stops being readable (reading ``inp`` says why)."""
+    ropts = pacsv.ReadOptions(block_size=CSV_BLOCK_BYTES)
+    copts = pacsv.ConvertOptions(
+        column_types=dict.fromkeys(inp.text, pa.string()), include_columns=list(inp.text), strings_can_be_null=False
+    )
+    try:
+        with pacsv.open_csv(inp.path, read_options=ropts, convert_options=copts) as reader:
+            yield from reader
+    except (OSError, pa.ArrowException):  # not the output's: reading inp again says what it is
+        return
+
+
+_CSV_COLUMN = re.compile(r"In CSV column #(\d+): CSV conversion error to \w+: invalid value '(.*)'")
+
+
+_CSV_RAGGED = re.compile(r"Expected (\d+) columns, got (\d+)")
+_CSV_UTF8 = re.compile(r"In CSV column #(\d+): CSV conversion error to string: invalid UTF8")
+
+
+def _csv_parse_error(path: str, name: str, exc: Exception) -> InputError:
+    """A row with the wrong number of values, or too long for a block, named by its data row;
+    else pyarrow's first line."""
+    m = _CSV_RAGGED.search(str(exc))
+    straddles = "straddl" in str(exc)  # a row longer than a block ("straddles two block boundaries")
+    if not m and not straddles:
+        return InputError(f"{name}: not a readable CSV file ({first_line(exc)})")
+    expected = int(m.group(1)) if m else 0
+    row, k = "", 0
+    try:  # the error path only: find the row with Python's csv module
+        with open(path, newline="", encoding="utf-8-sig") as f:
+            for k, fields in enumerate(csv.reader(f)):  # noqa: B007 - k is the last row read, below
+                if k == 0:
+                    expected = expected or len(fields)
+                elif fields and len(fields) != expected:
+                    row = f"data row {k}"
+                    if any("\n" in v for v in fields):  # a quote that ran on, often to the end of the file
+                        return InputError(
+                            f"{name}: data row {k} has {len(fields)} values where the header names {expected}, "
+                            "one of them running over several lines: a quote opened and never closed? close it"
+                        )
+                    break
+    except csv.Error:  # a value longer than the csv module's limit: pyarrow cut its row at a block's end
+        return InputError(
+            f"{name}: data row {k + 1} runs on for more than {csv.field_size_limit() >> 10} KiB in one value: "
+            "a quote opened and never closed, or a line that is not CSV; fix that row"
+        )
+    except (OSError, UnicodeDecodeError):
+        pass
+    if not m:
+        return InputError(
+            f"{name}: {row or 'a row'} is longer than {CSV_BLOCK_BYTES >> 20} MiB, the longest row hconv reads; "
+            "is it a CSV?"
+        )
+    return InputError(
+        f"{name}: {row or 'a row'} has {m.group(2)} values, but the header names {expected} columns; "
+        "every row needs one value per column (quote a value that holds a comma)"
+    )
+
+
+def _csv_value_error(path: str, name: str, names: list, ropts: pacsv.ReadOptions, exc: Exception) -> InputError:
+    """Turn pyarrow's conversion error into one naming the column, the value and its row."""
+    u = _CSV_UTF8.search(str(exc))
+    if u:
+        return InputError(
+            f"{name}: column {names[int(u.group(1))]!r} holds text that is not UTF-8; convert the "
+            "file to UTF-8 first (for example: iconv -f latin1 -t utf-8)"
+        )
+    m = _CSV_COLUMN.search(str(exc))
+    if not m:
+        return _csv_parse_error(path, name, exc)
+    col, value = names[int(m.group(1))], m.group(2)
+    where = ""
+    try:  # a second pass, on the error path only, to find the row
+        copts = pacsv.ConvertOptions(column_types={col: pa.string()}, include_columns=[col], strings_can_be_null=False)
+        nulls = set(copts.null_values)
+        seen = 0
+        for batch in pacsv.open_csv(path, read_options=ropts, convert_options=copts):
+            for k, v in enumerate(batch.column(0).to_pylist()):
+                if v not in nulls:
+                    try:
+                        float(v)
+                    except ValueError:
+                        where = f" in data row {seen + k + 1}"
+                        raise StopIteration from None
+            seen += batch.num_rows
+    except (StopIteration, OSError, pa.ArrowException):
+        pass
+    return InputError(
+        f"{name}: column {col!r} must be numeric but holds {value!r}{where}; "
+        "fix or blank that value (a blank becomes a row with status invalid_input)"
+    )
+
+
+def check_csv_columns(schema: pa.Schema, name: str) -> None:
+    """InputError, before anything is converted, for a column CSV cannot hold: a struct, map or
+    union (lists are written as text, :func:`_list_as_text`)."""
+    for f in schema:
+        t = f.type.value_type if pa.types.is_dictionary(f.type) else f.type
+        if pa.types.is_struct(t) or pa.types.is_map(t) or pa.types.is_union(t):
+            raise InputError(_csv_cannot_hold(name, f))
+
+
+def _csv_cannot_hold(name: str, f: pa.Field, why: str = "") -> str:
+    return (
+        f"{name + ': ' if name else ''}column {f.name!r} is {f.type}{why}, which CSV cannot hold; "
+        "write Parquet instead (OUT named .parquet), or drop the column first"
+    )
+
+
+def _binary_as_text(col: pa.ChunkedArray, f: pa.Field) -> pa.ChunkedArray:
+    """A binary column as text, which it must be to go into CSV: InputError if it holds bytes that
+    are not UTF-8 (a Parquet byte array without the string annotation usually is text)."""
+    try:
+        return col.cast(pa.string())
+    except pa.ArrowInvalid:
+        raise InputError(_csv_cannot_hold("", f, " and holds bytes that are not UTF-8 text")) from None
+
+
+def _list_as_text(col: pa.ChunkedArray) -> pa.ChunkedArray | pa.Array:
+    """A list column as text, ``[1.5, 2.0, 3.0]``, since CSV has no lists; other columns as they are."""
+    t = col.type
+    if not (pa.types.is_list(t) or pa.types.is_large_list(t) or pa.types.is_fixed_size_list(t)):
+        return col
+    return pa.array(
+        [None if v is None else "[" + ", ".join(repr(x) for x in v) + "]" for v in col.to_pylist()], type=pa.string()
+    )
+
+
+_NEEDS_QUOTES = r'[,"\r\n]'
+
+
+def _empty_beside_null(col: pa.ChunkedArray) -> bool:
+    """A text column holding both nulls and empty strings, which unquoted CSV would merge."""
+    return (
+        (pa.types.is_string(col.type) or pa.types.is_large_string(col.type))
+        and col.null_count > 0
+        and bool(pc.any(pc.equal(col, "")).as_py())
+    )
+
+
+def _csv_rows(t: pa.Table) -> bytes:
+    """``t`` as CSV rows, each value quoted only if it must be: one holding a comma, quote or line
+    break, and, in a column that also holds nulls, the empty string (``""``; a null is empty).
+    pyarrow's own quoting (``needed``) quotes every text value, so that ``1`` became ``"1"``; the
+    values are formatted by the same cast pyarrow's writer uses, so the bytes match its unquoted
+    output otherwise."""
+    cols = []
+    for col in t.columns:
+        text = pc.cast(col, pa.string())
+        quoted = pc.binary_join_element_wise('"', pc.replace_substring(text, '"', '""'), '"', "")
+        text = pc.if_else(pc.match_substring_regex(text, _NEEDS_QUOTES), quoted, text)
+        if col.null_count:
+            text = pc.if_else(pc.equal(text, ""), '""', text)
+        cols.append(pc.fill_null(text, ""))
+    lines = pc.binary_join_element_wise(*cols, ",") if cols else pa.array([""] * t.num_rows)
+    return "".join(line + "\n" for line in lines.to_pylist()).encode()
+
+
+class CsvWriter:
+    """CSV with a minimal-quoting header, ``status`` as text and ω's unit in a ``w_unit`` column."""
+
+    def __init__(self, path: str, schema: pa.Schema):
+        self._f = open(path, "wb")  # noqa: SIM115 - written batch by batch; close() closes it
+        meta = schema.field("wx").metadata or {} if "wx" in schema.names else {}
+        self._unit = meta[b"unit"].decode() if b"unit" in meta else None  # only tables with ω have one
+        names = schema.names + ([UNIT_COLUMN] if self._unit else [])
+        buf = io.StringIO()
+        csv.writer(buf, lineterminator="\n").writerow(names)
+        self._f.write(buf.getvalue().encode())
+        self._plain = pacsv.WriteOptions(include_header=False, quoting_style="none")
+
+    def write(self, table: pa.Table) -> None:
+        check_csv_columns(table.schema, "")  # the callers check the input first, naming it
+        cols = [
+            c.cast(pa.string())
+            if pa.types.is_dictionary(c.type)
+            else _binary_as_text(c, f)
+            if pa.types.is_binary(f.type) or pa.types.is_large_binary(f.type) or pa.types.is_fixed_size_binary(f.type)
+            else _list_as_text(c)
+            for c, f in zip(table.columns, table.schema, strict=True)
+        ]
+        names = table.schema.names
+        if self._unit:
+            cols.append(pa.repeat(self._unit, table.num_rows))
+            names = names + [UNIT_COLUMN]
+        t = pa.Table.from_arrays(cols, names=names)
+        if any(_empty_beside_null(c) for c in t.columns):
+            self._f.write(_csv_rows(t))
+            return
+        buf = pa.BufferOutputStream()
+        try:
+            pacsv.write_csv(t, buf, self._plain)
+        except pa.ArrowInvalid:  # a value holds a comma, quote or newline: quote those values only
+            self._f.write(_csv_rows(t))
+            return
+        self._f.write(buf.getvalue())
+
+    def close(self) -> None:
+        self._f.close()

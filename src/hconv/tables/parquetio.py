@@ -1,0 +1,232 @@
+"""Parquet in and out: the reader (batches of :data:`PARQUET_BATCH_ROWS` rows, pages streamed and
+their checksums checked, a part of a file by its rows; a damaged page named by its row group), a
+file's shape from its footer, parts joined into one file, and hconv's Parquet settings
+(:func:`parquet_write_options`, public as ``hconv.parquet_write_options``)."""
+
+from __future__ import annotations
+
+import itertools
+import os
+from collections.abc import Iterator
+from typing import Any
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from hconv.errors import InputError, first_line
+from hconv.tables import layout
+from hconv.tables.inputs import FileStat, Input, changed_while_read, unreadable
+from hconv.tables.job import Job
+from hconv.tables.sniff import rename_or_pass, what_it_is
+
+PARQUET_BATCH_ROWS = 65536
+
+
+def _not_parquet(path: str, name: str, exc: Exception) -> InputError:
+    """Why a file pyarrow cannot open as Parquet is not Parquet, when its first bytes tell."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(1 << 12)
+    except OSError:
+        head = b""
+    what = what_it_is(head, path, name, "parquet")
+    if what:
+        return InputError(f"{name}: {what}")
+    first = head.split(b"\n", 1)[0]
+    looks_csv = b"," in first and b"\x00" not in head and not head.startswith(b"PAR1")
+    hint = f" (it looks like CSV text: {rename_or_pass(name, 'csv')})" if looks_csv else ""
+    return InputError(
+        f"{name}: not a readable Parquet file ({first_line(exc)}){hint}; "
+        "check that it is Parquet and was completely written"
+    )
+
+
+def open_parquet(path: str, name: str, job: Job, rows: tuple[int, int] | None = None) -> Input:
+    """The Parquet file ``path``, in batches of :data:`PARQUET_BATCH_ROWS` rows counted from its
+    first row; with ``rows`` (start, stop), only those rows, reading only the row groups that hold
+    them, in the batches the whole file's reading gives them when ``start`` is a multiple of
+    :data:`PARQUET_BATCH_ROWS` (so that a part's output row groups are the whole file's:
+    :func:`hconv.tables.parts.split`)."""
+    try:
+        if os.path.getsize(path) == 0:
+            raise InputError(f"{name}: the file is empty (0 bytes); it is not a Parquet file")
+        source = pa.OSFile(path)
+        at_open = FileStat.of(source.fileno())
+        # Stream pages rather than pre-buffering whole row groups, so that peak memory does not
+        # grow with the writer's row-group size (docs/measurements.md).
+        # Pages that carry a checksum (pyarrow writes them with write_page_checksum=True) are
+        # checked: a damaged page of plain floats otherwise reads as other numbers, silently.
+        pf = pq.ParquetFile(source, pre_buffer=False, buffer_size=1 << 20, page_checksum_verification=True)
+        schema = pf.schema_arrow  # a footer whose column metadata is damaged fails here
+        meta = pf.metadata
+    except pa.ArrowException as exc:
+        raise _not_parquet(path, name, exc) from None
+    except OSError as exc:
+        if exc.errno is None and os.path.isfile(path):  # pyarrow's own errors about the bytes
+            raise _not_parquet(path, name, exc) from None
+        raise unreadable(name, exc) from None
+    plan = layout.plan(schema, job, name)
+    done = [0]
+    start, stop = rows if rows is not None else (0, meta.num_rows)
+    groups, skip = _row_groups(meta, start, stop)
+
+    def read(row_groups: list[int]) -> Iterator[pa.RecordBatch]:
+        """``pf``'s batches of ``row_groups``. pyarrow reads and decodes the pages lazily, here, on
+        the reading thread: whatever it raises is the input's fault (before, a damaged page's
+        OSError reached the CLI as the output's, exit 4), named by its row group."""
+        got = pf.iter_batches(batch_size=PARQUET_BATCH_ROWS, row_groups=row_groups)
+        n = 0  #: rows read, from the first of row_groups
+        while True:
+            try:
+                batch = next(got)
+            except StopIteration:
+                return
+            except Exception as exc:  # noqa: BLE001 - only pyarrow's reading runs in this try
+                raise changed_while_read(name, source.fileno(), at_open, f"; {first_line(exc)}") or _damaged(
+                    pf, name, row_groups, n, exc
+                ) from None
+            n += batch.num_rows
+            yield batch
+
+    def read_all() -> Iterator[pa.RecordBatch]:
+        got = read(groups)
+        for batch in got if rows is None else _rebatched(got, skip, stop - start):
+            done[0] += batch.num_rows
+            yield batch
+        changed = changed_while_read(name, source.fileno(), at_open)
+        if changed:  # rewritten in place while read: what was read may mix two versions of it
+            raise changed
+
+    batches = read_all()
+    if any(g.is_list and g.size is None for g in plan.groups.values()):
+        # A variable-length list column's length shows only in the data: the file's first batch
+        # fixes it, here on the reading thread, so every batch (of every part) is held to the same plan.
+        first = next(batches, None) if start == 0 else next(read([0]), None)
+        if first is not None:
+            plan = plan.resolve(pa.Table.from_batches([first]))
+            if start == 0:
+                batches = itertools.chain([first], batches)
+    closers = [pf.close, source.close]
+    return Input(name, schema, batches, stop - start, lambda: done[0], plan, closers, first_row=start)
+
+
+def _damaged(pf: pq.ParquetFile, name: str, groups: list[int], read: int, exc: Exception) -> InputError:
+    """The error for a Parquet file whose pages pyarrow could not read after ``read`` rows of the
+    row groups ``groups``, naming the row group that fails: the next batch may span several, so
+    each that it touches is read again, alone (on this error path only)."""
+    meta = pf.metadata
+    firsts = list(itertools.accumulate((meta.row_group(k).num_rows for k in range(meta.num_row_groups)), initial=0))
+    bad, n = None, 0
+    for k in groups:
+        rows = meta.row_group(k).num_rows
+        if n + rows > read and n < read + PARQUET_BATCH_ROWS:  # the failing batch touches it
+            bad = bad if bad is not None else k  # at worst the first it touches
+            try:
+                for _ in pf.iter_batches(batch_size=PARQUET_BATCH_ROWS, row_groups=[k]):
+                    pass
+            except Exception:  # noqa: BLE001 - any failure names this row group
+                bad = k
+                break
+        n += rows
+    if bad is None:
+        return InputError(f"{name}: cannot be read ({first_line(exc)}); the file is damaged: write it again")
+    return InputError(
+        f"{name}: row group {bad + 1} of {meta.num_row_groups} (data rows {firsts[bad] + 1}-{firsts[bad + 1]}) "
+        f"cannot be read ({first_line(exc)}); the file is damaged or was not completely written: "
+        "write it again from its source"
+    )
+
+
+def _row_groups(meta: pq.FileMetaData, start: int, stop: int) -> tuple[list[int], int]:
+    """The row groups holding rows [start, stop), and how many rows of the first precede ``start``."""
+    groups: list[int] = []
+    skip = first = 0
+    for k in range(meta.num_row_groups):
+        n = meta.row_group(k).num_rows
+        if first < stop and first + n > start:
+            if not groups:
+                skip = start - first
+            groups.append(k)
+        first += n
+    return groups, skip
+
+
+def _rebatched(batches: Iterator[pa.RecordBatch], skip: int, count: int) -> Iterator[pa.RecordBatch]:
+    """``count`` rows after the first ``skip`` of ``batches``, in batches of
+    :data:`PARQUET_BATCH_ROWS` (the last shorter): the reader's batches start at a row group's
+    first row, the whole file's at the file's."""
+    held: list[pa.RecordBatch] = []
+    n = 0
+    for batch in batches:
+        if skip >= batch.num_rows:
+            skip -= batch.num_rows
+            continue
+        batch = batch.slice(skip, min(batch.num_rows - skip, count))
+        skip = 0
+        count -= batch.num_rows
+        held.append(batch)
+        n += batch.num_rows
+        while n >= PARQUET_BATCH_ROWS:
+            whole = pa.concat_batches(held) if len(held) > 1 else held[0]
+            yield whole.slice(0, PARQUET_BATCH_ROWS)
+            rest = whole.slice(PARQUET_BATCH_ROWS)
+            held, n = ([rest] if rest.num_rows else []), rest.num_rows
+        if count <= 0:
+            break
+    if n:
+        yield pa.concat_batches(held) if len(held) > 1 else held[0]
+
+
+def parquet_shape(source: str | Any) -> tuple[int, int]:
+    """(rows, row groups) of a Parquet file, a path or an open file, from its footer alone."""
+    with pq.ParquetFile(source) as pf:
+        return pf.metadata.num_rows, pf.metadata.num_row_groups
+
+
+def join_parquet(parts: list[str], path: str) -> None:
+    """Write the Parquet files ``parts`` (the parts of one output, in order, each written by
+    hconv's writer) into ``path`` as one file, row group by row group: the same schema, metadata
+    and writer options, so that the file is the one the whole conversion writes
+    (:func:`hconv.tables.parts.join_parts`)."""
+    writer: ParquetWriter | None = None
+    try:
+        for part in parts:
+            with pq.ParquetFile(part) as pf:
+                if writer is None:
+                    writer = ParquetWriter(path, pf.schema_arrow)
+                for k in range(pf.metadata.num_row_groups):
+                    writer.write(pf.read_row_group(k))
+    finally:
+        if writer is not None:
+            writer.close()
+
+
+def parquet_write_options(schema: pa.Schema) -> dict:
+    """hconv's Parquet settings for a table of ``schema``, as keyword arguments of
+    ``pyarrow.parquet.ParquetWriter`` and ``pyarrow.parquet.write_table`` (and of what passes
+    them on: Dask's ``to_parquet``, Ray's ``arrow_parquet_args``); hconv's own writer uses them.
+
+    Float columns plain: no dictionary, no compression. Every other column (ids, labels,
+    ``status``) dictionary-encoded and snappy-compressed. The settings name top-level columns, so
+    the values of a list column get pyarrow's writer defaults: no dictionary, no compression.
+    """
+    # Dictionary encoding and compression pay for labels and statuses. On floats that rarely
+    # repeat, dictionaries only cost time and snappy saves little space for much writing
+    # time (docs/measurements.md), so float columns are written plain.
+    floats = {f.name for f in schema if pa.types.is_floating(f.type)}
+    others = [f.name for f in schema if f.name not in floats]
+    return {
+        "use_dictionary": others or False,
+        "compression": {f.name: "none" if f.name in floats else "snappy" for f in schema},
+    }
+
+
+class ParquetWriter:
+    def __init__(self, path: str, schema: pa.Schema):
+        self._w = pq.ParquetWriter(path, schema, **parquet_write_options(schema))
+
+    def write(self, table: pa.Table) -> None:
+        self._w.write_table(table)
+
+    def close(self) -> None:
+        self._w.close()

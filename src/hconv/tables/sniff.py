@@ -1,0 +1,218 @@
+"""Telling what a path holds before reading it: the format a name (or ``--from``/``--to``) says;
+a path that is missing, a directory or a pipe; and, from a file's first bytes, what a file that is
+not plain CSV or Parquet is instead (compressed, a spreadsheet, UTF-16 text), each with the
+command that makes it readable."""
+
+from __future__ import annotations
+
+import difflib
+import os
+import shlex
+import stat
+from pathlib import Path
+
+from hconv.errors import InputError, OutputError, UsageError, option
+from hconv.tables.formats import EXTENSIONS, FORMATS
+from hconv.tables.inputs import unreadable
+
+
+def format_of(path: str, given: str | None, flag: str) -> str:
+    """``given`` if set, else the format named by ``path``'s extension; UsageError otherwise.
+    ``flag`` is ``src_format`` (``--from``) for an input, ``dst_format`` (``--to``) for an output."""
+    if path == "":  # an unset shell variable: "hconv convert "$in" out.csv"
+        which, std = ("input", "stdin") if flag == "src_format" else ("output", "stdout")
+        raise UsageError(f"the {which} path is empty (''); give a file path, or - for {std}")
+    if given:
+        if given not in FORMATS:
+            raise UsageError(f"{option(flag)} must be {' or '.join(FORMATS)}, got {given!r}")
+        named = _named_format(path) if path != "-" else None
+        if named not in (None, given):  # out.csv with --to parquet: one of the two is a mistake
+            base = path[: -len(Path(path).suffix)]
+            raise UsageError(
+                f"{path}: the name says {_FORMAT_NAMES[named]} but {option(flag, given)} says "
+                f"{_FORMAT_NAMES[given]}; name it {base}{EXTENSIONS[given][0]}, or drop {option(flag)}"
+            )
+        return given
+    if path == "-":
+        raise UsageError(
+            f"'-' has no extension to tell the format; pass {option(flag, 'csv')} or {option(flag, 'parquet')}"
+        )
+    suffix = Path(path).suffix.lower()
+    fmt = _named_format(path)
+    if fmt is None:
+        if flag == "src_format":
+            input_kind(path)  # a path that is missing or a directory: say so, not that its name has no format
+        _refuse_compressed_name(path, suffix, flag)
+        raise UsageError(
+            f"cannot tell the format of {path!r} from its extension; "
+            f"name it .csv or .parquet, or pass {option(flag, 'csv')} or {option(flag, 'parquet')}"
+        )
+    return fmt
+
+
+_FORMAT_NAMES = {"csv": "CSV", "parquet": "Parquet"}
+
+
+def _named_format(path: str) -> str | None:
+    """The format ``path``'s extension names, or None."""
+    suffix = Path(path).suffix.lower()
+    return next((f for f, exts in EXTENSIONS.items() if suffix in exts), None)
+
+
+#: Compressions people often hand hconv: name, leading bytes, file suffixes, the command that
+#: writes the plain bytes to stdout, and the one that compresses a file ({plain}, {packed}).
+_COMPRESSIONS = (
+    ("gzip", b"\x1f\x8b", (".gz", ".gzip"), "gzip -dc", "gzip {plain}"),
+    ("bzip2", b"BZh", (".bz2",), "bzip2 -dc", "bzip2 {plain}"),
+    ("xz", b"\xfd7zXZ\x00", (".xz",), "xz -dc", "xz {plain}"),
+    ("zstd", b"\x28\xb5\x2f\xfd", (".zst", ".zstd"), "zstd -dc", "zstd {plain}"),
+    ("zip", b"PK\x03\x04", (".zip",), "unzip -p", "zip {packed} {plain}"),
+)
+_OLE2 = b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1"  # Excel 97-2003 (.xls)
+_SAVE_AS_CSV = "open it in the spreadsheet and save the sheet as 'CSV UTF-8 (comma delimited)'"
+
+
+def _refuse_compressed_name(path: str, suffix: str, flag: str) -> None:
+    """``in.csv.gz`` and ``out.csv.gz``: hconv reads and writes plain files only (the message for
+    reading names the command that decompresses it)."""
+    packed = next((c for c in _COMPRESSIONS if suffix in c[2]), None)
+    plain = path[: -len(suffix)] if suffix else path
+    if packed is None or not any(Path(plain).suffix.lower() in exts for exts in EXTENSIONS.values()):
+        return
+    what, _, _, unpack, pack = packed
+    kind = _FORMAT_NAMES[_named_format(plain) or "csv"]
+    if flag == "src_format":
+        raise InputError(
+            f"{path}: is {_packed(what)}; hconv reads uncompressed {kind}, so decompress it first: "
+            f"{unpack} {shlex.quote(path)} > {shlex.quote(_free_name(plain))}"
+        )
+    raise OutputError(
+        f"{path}: hconv writes uncompressed {kind}; write {plain} and compress it afterwards: "
+        + pack.format(plain=shlex.quote(plain), packed=shlex.quote(path))
+    )
+
+
+def _free_name(plain: str) -> str:
+    """``plain``, or if that exists ``<base>-plain<ext>`` (then -plain-2, …): a decompress command
+    must never overwrite a file, least of all the plain copy the user may already have."""
+    base, ext = os.path.splitext(plain)
+    name, k = plain, 1
+    while os.path.lexists(name):
+        name = f"{base}-plain{ext}" if k == 1 else f"{base}-plain-{k}{ext}"
+        k += 1
+    return name
+
+
+def _packed(what: str) -> str:
+    return "a zip archive" if what == "zip" else f"{what}-compressed"
+
+
+def what_it_is(head: bytes, path: str, name: str, fmt: str) -> str | None:
+    """What a file that is not plain ``fmt`` is instead, from its first bytes, and how to make it
+    readable: a compressed file, a spreadsheet or UTF-16 text. None if it is none of these."""
+    piped = path != name  # stdin, or a pipe given by name: the fix goes into the pipe
+    kind = "CSV" if fmt == "csv" else "Parquet"
+
+    def fix(command: str, suffixes: tuple, tag: str) -> str:
+        if piped:
+            return f"in the pipe, before hconv: ... | {command} | hconv ..."
+        base, ext = os.path.splitext(name)
+        if ext.lower() in suffixes:  # ok.csv.gz -> ok.csv; ok.zip -> ok.csv, not ok
+            plain = base if _named_format(base) else base + EXTENSIONS[fmt][0]
+        else:
+            plain = f"{base}{tag}{ext}"
+        return f"first: {command} {shlex.quote(name)} > {shlex.quote(_free_name(plain))}"
+
+    for what, magic, suffixes, unpack, _ in _COMPRESSIONS:
+        if not head.startswith(magic):
+            continue
+        if what == "bzip2" and not (head[3:4].isdigit() and head[4:10] in (b"1AY&SY", b"\x17rE8P\x90")):
+            continue  # a text file may start with 'BZh'; a bzip2 stream goes on with its block magic
+        if what == "zip" and (b"[Content_Types].xml" in head or b"xl/" in head):
+            return f"is an Excel workbook (.xlsx), not {kind}; {_SAVE_AS_CSV}"
+        if what == "zip" and b"opendocument.spreadsheet" in head[:128]:
+            return f"is an OpenDocument spreadsheet (.ods), not {kind}; {_SAVE_AS_CSV}"
+        return (
+            f"is {_packed(what)}; hconv reads uncompressed {kind}, so decompress it {fix(unpack, suffixes, '-plain')}"
+        )
+    if head.startswith(_OLE2):
+        return f"is an Excel 97-2003 workbook (.xls), not {kind}; {_SAVE_AS_CSV}"
+    if fmt != "csv":
+        return None
+    encoding = None
+    if head.startswith((b"\xff\xfe\x00\x00", b"\x00\x00\xfe\xff")):
+        encoding = "UTF-32"
+    elif head.startswith((b"\xff\xfe", b"\xfe\xff")):
+        encoding = "UTF-16"
+    elif len(head) >= 4:  # UTF-16 without a byte-order mark: in ASCII text every other byte is NUL
+        even, odd = head[0::2], head[1::2]
+        if odd.count(0) >= 0.9 * len(odd) and even.count(0) <= 0.1 * len(even):
+            encoding = "UTF-16LE"
+        elif even.count(0) >= 0.9 * len(even) and odd.count(0) <= 0.1 * len(odd):
+            encoding = "UTF-16BE"
+    if encoding:
+        return (
+            f"is {encoding} text; hconv reads UTF-8, so convert it {fix(f'iconv -f {encoding} -t UTF-8', (), '-utf8')}"
+        )
+    return None
+
+
+def input_kind(path: str) -> str:
+    """``file``, or ``pipe`` for a FIFO or a character device (``<(zcat in.csv.gz)``, /dev/stdin),
+    which cannot seek and is spooled like stdin; InputError for a path that cannot be an input."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        raise InputError(_missing(path)) from None
+    except OSError as exc:
+        raise unreadable(path, exc) from None
+    if stat.S_ISDIR(mode):
+        raise InputError(_directory(path))
+    if stat.S_ISFIFO(mode) or stat.S_ISCHR(mode):
+        return "pipe"
+    if not stat.S_ISREG(mode):
+        raise InputError(f"{path}: is not a file (a socket?); give a CSV or Parquet file")
+    return "file"
+
+
+def _missing(path: str) -> str:
+    if os.path.islink(path):
+        return f"{path}: is a link to {os.readlink(path)!r}, which does not exist; check the link"
+    parent = os.path.dirname(path)
+    if parent and not os.path.isdir(parent):
+        return f"{path}: does not exist, nor does the directory {parent!r}; check the path"
+    try:
+        names = os.listdir(parent or ".")
+    except OSError:
+        names = []
+    near = difflib.get_close_matches(os.path.basename(path), names, n=1, cutoff=0.8)
+    guess = f" (did you mean {os.path.join(parent, near[0])}?)" if near else ""
+    return f"{path}: does not exist{guess}; check the path"
+
+
+def _directory(path: str) -> str:
+    """A directory given to a command that reads one file (``hconv convert`` takes a directory as a
+    dataset, hconv.tables.dataset, and does not get here)."""
+    known = {e for exts in EXTENSIONS.values() for e in exts}
+    try:
+        files = sorted(e.name for e in os.scandir(path) if e.is_file() and Path(e.name).suffix.lower() in known)
+    except OSError:
+        files = []
+    head = f"{path}: is a directory, and this command reads one file"
+    readme = "hconv convert takes a whole directory: see 'Datasets' in the README"
+    if not files:
+        return f"{head}; give a CSV or Parquet file ({readme})"
+    if len(files) == 1:
+        return f"{head}; give the file in it, {os.path.join(path, files[0])} ({readme})"
+    return (
+        f"{head}; give one of the {len(files)} CSV or Parquet files in it, such as "
+        f"{os.path.join(path, files[0])} ({readme})"
+    )
+
+
+def rename_or_pass(name: str, fmt: str) -> str:
+    """How to read a file whose bytes are ``fmt`` as ``fmt``: a name with another format's
+    extension must change (--from may not contradict it); one without may keep it."""
+    if _named_format(name):
+        return f"rename it {os.path.splitext(name)[0]}{EXTENSIONS[fmt][0]}"
+    return f"name it {EXTENSIONS[fmt][0]} or pass {option('src_format', fmt)}"

@@ -1,0 +1,112 @@
+"""Atomic output (hconv.tables.output): what it refuses to write over, links, stdout, and a full
+disk named as the output's."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+from helpers import run_inprocess, run_on_terminal
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENE_CSV = ROOT / "examples" / "data" / "scene.csv"
+
+
+def test_output_force_refuses_a_path_that_is_not_a_regular_file(tmp_path, capsys, monkeypatch):
+    """Before: --force renamed a file over a FIFO (as root, over /dev/full), exit 0."""
+    monkeypatch.chdir(tmp_path)
+    Path("in.csv").write_bytes(SCENE_CSV.read_bytes())
+    os.mkfifo("ff.csv")
+    code, _, err = run_inprocess("convert", "in.csv", "ff.csv", "--force", capsys=capsys)
+    assert (code, err) == (
+        4,
+        "hconv: error: ff.csv: is not a regular file (a named pipe (FIFO)); hconv writes OUT by renaming a "
+        "finished file into place; give a file path, or - to write to stdout\n",
+    )
+    assert Path("ff.csv").is_fifo()
+
+
+def test_output_force_through_a_symlink_writes_its_target_and_keeps_the_link(tmp_path, capsys, monkeypatch):
+    """Before: the link itself was replaced by a file, its target left as it was."""
+    monkeypatch.chdir(tmp_path)
+    Path("in.csv").write_bytes(SCENE_CSV.read_bytes())
+    Path("real").mkdir()
+    Path("real/out.csv").write_text("old\n")
+    os.symlink("real/out.csv", "link.csv")
+    code, _, err = run_inprocess("convert", "in.csv", "link.csv", "-q", capsys=capsys)
+    assert (code, err) == (4, "hconv: error: link.csv: already exists; pass --force to overwrite it\n")
+    code, _, err = run_inprocess("convert", "in.csv", "link.csv", "--force", "-q", capsys=capsys)
+    assert (code, err) == (0, "")
+    assert os.readlink("link.csv") == "real/out.csv"
+    assert Path("real/out.csv").read_text().startswith(SCENE_CSV.read_text().split(",", 1)[0])
+    assert [p.name for p in Path("real").iterdir()] == ["out.csv"]  # the temporary went beside the target
+
+
+def test_output_parquet_to_stdout_on_a_terminal_is_refused(tmp_path):
+    """Before: `hconv convert in.csv - --to parquet` wrote binary Parquet onto the terminal."""
+    code, shown = run_on_terminal("convert", str(SCENE_CSV), "-", "--to", "parquet", "-q", cwd=tmp_path)
+    assert (code, shown) == (2, "hconv: error: Parquet is binary: redirect stdout (> out.parquet) or use --to csv\n")
+
+
+@pytest.mark.parametrize("fmt", ["csv", "parquet"])
+def test_output_full_disk_names_the_output(fmt, tmp_path, capsys, monkeypatch):
+    """A full disk while writing: the message names OUT, as every output error does (it said
+    ``output: Error writing bytes to file. Detail: [errno 28] ...``)."""
+    import errno
+
+    from hconv.tables import csvio, parquetio
+
+    writer = csvio.CsvWriter if fmt == "csv" else parquetio.ParquetWriter
+
+    def full(self, table):
+        raise OSError(errno.ENOSPC, "Error writing bytes to file. Detail: [errno 28] No space left on device")
+
+    monkeypatch.setattr(writer, "write", full)
+    pq.write_table(pa.table({"Hx": [1.0], "Hy": [2.0], "Hz": [3.0], "I": [2.0]}), tmp_path / "in.parquet")
+    out = tmp_path / f"out.{fmt}"
+    code, _, err = run_inprocess("convert", str(tmp_path / "in.parquet"), str(out), "-q", capsys=capsys)
+    assert (
+        code == 4
+        and err == f"hconv: error: {out}: could not be written (No space left on device); nothing was written\n"
+    )
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.parquet"]
+
+
+def test_output_to_stdout_on_a_full_disk_names_stdout(tmp_path):
+    (tmp_path / "in.csv").write_text("Hx,Hy,Hz,I\n1,2,3,2\n")
+    with open("/dev/full", "wb") as full:
+        proc = subprocess.run(
+            [sys.executable, "-m", "hconv", "convert", "in.csv", "-", "--to", "csv", "-q"],
+            stdout=full, stderr=subprocess.PIPE, cwd=tmp_path, timeout=120,
+        )  # fmt: skip
+    err = proc.stderr.decode()
+    assert (
+        proc.returncode == 4
+        and err == "hconv: error: stdout: could not be written (No space left on device); nothing was written\n"
+    )
+
+
+@pytest.mark.parametrize("through", ["file link", "folder link", "hard link"])
+def test_output_that_is_the_input_through_a_link_is_refused_and_the_input_kept(through, tmp_path, capsys):
+    """OUT names the input by another path: refused as the input, even with --force, never the
+    input replaced by its own conversion."""
+    src = tmp_path / "a.parquet"
+    code, _, err = run_inprocess("generate", str(src), "--rows", "5", capsys=capsys)
+    before = src.read_bytes()
+    if through == "file link":
+        out = tmp_path / "link_to_a.parquet"
+        out.symlink_to("a.parquet")
+    elif through == "folder link":
+        (tmp_path / "here").symlink_to(".")
+        out = tmp_path / "here" / "a.parquet"
+    else:
+        out = tmp_path / "also_a.parquet"
+        os.link(src, out)
+    code, _, err = run_inprocess("convert", str(src), str(out), "--force", capsys=capsys)
+    assert code == 4 and err == f"hconv: error: {out}: is the input file; write the output to another path\n"
+    assert src.read_bytes() == before
