@@ -549,6 +549,39 @@ def test_convert_dataset_refuses_in_and_out_joined_by_a_link(
     assert _files(tmp_path / "data") == before and _files(tmp_path / "out") == set()
 
 
+@pytest.mark.parametrize(
+    "link, target, message",
+    [
+        # back to IN or a folder holding it: the listing took IN's files again at every turn
+        # (40 nested copies, exit 0), until the system's limit on links
+        ("data/self", ".", "data/self is a link that leads back to data, a loop"),
+        ("data/date=2026-01-01/back", "..", "data/date=2026-01-01/back is a link that leads back to data, a loop"),
+        # to OUT before this run makes it: a link that leads nowhere yet was let through
+        ("data/outlink", "../out", "data/outlink is a link that leads to out; remove the link"),
+    ],
+)  # fmt: skip
+def test_convert_dataset_refuses_a_link_that_loops_or_will_lead_to_out(
+    link, target, message, tmp_path, capsys, monkeypatch
+):
+    monkeypatch.chdir(tmp_path)
+    _dataset(tmp_path / "data", rows=20)
+    os.symlink(target, tmp_path / link)
+    code, err = _hconv("convert", "data", "out", capsys=capsys)
+    assert code == 2 and err.startswith(f"hconv: error: {message}") and len(err.splitlines()) == 1, err
+    assert not (tmp_path / "out").exists()
+
+
+def test_convert_dataset_out_that_is_a_device_is_not_a_directory(tmp_path, capsys, monkeypatch):
+    """OUT /dev/full said that its manifest could not be read (Not a directory)."""
+    monkeypatch.chdir(tmp_path)
+    _dataset(tmp_path / "data", rows=20)
+    code, err = _hconv("convert", "data", "/dev/full", capsys=capsys)
+    assert (code, err) == (
+        4,
+        "hconv: error: /dev/full: is not a directory; a dataset is written into a directory (it is made if missing)\n",
+    )
+
+
 def test_convert_dataset_refuses_an_input_that_links_to_an_output(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     _dataset(tmp_path / "data", rows=20)

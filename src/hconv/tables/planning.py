@@ -100,8 +100,9 @@ def plan_dataset(
             f"give a directory for OUT, such as {stem}/ (hconv makes it)"
         )
     if out.local:
-        if os.path.isfile(out.root):
-            raise OutputError(f"{dst}: is a file; a dataset is written into a directory (it is made if missing)")
+        if os.path.exists(out.root) and not os.path.isdir(out.root):  # a file, or a device such as /dev/full
+            what = "a file" if os.path.isfile(out.root) else "not a directory"
+            raise OutputError(f"{dst}: is {what}; a dataset is written into a directory (it is made if missing)")
         parent = os.path.dirname(out.root)
         if not os.path.isdir(parent):
             shown = os.path.dirname(out.shown) or parent
@@ -172,19 +173,29 @@ def plan_dataset(
 
 
 def _refuse_links_into_out(source: Source, out: Place) -> None:
-    """UsageError, before IN is listed, when a folder link in IN leads into OUT or to a folder
-    holding it: the listing follows links, so outputs would come back as inputs (and a link to a
-    folder holding IN would be listed without end). Comparing the two paths cannot see it."""
+    """UsageError, before IN is listed, when a link in IN leads into OUT or to a folder holding it
+    (the listing follows links, so outputs would come back as inputs), or back to IN or a folder
+    holding it (a loop: the listing would take IN's files again at every turn, until the system's
+    limit on links). Comparing the two paths cannot see either. A link that leads nowhere yet is
+    judged by where it leads: OUT is made by this run."""
     out_real = os.path.realpath(out.root)
-    for folder, dirs, _ in os.walk(source.place.root):
-        for d in dirs:
-            path = os.path.join(folder, d)
+    in_real = os.path.realpath(source.place.root)
+    for folder, dirs, files in os.walk(source.place.root):
+        for name in (*dirs, *files):  # a link that leads nowhere yet is listed among the files
+            path = os.path.join(folder, name)
+            if not os.path.islink(path):
+                continue
             real = os.path.realpath(path)
-            if os.path.islink(path) and (storage.inside(real, out_real) or storage.inside(out_real, real)):
-                rel = os.path.relpath(path, source.place.root).replace(os.sep, "/")
+            rel = os.path.relpath(path, source.place.root).replace(os.sep, "/")
+            if storage.inside(real, out_real) or storage.inside(out_real, real):
                 raise UsageError(
                     f"{source.place.name(rel)} is a link that leads to {out.shown}; "
                     "remove the link, or write the dataset to a directory it does not lead to"
+                )
+            if storage.inside(in_real, real):
+                raise UsageError(
+                    f"{source.place.name(rel)} is a link that leads back to {source.place.shown}, a loop that "
+                    "would take its files again and again; remove the link"
                 )
 
 
