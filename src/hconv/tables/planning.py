@@ -181,7 +181,10 @@ def _refuse_links_into_out(source: Source, out: Place) -> None:
     out_real = os.path.realpath(out.root)
     in_real = os.path.realpath(source.place.root)
     for folder, dirs, files in os.walk(source.place.root):
-        for name in (*dirs, *files):  # a link that leads nowhere yet is listed among the files
+        # a link that leads nowhere yet is listed among the files; one to a file is
+        # _refuse_linked_overlap's, which names the file
+        dangling = [name for name in files if not os.path.exists(os.path.join(folder, name))]
+        for name in (*dirs, *dangling):
             path = os.path.join(folder, name)
             if not os.path.islink(path):
                 continue
