@@ -110,3 +110,30 @@ def test_output_that_is_the_input_through_a_link_is_refused_and_the_input_kept(t
     code, _, err = run_inprocess("convert", str(src), str(out), "--force", capsys=capsys)
     assert code == 4 and err == f"hconv: error: {out}: is the input file; write the output to another path\n"
     assert src.read_bytes() == before
+
+
+def test_output_stdout_redirected_onto_the_input_is_refused(tmp_path):
+    """``hconv convert a.csv - >> a.csv`` appended the output to its own input (exit 0). A real
+    process: what is under test is the descriptor the shell hands it."""
+    src = tmp_path / "a.csv"
+    src.write_bytes(SCENE_CSV.read_bytes())
+    before = src.read_bytes()
+    with open(src, "ab") as out:
+        proc = subprocess.run(
+            [sys.executable, "-m", "hconv", "convert", str(src), "-", "--to", "csv"],
+            stdout=out,
+            stderr=subprocess.PIPE,
+            timeout=300,
+        )
+    assert proc.returncode == 4 and src.read_bytes() == before
+    assert proc.stderr.decode() == (
+        "hconv: error: stdout: is the input file (redirected onto it); write the output to another path\n"
+    )
+
+
+def test_output_in_a_path_through_a_file_says_it_is_not_a_directory(tmp_path, capsys, monkeypatch):
+    """It said "(Not a directory); check its permissions": not a permissions problem."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a.csv").write_bytes(SCENE_CSV.read_bytes())
+    code, _, err = run_inprocess("convert", "a.csv", "a.csv/o.parquet", capsys=capsys)
+    assert (code, err) == (4, "hconv: error: a.csv/o.parquet: 'a.csv' is not a directory; give a path in a directory\n")

@@ -42,6 +42,8 @@ class Output:
                 raise UsageError(
                     f"Parquet is binary: redirect stdout (> out.parquet) or use {option('dst_format', 'csv')}"
                 )
+            if input_path not in (None, "-") and _stdout_is(input_path):  # `>> in.parquet` would append to it
+                raise OutputError("stdout: is the input file (redirected onto it); write the output to another path")
             return
         try:
             mode: int | None = os.stat(path).st_mode  # follows a link: what would be overwritten
@@ -59,6 +61,8 @@ class Output:
         target = Path(self._target)
         if not target.parent.exists():
             raise OutputError(f"{path}: the directory {str(target.parent)!r} does not exist; create it first")
+        if not target.parent.is_dir():
+            raise OutputError(f"{path}: {str(target.parent)!r} is not a directory; give a path in a directory")
         if input_path not in (None, "-") and target.exists() and os.path.samefile(input_path, target):
             raise OutputError(f"{path}: is the input file; write the output to another path")
         if target.exists() and not force:
@@ -159,3 +163,11 @@ def _file_kind(mode: int) -> str:
         if test(mode):
             return what
     return "not a file"
+
+
+def _stdout_is(path: str) -> bool:
+    """Whether stdout is the file at ``path`` (a shell's ``>`` or ``>>`` onto it)."""
+    try:
+        return os.path.samestat(os.fstat(sys.stdout.fileno()), os.stat(path))
+    except (OSError, ValueError, AttributeError):  # closed, not a file descriptor (a test's capture), gone
+        return False
