@@ -319,3 +319,10 @@ def test_convert_plain_numbers_load_no_pint():
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=60)
     assert proc.stdout.decode().split() == ["False"], proc.stderr.decode()
+
+
+def test_convert_extra_k_that_is_not_a_bare_number_names_it():
+    """A Quantity given as extra_k raised pint's own DimensionalityError, naming nothing."""
+    for bad in (1 * _ureg()("kg*m**2"), "2", -1.0, float("nan")):
+        with pytest.raises(UsageError, match=r"^extra_k must be a number >= 0 \(an error constant, no unit\), got "):
+            hconv.convert([1.0, 2.0, 3.0], [1.0, 1.0, 1.0], extra_k=bad)

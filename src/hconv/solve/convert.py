@@ -134,6 +134,9 @@ def convert(
         engine=engine,
     )
     _refuse_scene(opts)
+    # a bare number: a pint Quantity or text here would fail deep inside, naming nothing
+    if isinstance(extra_k, bool) or not isinstance(extra_k, (int, float, np.integer, np.floating)) or not extra_k >= 0:
+        raise UsageError(f"extra_k must be a number >= 0 (an error constant, no unit), got {extra_k!r}")
     m = methods.get(opts.method)
     precision, diagnostics, engine = opts.precision, opts.diagnostics, opts.engine
     degenerate, degenerate_rtol = opts.conventions.degenerate, opts.conventions.degenerate_rtol
