@@ -65,6 +65,16 @@ class Result:
         """Rows per status, in precedence order."""
         return status.counts(np.atleast_1d(self.status_code))
 
+    def body(self, k: int) -> Result:
+        """Row ``k`` of a stacked Result: one body's, each array unstacked."""
+
+        def at(a: np.ndarray | None) -> np.ndarray | None:
+            return None if a is None else a[k]
+
+        w, cond, code = self.w[k], self.cond[k], self.status_code[k]
+        return Result(w, at(self.residual), cond, code, self.unit, self.method, at(self.null_axis),
+                      at(self.null_dim), self.engine, at(self.cancelled))  # fmt: skip
+
 
 def convert(
     H: ArrayLike,
@@ -159,17 +169,7 @@ def convert(
         engine=engine,
     )
     if single:
-        res = Result(
-            res.w[0],
-            None if res.residual is None else res.residual[0],
-            res.cond[0],
-            res.status_code[0],
-            res.unit,
-            res.method,
-            None if res.null_axis is None else res.null_axis[0],
-            None if res.null_dim is None else res.null_dim[0],
-            res.engine,
-        )
+        res = res.body(0)
     if args.quantities:  # ω in the registry of the first Quantity given (pint refuses to mix registries)
         res = replace(res, w=args.quantities[0](res.w, res.unit))
     return res

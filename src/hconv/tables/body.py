@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -99,20 +100,11 @@ def convert_body(
     quantities: list[type] = []  # the classes of the pint Quantities given, as hconv.convert keeps them
     sets, form = _sets(H, I, r, q, m, v, job, quantities)
     res = bodies.solve(sets, form, job.method, job.precision, job.conventions, job.diagnostics, job.engine)
+    one = res.body(0)
     scale = job.omega_scale  # in float64, as a unit's factor is
-    w = res.w[0].astype(np.float64) * scale if scale != 1.0 else res.w[0]
-    return Result(
-        quantities[0](w, job.unit) if quantities else w,  # pint refuses to mix registries: the first one's
-        None if res.residual is None else res.residual[0],
-        res.cond[0],
-        res.status_code[0],
-        job.unit,
-        res.method,
-        None if res.null_axis is None else res.null_axis[0],
-        None if res.null_dim is None else res.null_dim[0],
-        res.engine,
-        None if res.cancelled is None else res.cancelled[0],
-    )
+    w = one.w.astype(np.float64) * scale if scale != 1.0 else one.w
+    # pint refuses to mix registries: ω in the first Quantity's
+    return replace(one, w=quantities[0](w, job.unit) if quantities else w, unit=job.unit)
 
 
 def invalid_inputs(
