@@ -1,0 +1,22 @@
+"""A dataset's manifest (hconv.tables.manifest): its format is pinned, so that its bytes do not
+move with the classes' field order."""
+
+from __future__ import annotations
+
+import json
+
+import hconv
+from hconv.tables.manifest import job_identity
+
+#: The job record's keys as release 0.1.0 wrote them (Job's fields then, and the formats).
+RELEASED_KEYS = ["method", "precision", "diagnostics", "conventions", "mapping", "unit_options", "quat_order",
+                 "omega_unit", "observed", "engine", "keep_text", "field_units", "src_format", "dst_format"]  # fmt: skip
+
+
+def test_job_identity_keeps_the_released_key_order():
+    """``engine`` moved to hconv.Options, which Job extends: asdict put it fourth, and every
+    manifest's bytes changed."""
+    record = job_identity(hconv.Job(method="refined", engine="numpy"), "csv", None)
+    assert list(record) == RELEASED_KEYS
+    assert (record["method"], record["engine"], record["src_format"]) == ("refined", "numpy", "csv")
+    assert json.loads(json.dumps(record)) == record  # what the file holds is what the next run compares
