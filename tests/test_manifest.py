@@ -10,7 +10,8 @@ from hconv.tables.manifest import job_identity
 
 #: The job record's keys as release 0.1.0 wrote them (Job's fields then, and the formats).
 RELEASED_KEYS = ["method", "precision", "diagnostics", "conventions", "mapping", "unit_options", "quat_order",
-                 "omega_unit", "observed", "engine", "keep_text", "field_units", "src_format", "dst_format"]  # fmt: skip
+                 "omega_unit", "observed", "engine", "keep_text", "field_units",
+                 "src_format", "dst_format"]  # fmt: skip
 
 
 def test_job_identity_keeps_the_released_key_order():
