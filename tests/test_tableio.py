@@ -302,7 +302,7 @@ def test_format_of_compressed_name_says_how_to_compress_or_decompress(
     assert (got, err) == (code, f"hconv: error: {message}\n")
 
 
-README_POINTER = "(hconv convert takes a whole directory: see 'Datasets' in the README)"
+README_POINTER = "(hconv convert takes a whole directory: see docs/datasets.md)"
 
 
 @pytest.mark.parametrize(

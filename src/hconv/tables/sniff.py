@@ -199,14 +199,14 @@ def _directory(path: str) -> str:
     except OSError:
         files = []
     head = f"{path}: is a directory, and this command reads one file"
-    readme = "hconv convert takes a whole directory: see 'Datasets' in the README"
+    pointer = "hconv convert takes a whole directory: see docs/datasets.md"
     if not files:
-        return f"{head}; give a CSV or Parquet file ({readme})"
+        return f"{head}; give a CSV or Parquet file ({pointer})"
     if len(files) == 1:
-        return f"{head}; give the file in it, {os.path.join(path, files[0])} ({readme})"
+        return f"{head}; give the file in it, {os.path.join(path, files[0])} ({pointer})"
     return (
         f"{head}; give one of the {len(files)} CSV or Parquet files in it, such as "
-        f"{os.path.join(path, files[0])} ({readme})"
+        f"{os.path.join(path, files[0])} ({pointer})"
     )
 
 
