@@ -456,8 +456,9 @@ def _check_included(node: Node, name: str, target: Path, shown: str) -> None:
     read() alone would name only the included file, and the user could not tell which include
     (of several, perhaps in an included file) to fix."""
     # where the user looks for it: beside the main model, as they named that
+    # (the folder is the user's own path, shown whole; only what the file wrote is clipped)
     expected = os.path.join(os.path.dirname(shown), name)
-    at = f" ({clip(expected)})" if expected != name else ""
+    at = f" ({os.path.join(os.path.dirname(shown), clip(name))})" if expected != name else ""
     try:
         st = os.stat(target)
     except OSError as exc:
