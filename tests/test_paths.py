@@ -47,7 +47,7 @@ def test_convert_path_refuses_a_cluster_for_one_file(tmp_path):
     src = tmp_path / "in.parquet"
     with pytest.raises(UsageError) as info:
         hconv.convert_path(src, tmp_path / "out.parquet", workers=2)
-    assert str(info.value) == (
-        f"cluster converts a dataset's files; {src} is one file, converted here "
+    assert str(info.value) == (  # it named cluster, which was not given
+        f"workers is for a dataset's files on a cluster; {src} is one file, converted here "
         "(give its directory, or a glob, to use cluster)"
     )

@@ -73,8 +73,10 @@ def convert_path(
         where = "IN and OUT" if errors.on_command_line() else f"{src} and {dst}"
         raise UsageError(f"{option('endpoint_url')} is for s3:// URIs; {where} are local")
     if on_cluster:
+        given = [option(name) for name, value in (("cluster", cluster), ("workers", workers),
+                 ("cluster_timeout", cluster_timeout), ("task_rows", task_rows)) if value is not None]  # fmt: skip
         raise UsageError(
-            f"{option('cluster')} converts a dataset's files; {src} is one file, converted here "
-            f"(give its directory, or a glob, to use {option('cluster')})"
+            f"{' and '.join(given)} {'is' if len(given) == 1 else 'are'} for a dataset's files on a cluster; "
+            f"{src} is one file, converted here (give its directory, or a glob, to use {option('cluster')})"
         )
     return pipeline.convert_file(src, dst, progress=progress, **common)
