@@ -234,6 +234,23 @@ def run_inprocess(*args: str, capsys) -> tuple[int, str, str]:
     return code, out, err
 
 
+def hconv_inprocess(*args: str, capsys, columns: str = "200") -> subprocess.CompletedProcess:
+    """``hconv ARGS`` in this process (:func:`run_inprocess`), its result shaped as
+    :func:`run_hconv`'s (returncode, bytes out and err; COLUMNS=200 unless told), for a test of
+    what the command says and writes rather than of the process itself: no interpreter to start,
+    so no start-up for a loaded machine to slow down."""
+    old = os.environ.get("COLUMNS")
+    os.environ["COLUMNS"] = columns
+    try:
+        code, out, err = run_inprocess(*args, capsys=capsys)
+    finally:
+        if old is None:
+            del os.environ["COLUMNS"]
+        else:
+            os.environ["COLUMNS"] = old
+    return subprocess.CompletedProcess(["hconv", *args], code, out.encode(), err.encode())
+
+
 def run_on_terminal(*args: str, columns: int = 80, cwd=None) -> tuple[int, str]:
     """Run the real command with stdout and stderr on a terminal ``columns`` wide, as a user at a
     terminal sees it; returns (exit code, what the terminal showed, colours and cursor moves removed)."""
