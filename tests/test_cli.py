@@ -16,7 +16,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 import pytest
-from helpers import hconv_inprocess, run_hconv, run_inprocess, run_on_terminal
+from helpers import StopAt, hconv_inprocess, run_hconv, run_inprocess, run_on_terminal
 
 import hconv
 
@@ -326,64 +326,35 @@ ENTRIES = {
 #: hconv.cli's, its last import.
 START_POINTS = ["hconv.solve", "numpy._core.multiarray", "typer.main", "hconv.tools.scene"]
 
-# Put first on sys.path (PYTHONPATH), so that it runs at the end of the interpreter's own start,
-# before `python -m` or the console script imports hconv: when the import of the module named
-# in HCONV_TEST_STOP_AT starts, it writes a byte on fd HCONV_TEST_TOLD and then waits on fd
-# HCONV_TEST_WAIT, so that the test's signal lands there and nowhere else, however slow the machine.
-_STOP_AT = """
-import os, sys
-
-class _StopAt:
-    def find_spec(self, name, path=None, target=None):
-        if name == os.environ["HCONV_TEST_STOP_AT"]:
-            sys.meta_path.remove(self)
-            os.write(int(os.environ["HCONV_TEST_TOLD"]), b"1")
-            os.read(int(os.environ["HCONV_TEST_WAIT"]), 1)  # the signal's handler runs here
-        return None
-
-sys.meta_path.insert(0, _StopAt())
-"""
-
 
 @pytest.mark.parametrize("entry", list(ENTRIES))
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_interrupt_while_starting_exits_130_in_one_line(tmp_path, entry, sig):
     """Ctrl-C or SIGTERM while numpy, typer and hconv.cli are imported: exit 130 and at most one
     line, never a traceback. The child says when it has reached each point (START_POINTS) and
-    waits there for the signal; a signal before hconv's first line meets CPython's own start-up,
-    which prints its own traceback whatever hconv does."""
+    waits there for the signal (helpers.StopAt); a signal before hconv's first line meets
+    CPython's own start-up, which prints its own traceback whatever hconv does."""
     command = ENTRIES[entry]
     if not Path(command[0]).exists():
         pytest.skip(f"no {command[0]}")
-    (tmp_path / "sitecustomize.py").write_text(_STOP_AT)
     for point in START_POINTS:
-        told_r, told_w = os.pipe()
-        wait_r, wait_w = os.pipe()
-        env = dict(
-            os.environ,
-            PYTHONPATH=os.pathsep.join([str(tmp_path), os.environ.get("PYTHONPATH", "")]),
-            HCONV_TEST_STOP_AT=point,
-            HCONV_TEST_TOLD=str(told_w),
-            HCONV_TEST_WAIT=str(wait_r),
-        )
+        stop = StopAt(tmp_path, point)
         proc = subprocess.Popen(
             [*command, "methods"],
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
-            env=env,
-            pass_fds=(told_w, wait_r),
+            env=stop.env(),
+            pass_fds=stop.fds,
             preexec_fn=_terminal_signals,
         )
-        os.close(told_w)
-        os.close(wait_r)
-        reached = os.read(told_r, 1)  # b"" if the child ended without reaching the point
-        os.close(told_r)
+        stop.started()
+        reached = stop.reached()
         if reached:
             proc.send_signal(sig)
-        os.close(wait_w)  # a child that ignored the signal goes on, and the asserts below say so
+        stop.release()
         out, err = proc.communicate()
         text = err.decode()
-        assert reached == b"1", (point, proc.returncode, text)
+        assert reached, (point, proc.returncode, text)
         assert proc.returncode == 130 and "Traceback" not in text, (point, proc.returncode, text)
         assert text.strip() in ("", "hconv: error: interrupted; no output was written"), (point, text)
         assert out == b""
