@@ -219,8 +219,9 @@ def terminal_signals() -> None:
 # A sitecustomize for a child started with StopAt's environment. The interpreter imports it at the
 # end of its own start, before hconv. When the point HCONV_TEST_STOP_AT is reached (MODULE: its
 # import starts; MODULE:NAME or MODULE:CLASS.NAME: the function's first call, once the module is
-# imported), the child writes a byte on fd HCONV_TEST_TOLD and reads fd HCONV_TEST_WAIT, which
-# gives nothing until the test closes it: a signal the test sends meanwhile lands at that point.
+# imported; MODULE:NAME#K: its K-th call), the child writes a byte on fd HCONV_TEST_TOLD and reads
+# fd HCONV_TEST_WAIT, which gives nothing until the test closes it: a signal the test sends
+# meanwhile lands at that point.
 _STOP_AT = """
 import os, sys
 
@@ -232,6 +233,7 @@ def _stop():
 
 class _StopAt:
     module, _, name = os.environ["HCONV_TEST_STOP_AT"].partition(":")
+    name, _, call = name.partition("#")
 
     def find_spec(self, fullname, path=None, target=None):
         if fullname != self.module:
@@ -251,10 +253,13 @@ class _StopAt:
             for part in where:
                 owner = getattr(owner, part)
             fn = getattr(owner, attr)
+            calls = [int(self.call or 1)]
 
             def stopped(*args, **kwargs):
-                setattr(owner, attr, fn)  # the first call only
-                _stop()
+                calls[0] -= 1
+                if calls[0] == 0:
+                    setattr(owner, attr, fn)  # that call only
+                    _stop()
                 return fn(*args, **kwargs)
 
             setattr(owner, attr, stopped)
