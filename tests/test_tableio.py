@@ -51,12 +51,17 @@ def test_open_input_interrupted_while_spooling_stdin_leaves_no_spool(sig, tmp_pa
     spools = tmp_path / "tmp"
     spools.mkdir()
     out = tmp_path / "out.csv"
-    proc = _hconv("convert", "-", str(out), "--from", "csv", "-q", tmpdir=spools, stdin=subprocess.PIPE)
+    # Stopped as it reads its first chunk, the spool made (helpers.StopAt). Sent as soon as the
+    # spool was seen, a SIGINT once left the child reading the open pipe for ever (issue 25).
+    stop = StopAt(tmp_path / "hook", "hconv.tables.tableio:_read_chunk")
+    proc = _hconv("convert", "-", str(out), "--from", "csv", "-q", tmpdir=spools, stop=stop, stdin=subprocess.PIPE)
     assert proc.stdin is not None and proc.stderr is not None
-    proc.stdin.write(SCENE_CSV.read_bytes())
+    proc.stdin.write(SCENE_CSV.read_bytes()[:4096])  # within the pipe's buffer: hconv waits at the stop
     proc.stdin.flush()  # and the pipe stays open: hconv is still reading it
-    _wait_for(lambda: any(spools.iterdir()), "spool of stdin", proc)  # and it reads on: stdin is open
+    assert stop.reached(), proc.stderr.read().decode()
+    assert any(spools.iterdir())  # the spool of stdin, to be removed
     proc.send_signal(sig)
+    stop.release()
     code = proc.wait()
     err = proc.stderr.read().decode()
     proc.stdin.close()
