@@ -218,6 +218,98 @@ def terminal_signals() -> None:
     signal.signal(signal.SIGQUIT, signal.SIG_DFL)
 
 
+# A sitecustomize for a child started with StopAt's environment. The interpreter imports it at the
+# end of its own start, before hconv. When the point HCONV_TEST_STOP_AT is reached (MODULE: its
+# import starts; MODULE:NAME or MODULE:CLASS.NAME: the function's first call, once the module is
+# imported; MODULE:NAME#K: its K-th call), the child writes a byte on fd HCONV_TEST_TOLD and reads
+# fd HCONV_TEST_WAIT, which gives nothing until the test closes it: a signal the test sends
+# meanwhile lands at that point.
+_STOP_AT = """
+import os, sys
+
+
+def _stop():
+    os.write(int(os.environ["HCONV_TEST_TOLD"]), b"1")
+    os.read(int(os.environ["HCONV_TEST_WAIT"]), 1)  # a signal's handler runs here
+
+
+class _StopAt:
+    module, _, name = os.environ["HCONV_TEST_STOP_AT"].partition(":")
+    name, _, call = name.partition("#")
+
+    def find_spec(self, fullname, path=None, target=None):
+        if fullname != self.module:
+            return None
+        sys.meta_path.remove(self)
+        if not self.name:
+            _stop()
+            return None
+        import importlib.util
+
+        spec = importlib.util.find_spec(fullname)
+        run, (*where, attr) = spec.loader.exec_module, self.name.split(".")
+
+        def exec_module(module):
+            run(module)
+            owner = module
+            for part in where:
+                owner = getattr(owner, part)
+            fn = getattr(owner, attr)
+            calls = [int(self.call or 1)]
+
+            def stopped(*args, **kwargs):
+                calls[0] -= 1
+                if calls[0] == 0:
+                    setattr(owner, attr, fn)  # that call only
+                    _stop()
+                return fn(*args, **kwargs)
+
+            setattr(owner, attr, stopped)
+
+        spec.loader.exec_module = exec_module
+        return spec
+
+
+sys.meta_path.insert(0, _StopAt())
+"""
+
+
+class StopAt:
+    """A handshake with a child process, so that a test acts (sends a signal, kills it) at a point
+    of the child's run however slow the machine, instead of after a sleep: ``point`` as in
+    ``_STOP_AT`` above. Start the child with ``env=stop.env(...)`` and ``pass_fds=stop.fds``,
+    then call :meth:`started`; :meth:`reached` waits until the child is at the point (False if it
+    ended first); act; then :meth:`release` lets it go on (a child that ignored the signal goes
+    on, and the test sees it finish)."""
+
+    def __init__(self, folder, point: str):
+        folder.mkdir(parents=True, exist_ok=True)
+        (folder / "sitecustomize.py").write_text(_STOP_AT)
+        self.folder, self.point = folder, point
+        self._told_r, self._told_w = os.pipe()
+        self._wait_r, self._wait_w = os.pipe()
+        self.fds = (self._told_w, self._wait_r)
+
+    def env(self, base: dict | None = None) -> dict:
+        base = dict(os.environ) if base is None else dict(base)
+        path = os.pathsep.join([str(self.folder), base.get("PYTHONPATH", "")])
+        told, wait = map(str, self.fds)
+        return dict(base, PYTHONPATH=path, HCONV_TEST_STOP_AT=self.point, HCONV_TEST_TOLD=told, HCONV_TEST_WAIT=wait)
+
+    def started(self) -> None:
+        """The child has started with its copies of the pipes' ends: close this process's."""
+        for fd in self.fds:
+            os.close(fd)
+
+    def reached(self) -> bool:
+        got = os.read(self._told_r, 1)  # b"" once every copy of the other end is closed: it ended
+        os.close(self._told_r)
+        return got == b"1"
+
+    def release(self) -> None:
+        os.close(self._wait_w)
+
+
 def run_inprocess(*args: str, capsys) -> tuple[int, str, str]:
     """``hconv ARGS`` in this process, through the console script's ``cli.main``; returns
     (exit code, stdout, stderr). For tests that run the command hundreds of times."""
@@ -234,6 +326,23 @@ def run_inprocess(*args: str, capsys) -> tuple[int, str, str]:
         sys.argv = old
     out, err = capsys.readouterr()
     return code, out, err
+
+
+def hconv_inprocess(*args: str, capsys, columns: str = "200") -> subprocess.CompletedProcess:
+    """``hconv ARGS`` in this process (:func:`run_inprocess`), its result shaped as
+    :func:`run_hconv`'s (returncode, bytes out and err; COLUMNS=200 unless told), for a test of
+    what the command says and writes rather than of the process itself: no interpreter to start,
+    so no start-up for a loaded machine to slow down."""
+    old = os.environ.get("COLUMNS")
+    os.environ["COLUMNS"] = columns
+    try:
+        code, out, err = run_inprocess(*args, capsys=capsys)
+    finally:
+        if old is None:
+            del os.environ["COLUMNS"]
+        else:
+            os.environ["COLUMNS"] = old
+    return subprocess.CompletedProcess(["hconv", *args], code, out.encode(), err.encode())
 
 
 def run_on_terminal(*args: str, columns: int = 80, cwd=None) -> tuple[int, str]:

@@ -2,16 +2,25 @@
 
 from __future__ import annotations
 
+import functools
 import json
 
-from helpers import run_hconv
+from helpers import hconv_inprocess
 
 import hconv
+from hconv.tools import bench
 
 
-def test_bench_command_small_run_writes_tables_json_and_chart(tmp_path):
+def test_bench_command_small_run_writes_tables_json_and_chart(tmp_path, capsys, monkeypatch):
+    """In this process, without a time limit: the bench starts its own processes (cold starts, a
+    compile, the command's start-up), which take minutes on a loaded machine. Each is measured
+    once, not three or ten times (cold starts, start-ups): every figure is still there."""
+    once = bench.rounds
+    monkeypatch.setattr(bench, "rounds", lambda jobs, repeats: once(jobs, 1))
+    monkeypatch.setattr(bench, "cold_start", functools.partial(bench.cold_start, repeats=1))
     chart, data = tmp_path / "sva.png", tmp_path / "bench.json"
-    proc = run_hconv("bench", "--rows", "20000", "--repeats", "1", "--out", str(chart), "--json", str(data))
+    args = ["bench", "--rows", "10000", "--repeats", "1", "--out", str(chart), "--json", str(data)]
+    proc = hconv_inprocess(*args, capsys=capsys)
     assert proc.returncode == 0, proc.stderr.decode()
     assert chart.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     res = json.loads(data.read_text())
@@ -41,14 +50,14 @@ def test_bench_command_small_run_writes_tables_json_and_chart(tmp_path):
     assert "pyarrow read+append+write time / hconv convert time" in names
 
 
-def test_bench_rejects_other_chart_formats(tmp_path):
-    proc = run_hconv("bench", "--rows", "1000", "--out", str(tmp_path / "x.gif"))
+def test_bench_rejects_other_chart_formats(tmp_path, capsys):
+    proc = hconv_inprocess("bench", "--rows", "1000", "--out", str(tmp_path / "x.gif"), capsys=capsys)
     assert proc.returncode == 2 and ".png or .svg" in proc.stderr.decode()
 
 
-def test_bench_rejects_rows_below_one_as_usage_error():
+def test_bench_rejects_rows_below_one_as_usage_error(capsys):
     for value in ("0", "-1"):
-        proc = run_hconv("bench", "--rows", value, "--no-chart")
+        proc = hconv_inprocess("bench", "--rows", value, "--no-chart", capsys=capsys)
         err = proc.stderr.decode()
         assert (
             proc.returncode == 2 and "--rows" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1

@@ -9,7 +9,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +16,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 import pytest
-from helpers import run_hconv, run_inprocess, run_on_terminal
+from helpers import StopAt, hconv_inprocess, run_hconv, run_inprocess, run_on_terminal
 
 import hconv
 
@@ -50,9 +49,9 @@ def write_csv(path: Path, header: list[str], rows: list[list[str]]) -> Path:
 # --- conversions that work -------------------------------------------------------------------
 
 
-def test_convert_example_parquet_keeps_rows_columns_and_units(tmp_path):
+def test_convert_example_parquet_keeps_rows_columns_and_units(tmp_path, capsys):
     out = tmp_path / "out.parquet"
-    proc = run_hconv("convert", str(EXAMPLES / "scene.parquet"), str(out))
+    proc = hconv_inprocess("convert", str(EXAMPLES / "scene.parquet"), str(out), capsys=capsys)
     assert proc.returncode == 0, proc.stderr.decode()
     src, got = pq.read_table(EXAMPLES / "scene.parquet"), pq.read_table(out)
     assert got.column_names == src.column_names + OUT_COLS
@@ -66,9 +65,9 @@ def test_convert_example_parquet_keeps_rows_columns_and_units(tmp_path):
     assert np.nanmax(got.column("residual").to_numpy()) < 1e-12
 
 
-def test_convert_csv_document_carries_unit_column(tmp_path):
+def test_convert_csv_document_carries_unit_column(tmp_path, capsys):
     out = tmp_path / "out.csv"
-    proc = run_hconv("convert", str(EXAMPLES / "scene.csv"), str(out), "--method", "document")
+    proc = hconv_inprocess("convert", str(EXAMPLES / "scene.csv"), str(out), "--method", "document", capsys=capsys)
     assert proc.returncode == 0
     rows = list(csv.DictReader(out.open()))
     assert len(rows) == 400
@@ -78,7 +77,7 @@ def test_convert_csv_document_carries_unit_column(tmp_path):
     assert header.endswith("wx,wy,wz,residual,cond,status,w_unit")
 
 
-def test_convert_csv_passthrough_text_is_exact(tmp_path):
+def test_convert_csv_passthrough_text_is_exact(tmp_path, capsys):
     src = tmp_path / "in.csv"
     src.write_text(
         "id,label,Hx,Hy,Hz,Ixx,Iyy,Izz,Ixy,Ixz,Iyz,note\n"
@@ -87,26 +86,26 @@ def test_convert_csv_passthrough_text_is_exact(tmp_path):
         "x,plain,0,0,1,1,2,2.5,0,0,0,\n"
     )
     out = tmp_path / "out.csv"
-    assert run_hconv("convert", str(src), str(out)).returncode == 0
+    assert hconv_inprocess("convert", str(src), str(out), capsys=capsys).returncode == 0
     got = list(csv.reader(out.open(encoding="utf-8")))
     want = list(csv.reader(src.open(encoding="utf-8")))
     assert [r[:12] for r in got] == want  # every input value, as text, unchanged
     assert got[1][12:15] == ["0.5", "0.6666666666666666", "0.75"]
 
 
-def test_convert_csv_float_values_round_trip_exactly(tmp_path, rng):
+def test_convert_csv_float_values_round_trip_exactly(tmp_path, rng, capsys):
     vals = rng.normal(size=(50, 9)) * 10.0 ** rng.integers(-200, 200, (50, 9))
     vals[:, 3:6] = np.abs(vals[:, 3:6]) + 1  # keep the tensors sane; the values are what matters
     t = pa.table({c: vals[:, k] for k, c in enumerate(CONTRACT[:9])})
     src, out = tmp_path / "in.parquet", tmp_path / "out.csv"
     pq.write_table(t, src)
-    assert run_hconv("convert", str(src), str(out)).returncode == 0
+    assert hconv_inprocess("convert", str(src), str(out), capsys=capsys).returncode == 0
     back = pacsv.read_csv(out)
     for c in CONTRACT[:9]:
         np.testing.assert_array_equal(back.column(c).to_numpy(), t.column(c).to_numpy())
 
 
-def test_convert_parquet_passthrough_types(tmp_path):
+def test_convert_parquet_passthrough_types(tmp_path, capsys):
     n = 5
     t = pa.table(
         {
@@ -119,7 +118,7 @@ def test_convert_parquet_passthrough_types(tmp_path):
     )
     src, out = tmp_path / "in.parquet", tmp_path / "out.parquet"
     pq.write_table(t, src)
-    assert run_hconv("convert", str(src), str(out)).returncode == 0
+    assert hconv_inprocess("convert", str(src), str(out), capsys=capsys).returncode == 0
     got = pq.read_table(out)
     assert got.select(t.column_names).equals(t)
 
@@ -144,7 +143,7 @@ def test_convert_pipeline_parquet_stdin_to_stdout(tmp_path):
 
 
 @pytest.mark.parametrize("keep", [False, True])
-def test_convert_pipeline_csv_stdin_to_parquet_types_or_keeps_text(keep):
+def test_convert_pipeline_csv_stdin_to_parquet_types_or_keeps_text(keep, capsys):
     data = (EXAMPLES / "scene.csv").read_bytes()
     args = ["--keep-text"] if keep else []
     proc = run_hconv("convert", "-", "-", "--from", "csv", "--to", "parquet", "-q", *args, input=data)
@@ -152,21 +151,26 @@ def test_convert_pipeline_csv_stdin_to_parquet_types_or_keeps_text(keep):
     got = pq.read_table(io.BytesIO(proc.stdout))
     assert got.schema.field("id").type == (pa.string() if keep else pa.int64())
     assert got.schema.field("w_true_x").type == (pa.string() if keep else pa.float64())
-    assert "--keep-text" in run_hconv("convert", "--help").stdout.decode()
+    assert "--keep-text" in hconv_inprocess("convert", "--help", capsys=capsys).stdout.decode()
 
 
-def test_convert_empty_tables_give_empty_outputs(tmp_path):
+def test_convert_empty_tables_give_empty_outputs(tmp_path, capsys):
     src = write_csv(tmp_path / "in.csv", CONTRACT[:9], [])
     out = tmp_path / "out.csv"
-    assert run_hconv("convert", str(src), str(out)).returncode == 0
+    assert hconv_inprocess("convert", str(src), str(out), capsys=capsys).returncode == 0
     assert out.read_text().splitlines() == [",".join(CONTRACT[:9] + OUT_COLS + ["w_unit"])]
     pq.write_table(pa.table({c: pa.array([], pa.float64()) for c in CONTRACT[:9]}), tmp_path / "e.parquet")
-    assert run_hconv("convert", str(tmp_path / "e.parquet"), str(tmp_path / "e_out.parquet")).returncode == 0
+    assert (
+        hconv_inprocess(
+            "convert", str(tmp_path / "e.parquet"), str(tmp_path / "e_out.parquet"), capsys=capsys
+        ).returncode
+        == 0
+    )
     got = pq.read_table(tmp_path / "e_out.parquet")
     assert got.num_rows == 0 and got.column_names == CONTRACT[:9] + OUT_COLS
 
 
-def test_convert_flagged_rows_keep_place_and_summary_counts(tmp_path):
+def test_convert_flagged_rows_keep_place_and_summary_counts(tmp_path, capsys):
     rows = [
         ["1", "2", "3", "2", "3", "4", "0", "0", "0"],
         ["1", "2", "3", "0", "2", "2", "0", "0", "0"],  # rod: singular
@@ -175,7 +179,7 @@ def test_convert_flagged_rows_keep_place_and_summary_counts(tmp_path):
     ]  # breaks the triangle inequality
     src = write_csv(tmp_path / "in.csv", CONTRACT[:9], rows)
     out = tmp_path / "out.csv"
-    proc = run_hconv("convert", str(src), str(out))
+    proc = hconv_inprocess("convert", str(src), str(out), capsys=capsys)
     assert proc.returncode == 0
     got = list(csv.DictReader(out.open()))
     assert [r["status"] for r in got] == ["ok", "singular", "invalid_input", "not_physical"]
@@ -185,9 +189,14 @@ def test_convert_flagged_rows_keep_place_and_summary_counts(tmp_path):
         assert word in err
 
 
-def test_convert_precision_32_writes_float32(tmp_path):
+def test_convert_precision_32_writes_float32(tmp_path, capsys):
     out = tmp_path / "out.parquet"
-    assert run_hconv("convert", str(EXAMPLES / "scene.parquet"), str(out), "--precision", "32").returncode == 0
+    assert (
+        hconv_inprocess(
+            "convert", str(EXAMPLES / "scene.parquet"), str(out), "--precision", "32", capsys=capsys
+        ).returncode
+        == 0
+    )
     got = pq.read_table(out)
     assert got.schema.field("wx").type == pa.float32()
     res, cond = got.column("residual").to_numpy(), got.column("cond").to_numpy()
@@ -196,13 +205,13 @@ def test_convert_precision_32_writes_float32(tmp_path):
     assert res.max() > np.finfo(np.float64).eps * 1e3  # and it really did compute in float32
 
 
-def test_convert_refuses_to_overwrite_without_force(tmp_path):
+def test_convert_refuses_to_overwrite_without_force(tmp_path, capsys):
     out = tmp_path / "out.csv"
     out.write_text("precious\n")
-    proc = run_hconv("convert", str(EXAMPLES / "scene.csv"), str(out))
+    proc = hconv_inprocess("convert", str(EXAMPLES / "scene.csv"), str(out), capsys=capsys)
     assert_one_line_error(proc, 4, "already exists", "--force")
     assert out.read_text() == "precious\n"
-    assert run_hconv("convert", str(EXAMPLES / "scene.csv"), str(out), "--force").returncode == 0
+    assert hconv_inprocess("convert", str(EXAMPLES / "scene.csv"), str(out), "--force", capsys=capsys).returncode == 0
     assert len(out.read_text().splitlines()) == 401
     no_leftovers(tmp_path, {"out.csv"})
 
@@ -210,33 +219,35 @@ def test_convert_refuses_to_overwrite_without_force(tmp_path):
 # --- bad input on purpose --------------------------------------------------------------------
 
 
-def test_convert_missing_column_names_it(tmp_path):
+def test_convert_missing_column_names_it(tmp_path, capsys):
     src = write_csv(tmp_path / "in.csv", ["Hx", "Hy", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz"], [["1"] * 8])
-    proc = run_hconv("convert", str(src), str(tmp_path / "out.csv"))
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.csv"), capsys=capsys)
     assert_one_line_error(proc, 3, "in.csv", "missing column Hz")
     no_leftovers(tmp_path, {"in.csv"})
 
 
-def test_convert_document_without_r_says_what_it_needs(tmp_path):
-    proc = run_hconv("convert", str(EXAMPLES / "scene.csv"), str(tmp_path / "o.csv"), "--method", "document")
+def test_convert_document_without_r_says_what_it_needs(tmp_path, capsys):
+    proc = hconv_inprocess(
+        "convert", str(EXAMPLES / "scene.csv"), str(tmp_path / "o.csv"), "--method", "document", capsys=capsys
+    )
     assert proc.returncode == 0  # the example has r
     src = write_csv(tmp_path / "in.csv", CONTRACT[:9], [["1"] * 9])
-    proc = run_hconv("convert", str(src), str(tmp_path / "out.csv"), "--method", "document")
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.csv"), "--method", "document", capsys=capsys)
     assert_one_line_error(proc, 3, "missing columns rx, ry, rz", "'document' needs")
 
 
-def test_convert_non_numeric_names_column_value_and_row(tmp_path):
+def test_convert_non_numeric_names_column_value_and_row(tmp_path, capsys):
     rows = [["1", "2", "3", "2", "3", "4", "0", "0", "0"]] * 3 + [["1", "two", "3", "2", "3", "4", "0", "0", "0"]]
     src = write_csv(tmp_path / "in.csv", CONTRACT[:9], rows)
-    proc = run_hconv("convert", str(src), str(tmp_path / "out.csv"))
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.csv"), capsys=capsys)
     assert_one_line_error(proc, 3, "column 'Hy'", "'two'", "data row 4")
     no_leftovers(tmp_path, {"in.csv"})
 
 
-def test_convert_non_numeric_parquet_column(tmp_path):
+def test_convert_non_numeric_parquet_column(tmp_path, capsys):
     t = pa.table({c: ["1"] if c == "Izz" else [1.0] for c in CONTRACT[:9]})
     pq.write_table(t, tmp_path / "in.parquet")
-    proc = run_hconv("convert", str(tmp_path / "in.parquet"), str(tmp_path / "out.parquet"))
+    proc = hconv_inprocess("convert", str(tmp_path / "in.parquet"), str(tmp_path / "out.parquet"), capsys=capsys)
     assert_one_line_error(proc, 3, "column 'Izz' has type string", "must be numeric")
 
 
@@ -249,39 +260,39 @@ def test_convert_non_numeric_parquet_column(tmp_path):
         ("binary.csv", bytes(range(256)) * 4, "in.csv" if False else "binary.csv"),
     ],
 )
-def test_convert_unreadable_or_empty_file(tmp_path, name, content, needle):
+def test_convert_unreadable_or_empty_file(tmp_path, name, content, needle, capsys):
     src = tmp_path / name
     src.write_bytes(content)
     out = tmp_path / ("out" + src.suffix)
-    proc = run_hconv("convert", str(src), str(out))
+    proc = hconv_inprocess("convert", str(src), str(out), capsys=capsys)
     assert_one_line_error(proc, 3, needle)
     no_leftovers(tmp_path, {name})
 
 
-def test_convert_missing_input_file(tmp_path):
-    proc = run_hconv("convert", str(tmp_path / "nope.csv"), str(tmp_path / "out.csv"))
+def test_convert_missing_input_file(tmp_path, capsys):
+    proc = hconv_inprocess("convert", str(tmp_path / "nope.csv"), str(tmp_path / "out.csv"), capsys=capsys)
     assert_one_line_error(proc, 3, "nope.csv", "check the path")
 
 
-def test_convert_unknown_extension_is_usage_error(tmp_path):
-    proc = run_hconv("convert", str(EXAMPLES / "scene.csv"), str(tmp_path / "out.txt"))
+def test_convert_unknown_extension_is_usage_error(tmp_path, capsys):
+    proc = hconv_inprocess("convert", str(EXAMPLES / "scene.csv"), str(tmp_path / "out.txt"), capsys=capsys)
     assert_one_line_error(proc, 2, "out.txt", ".csv or .parquet", "--to")
 
 
-def test_convert_output_directory_missing(tmp_path):
-    proc = run_hconv("convert", str(EXAMPLES / "scene.csv"), str(tmp_path / "no" / "out.csv"))
+def test_convert_output_directory_missing(tmp_path, capsys):
+    proc = hconv_inprocess("convert", str(EXAMPLES / "scene.csv"), str(tmp_path / "no" / "out.csv"), capsys=capsys)
     assert_one_line_error(proc, 4, "does not exist")
 
 
-def test_convert_output_is_input(tmp_path):
+def test_convert_output_is_input(tmp_path, capsys):
     src = tmp_path / "scene.csv"
     src.write_bytes((EXAMPLES / "scene.csv").read_bytes())
-    proc = run_hconv("convert", str(src), str(src), "--force")
+    proc = hconv_inprocess("convert", str(src), str(src), "--force", capsys=capsys)
     assert_one_line_error(proc, 4, "is the input file")
     assert src.read_bytes() == (EXAMPLES / "scene.csv").read_bytes()
 
 
-def test_convert_failure_midway_leaves_no_partial_output(tmp_path):
+def test_convert_failure_midway_leaves_no_partial_output(tmp_path, capsys):
     """The bad value sits past the first batches, so a careless writer would have written them."""
     n = 400_000
     src = tmp_path / "big.csv"
@@ -291,7 +302,7 @@ def test_convert_failure_midway_leaves_no_partial_output(tmp_path):
         f.write(line * (n - 1))
         f.write("1,2,3,2,3,oops,0,0,0\n")
     assert src.stat().st_size > 3 * (4 << 20)  # several reader blocks
-    proc = run_hconv("convert", str(src), str(tmp_path / "out.parquet"))
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.parquet"), capsys=capsys)
     assert_one_line_error(proc, 3, "column 'Izz'", "'oops'", f"data row {n}")
     no_leftovers(tmp_path, {"big.csv"})
 
@@ -310,49 +321,42 @@ ENTRIES = {
 }
 
 
-def _catches(pid: int, sig: int) -> bool:
-    """Whether process ``pid`` has a handler for ``sig`` (its SigCgt mask in /proc)."""
-    status = Path(f"/proc/{pid}/status").read_text()
-    mask = next(ln.split()[1] for ln in status.splitlines() if ln.startswith("SigCgt:"))
-    return bool(int(mask, 16) >> (sig - 1) & 1)
+#: Where the child stops and tells the test, by the module whose import starts there: hconv's
+#: first line has run (its handlers are in place); inside numpy's import; inside typer's; inside
+#: hconv.cli's, its last import.
+START_POINTS = ["hconv.solve", "numpy._core.multiarray", "typer.main", "hconv.tools.scene"]
 
 
-@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads the signal masks in /proc")
 @pytest.mark.parametrize("entry", list(ENTRIES))
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_interrupt_while_starting_exits_130_in_one_line(tmp_path, entry, sig):
-    """Ctrl-C or SIGTERM in the first tenths of a second, while numpy, typer and hconv.cli are
-    imported: exit 130 and at most one line, never a traceback.
-
-    The delays count from the end of the interpreter's own start, which this sitecustomize marks
-    (after importing runpy, the rest of `python -m`'s own start); a signal before that meets
-    CPython's start-up, which prints its own traceback whatever hconv does. "first" sends it as
-    soon as the process handles SIGTERM: hconv's first line has run."""
+    """Ctrl-C or SIGTERM while numpy, typer and hconv.cli are imported: exit 130 and at most one
+    line, never a traceback. The child says when it has reached each point (START_POINTS) and
+    waits there for the signal (helpers.StopAt); a signal before hconv's first line meets
+    CPython's own start-up, which prints its own traceback whatever hconv does."""
     command = ENTRIES[entry]
     if not Path(command[0]).exists():
         pytest.skip(f"no {command[0]}")
-    marker = tmp_path / "started"
-    (tmp_path / "sitecustomize.py").write_text(f"import runpy\nopen({str(marker)!r}, 'w').close()\n")
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tmp_path), os.environ.get("PYTHONPATH", "")]))
-    for delay in ("first", 0.05, 0.1, 0.2):
-        marker.unlink(missing_ok=True)
-        args = [*command, "stability", "--no-chart"]  # seconds long: the signal lands before it ends
+    for point in START_POINTS:
+        stop = StopAt(tmp_path, point)
         proc = subprocess.Popen(
-            args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, preexec_fn=_terminal_signals
+            [*command, "methods"],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            env=stop.env(),
+            pass_fds=stop.fds,
+            preexec_fn=_terminal_signals,
         )
-        deadline = time.monotonic() + 30
-        while not marker.exists() and time.monotonic() < deadline and proc.poll() is None:
-            time.sleep(0.001)
-        if delay == "first":
-            while not _catches(proc.pid, signal.SIGTERM) and time.monotonic() < deadline and proc.poll() is None:
-                pass
-        else:
-            time.sleep(delay)
-        proc.send_signal(sig)
-        out, err = proc.communicate(timeout=60)
+        stop.started()
+        reached = stop.reached()
+        if reached:
+            proc.send_signal(sig)
+        stop.release()
+        out, err = proc.communicate()
         text = err.decode()
-        assert proc.returncode == 130 and "Traceback" not in text, (delay, proc.returncode, text)
-        assert text.strip() in ("", "hconv: error: interrupted; no output was written"), (delay, text)
+        assert reached, (point, proc.returncode, text)
+        assert proc.returncode == 130 and "Traceback" not in text, (point, proc.returncode, text)
+        assert text.strip() in ("", "hconv: error: interrupted; no output was written"), (point, text)
         assert out == b""
 
 
@@ -370,8 +374,8 @@ def test_import_hconv_keeps_the_programs_signal_handlers():
 # --- hconv one and hconv methods -------------------------------------------------------------
 
 
-def test_one_prints_w_unit_residual_cond_status():
-    proc = run_hconv("one", "--H", "1,2,3", "--I", "2,3,4,0,0,0", "--r", "0.1,0.2,0.3")
+def test_one_prints_w_unit_residual_cond_status(capsys):
+    proc = hconv_inprocess("one", "--H", "1,2,3", "--I", "2,3,4,0,0,0", "--r", "0.1,0.2,0.3", capsys=capsys)
     out = proc.stdout.decode()
     assert proc.returncode == 0
     assert "[0.5, 0.6666666666666666, 0.75] rad/s" in out
@@ -379,9 +383,19 @@ def test_one_prints_w_unit_residual_cond_status():
         assert word in out
 
 
-def test_one_json_has_the_documented_keys():
-    proc = run_hconv(
-        "one", "--H", "-1,2,3", "--I", "2,3,4,0,0,0", "--r", "0.1,0.2,0.3", "--method", "document", "--json"
+def test_one_json_has_the_documented_keys(capsys):
+    proc = hconv_inprocess(
+        "one",
+        "--H",
+        "-1,2,3",
+        "--I",
+        "2,3,4,0,0,0",
+        "--r",
+        "0.1,0.2,0.3",
+        "--method",
+        "document",
+        "--json",
+        capsys=capsys,
     )
     obj = json.loads(proc.stdout)
     assert set(obj) == {"w", "unit", "residual", "cond", "status", "method"}
@@ -389,16 +403,20 @@ def test_one_json_has_the_documented_keys():
     np.testing.assert_allclose(obj["w"], [-0.065, 1 / 15, 0.0375], rtol=1e-15)
 
 
-def test_one_nine_values_row_major_and_asymmetry():
-    ok = json.loads(run_hconv("one", "--H", "1,2,3", "--I", "2,0.5,0,0.5,3,0,0,0,4", "--json").stdout)
-    six = json.loads(run_hconv("one", "--H", "1,2,3", "--I", "2,3,4,0.5,0,0", "--json").stdout)
+def test_one_nine_values_row_major_and_asymmetry(capsys):
+    ok = json.loads(
+        hconv_inprocess("one", "--H", "1,2,3", "--I", "2,0.5,0,0.5,3,0,0,0,4", "--json", capsys=capsys).stdout
+    )
+    six = json.loads(hconv_inprocess("one", "--H", "1,2,3", "--I", "2,3,4,0.5,0,0", "--json", capsys=capsys).stdout)
     assert ok["w"] == six["w"]
-    bad = json.loads(run_hconv("one", "--H", "1,2,3", "--I", "2,0.5,0,0.4,3,0,0,0,4", "--json").stdout)
+    bad = json.loads(
+        hconv_inprocess("one", "--H", "1,2,3", "--I", "2,0.5,0,0.4,3,0,0,0,4", "--json", capsys=capsys).stdout
+    )
     assert bad["status"] == "not_symmetric" and bad["w"] == [None, None, None]
 
 
-def test_one_singular_json_has_null_w_and_inf_cond():
-    obj = json.loads(run_hconv("one", "--H", "1,2,3", "--I", "0,2,2", "--json").stdout)
+def test_one_singular_json_has_null_w_and_inf_cond(capsys):
+    obj = json.loads(hconv_inprocess("one", "--H", "1,2,3", "--I", "0,2,2", "--json", capsys=capsys).stdout)
     assert obj["status"] == "singular" and obj["w"] == [None, None, None]
     assert obj["cond"] is None and obj["residual"] is None  # infinite and absent: null, valid JSON
 
@@ -412,8 +430,8 @@ def test_one_singular_json_has_null_w_and_inf_cond():
         (["--H", "1,2,3", "--I", "1,1,1", "--method", "document"], "--r rx,ry,rz"),
     ],
 )
-def test_one_bad_arguments_one_line_exit_2(args, needle):
-    assert_one_line_error(run_hconv("one", *args), 2, needle)
+def test_one_bad_arguments_one_line_exit_2(args, needle, capsys):
+    assert_one_line_error(hconv_inprocess("one", *args, capsys=capsys), 2, needle)
 
 
 @pytest.mark.parametrize(
@@ -568,8 +586,8 @@ def test_one_does_not_import_pyarrow_rich_pint_or_numba():
     assert proc.stdout.decode().splitlines()[-1] == "[]"
 
 
-def test_methods_json_lists_every_method_with_unit():
-    listed = json.loads(run_hconv("methods", "--json").stdout)
+def test_methods_json_lists_every_method_with_unit(capsys):
+    listed = json.loads(hconv_inprocess("methods", "--json", capsys=capsys).stdout)
     assert [m["name"] for m in listed] == list(hconv.METHODS)
     units = {m["name"]: m["unit"] for m in listed}
     assert units["exact"] == "rad/s" and units["document"] == "m^2/s"
@@ -598,13 +616,15 @@ def test_engines_lists_each_engine_within_80_columns(capsys, monkeypatch, tmp_pa
     assert code == 2 and err.strip() == "hconv: error: --compile needs numba: pip install 'hconv[fast]'"
 
 
-def test_convert_engine_option_rejects_others_in_one_line(tmp_path):
-    proc = run_hconv("convert", "examples/data/scene.csv", str(tmp_path / "o.csv"), "--engine", "gpu")
+def test_convert_engine_option_rejects_others_in_one_line(tmp_path, capsys):
+    proc = hconv_inprocess(
+        "convert", "examples/data/scene.csv", str(tmp_path / "o.csv"), "--engine", "gpu", capsys=capsys
+    )
     assert proc.returncode == 2 and b"Traceback" not in proc.stderr and b"gpu" in proc.stderr
 
 
-def test_methods_table_renders():
-    out = run_hconv("methods").stdout.decode()
+def test_methods_table_renders(capsys):
+    out = hconv_inprocess("methods", capsys=capsys).stdout.decode()
     for name in hconv.METHODS:
         assert name in out
 
@@ -651,8 +671,8 @@ def test_convert_progress_tells_long_names_apart_on_a_narrow_terminal(tmp_path, 
         assert frames and all(name[-12:] in ln and other[-12:] not in ln for ln in frames), shown
 
 
-def test_methods_in_a_pipe_is_tab_separated_text():
-    proc = run_hconv("methods")
+def test_methods_in_a_pipe_is_tab_separated_text(capsys):
+    proc = hconv_inprocess("methods", capsys=capsys)
     lines = proc.stdout.decode().splitlines()
     assert proc.returncode == 0 and "\x1b" not in proc.stdout.decode() and not set("┃━│─") & set(proc.stdout.decode())
     assert lines[0].split("\t")[:3] == ["method", "unit", "exact"]
@@ -677,14 +697,14 @@ def test_convert_table_accepts_record_batch():
         (["bogus"], "No such command 'bogus'"),
     ],
 )
-def test_cli_usage_errors_are_one_line_exit_2(args, needle):
-    assert_one_line_error(run_hconv(*args), 2, needle)
+def test_cli_usage_errors_are_one_line_exit_2(args, needle, capsys):
+    assert_one_line_error(hconv_inprocess(*args, capsys=capsys), 2, needle)
 
 
-def test_convert_semicolon_csv_names_the_delimiter(tmp_path):
+def test_convert_semicolon_csv_names_the_delimiter(tmp_path, capsys):
     src = tmp_path / "in.csv"
     src.write_text(";".join(CONTRACT[:9]) + "\n" + ";".join(["1"] * 9) + "\n")
-    proc = run_hconv("convert", str(src), str(tmp_path / "out.csv"))
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.csv"), capsys=capsys)
     assert_one_line_error(proc, 3, "separated by semicolons", "comma-separated")
 
 
@@ -721,27 +741,27 @@ def test_cli_reader_closing_pipe_early_is_quiet(args):
     assert "error" not in proc.stderr.decode() and "Traceback" not in proc.stderr.decode()
 
 
-def test_version_is_one_source():
+def test_version_is_one_source(capsys):
     import importlib.metadata
 
-    proc = run_hconv("--version")
+    proc = hconv_inprocess("--version", capsys=capsys)
     assert proc.returncode == 0
     assert proc.stdout.decode().strip() == f"hconv {hconv.__version__}"
     assert importlib.metadata.version("hconv") == hconv.__version__
 
 
-def test_help_short_option_on_every_command():
+def test_help_short_option_on_every_command(capsys):
     from hconv import cli
 
     commands = [c.name or c.callback.__name__ for c in cli.app.registered_commands]
     assert "convert" in commands and "engines" in commands
     for command in ["", *commands]:
         args = [command] if command else []
-        short, long = run_hconv(*args, "-h"), run_hconv(*args, "--help")
+        short, long = hconv_inprocess(*args, "-h", capsys=capsys), hconv_inprocess(*args, "--help", capsys=capsys)
         assert short.returncode == 0 and b"Usage:" in short.stdout and short.stdout == long.stdout, command
 
 
-def test_help_at_80_columns_splits_no_choice():
+def test_help_at_80_columns_splits_no_choice(capsys):
     """Every command's --help at 80 columns: no line runs over, and every choice of every option
     shows whole on one line (as a metavar, [exact|refined|c/holesky|...] was split mid-name)."""
     import re
@@ -753,12 +773,7 @@ def test_help_at_80_columns_splits_no_choice():
 
     root = typer.main.get_command(cli.app)
     for name, command in [("", root), *root.commands.items()]:  # type: ignore[attr-defined]
-        proc = subprocess.run(
-            [sys.executable, "-m", "hconv", *([name] if name else []), "--help"],
-            capture_output=True,
-            env=dict(os.environ, COLUMNS="80"),
-            timeout=60,
-        )
+        proc = hconv_inprocess(*([name] if name else []), "--help", capsys=capsys, columns="80")
         text = proc.stdout.decode()
         lines = text.splitlines()
         assert proc.returncode == 0 and max(len(ln) for ln in lines) <= 80, name
@@ -770,16 +785,16 @@ def test_help_at_80_columns_splits_no_choice():
                     assert any(whole.search(ln) for ln in lines), (name, param.name, choice)
 
 
-def test_show_completion_bash_prints_the_script_for_hconv():
-    proc = run_hconv("--show-completion", "bash")
+def test_show_completion_bash_prints_the_script_for_hconv(capsys):
+    proc = hconv_inprocess("--show-completion", "bash", capsys=capsys)
     script = proc.stdout.decode()
     assert proc.returncode == 0, proc.stderr.decode()
     assert "_HCONV_COMPLETE=complete_bash" in script and script.rstrip().endswith("hconv")
-    assert run_hconv("--show-completion", "zsh").stdout.startswith(b"#compdef hconv")
-    assert_one_line_error(run_hconv("--show-completion", "tcsh"), 2, "'tcsh' is not one of")
+    assert hconv_inprocess("--show-completion", "zsh", capsys=capsys).stdout.startswith(b"#compdef hconv")
+    assert_one_line_error(hconv_inprocess("--show-completion", "tcsh", capsys=capsys), 2, "'tcsh' is not one of")
 
 
-def test_completion_completes_choices_and_adds_no_option_to_commands():
+def test_completion_completes_choices_and_adds_no_option_to_commands(capsys):
     env = dict(os.environ, _HCONV_COMPLETE="complete_bash", COMP_WORDS="hconv convert --method doc", COMP_CWORD="3")
     proc = subprocess.run([sys.executable, "-m", "hconv"], capture_output=True, env=env, timeout=60)
     assert proc.returncode == 0 and proc.stdout.decode().split() == ["document", "document-principal"]
@@ -791,7 +806,7 @@ def test_completion_completes_choices_and_adds_no_option_to_commands():
     assert {"install_completion", "show_completion"} <= {p.name for p in root.params}
     for name, command in root.commands.items():  # type: ignore[attr-defined]
         assert not {p.name for p in command.params} & {"install_completion", "show_completion"}, name
-        assert b"completion" not in run_hconv(name, "--help").stdout, name
+        assert b"completion" not in hconv_inprocess(name, "--help", capsys=capsys).stdout, name
 
 
 @pytest.mark.parametrize(
@@ -811,12 +826,12 @@ def test_completion_completes_options_that_are_not_choice_types(words, want):
     assert proc.returncode == 0 and proc.stdout.decode().split() == want, proc.stderr.decode()
 
 
-def test_one_has_no_short_method_option_beside_mass():
+def test_one_has_no_short_method_option_beside_mass(capsys):
     """--m is the mass; a short -m for --method sat one keystroke away from it."""
-    proc = run_hconv("one", "--H", "1,0,0", "--I", "1", "-m", "5")
+    proc = hconv_inprocess("one", "--H", "1,0,0", "--I", "1", "-m", "5", capsys=capsys)
     err = proc.stderr.decode()
     assert proc.returncode == 2 and "-m" in err and len(err.strip().splitlines()) == 1
-    ok = run_hconv("one", "--H", "1,0,0", "--I", "1", "--m", "5", "--method", "refined")
+    ok = hconv_inprocess("one", "--H", "1,0,0", "--I", "1", "--m", "5", "--method", "refined", capsys=capsys)
     assert ok.returncode == 0 and b"status   = ok" in ok.stdout
 
 

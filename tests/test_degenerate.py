@@ -74,9 +74,9 @@ def test_convert_negative_moment_beyond_threshold_stays_not_positive_definite():
     assert got.column("status").to_pylist() == ["not_positive_definite"]
 
 
-def test_summary_counts_degenerate_rows(tmp_path):
+def test_summary_counts_degenerate_rows(tmp_path, capsys):
     import pyarrow.parquet as pq
-    from helpers import run_hconv
+    from helpers import hconv_inprocess
 
     pq.write_table(
         pa.table(
@@ -84,7 +84,9 @@ def test_summary_counts_degenerate_rows(tmp_path):
         ),
         tmp_path / "rod.parquet",
     )
-    proc = run_hconv("convert", str(tmp_path / "rod.parquet"), str(tmp_path / "out.parquet"), "--degenerate", "pinv")
+    proc = hconv_inprocess(
+        "convert", str(tmp_path / "rod.parquet"), str(tmp_path / "out.parquet"), "--degenerate", "pinv", capsys=capsys
+    )
     assert proc.returncode == 0, proc.stderr.decode()
     # in a pipe the summary is tab-separated text
     rows = dict(ln.split("\t") for ln in proc.stderr.decode().splitlines() if ln.count("\t") == 1)

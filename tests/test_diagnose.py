@@ -13,7 +13,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
-from helpers import axis_angle, need, physical_bodies, quats, rodrigues, run_hconv, six, vec
+from helpers import axis_angle, hconv_inprocess, need, physical_bodies, quats, rodrigues, six, vec
 
 from hconv.solve.options import Conventions
 from hconv.tables.job import Job
@@ -147,10 +147,10 @@ def test_diagnose_clean_data_is_exact_and_no_engine_mistake_explains_a_row(rng, 
     assert share["exact"] == 1.0 and all(share[n] == 0.0 for n in NEW)
 
 
-def test_diagnose_json_from_the_command_line(rng, tmp_path):
+def test_diagnose_json_from_the_command_line(rng, tmp_path, capsys):
     s = scene(rng)
     pq.write_table(scene_table(s, plant(s, "transposed-rotation")), tmp_path / "obs.parquet")
-    proc = run_hconv("diagnose", str(tmp_path / "obs.parquet"), "--json")
+    proc = hconv_inprocess("diagnose", str(tmp_path / "obs.parquet"), "--json", capsys=capsys)
     assert proc.returncode == 0, proc.stderr.decode()
     ranking = json.loads(proc.stdout)
     assert ranking[0]["hypothesis"] == "transposed-rotation" and ranking[0]["share_explained"] == 1.0
@@ -159,7 +159,7 @@ def test_diagnose_json_from_the_command_line(rng, tmp_path):
     assert {r["hypothesis"] for r in ranking} == set(diagnose.NAMES)
 
 
-def test_diagnose_reports_rows_nothing_explains(rng, tmp_path):
+def test_diagnose_reports_rows_nothing_explains(rng, tmp_path, capsys):
     s = scene(rng)
     w = plant(s, "exact")
     w[:7] *= 1.5  # rows a wrong engine made up
@@ -167,13 +167,13 @@ def test_diagnose_reports_rows_nothing_explains(rng, tmp_path):
     d = diagnose.diagnose_file(str(tmp_path / "obs.parquet"))
     assert d.ranking()[0].hypothesis == "exact"
     assert d.unexplained == 7 and [e[0] for e in d.examples] == list(range(7))
-    proc = run_hconv("diagnose", str(tmp_path / "obs.parquet"))
+    proc = hconv_inprocess("diagnose", str(tmp_path / "obs.parquet"), capsys=capsys)
     assert proc.returncode == 0 and b"7 rows no hypothesis explains" in proc.stdout
 
 
-def test_diagnose_without_observed_omega_names_the_columns(tmp_path):
+def test_diagnose_without_observed_omega_names_the_columns(tmp_path, capsys):
     pq.write_table(pa.table({"Hx": [1.0], "Hy": [0.0], "Hz": [0.0], "I": [1.0]}), tmp_path / "x.parquet")
-    proc = run_hconv("diagnose", str(tmp_path / "x.parquet"))
+    proc = hconv_inprocess("diagnose", str(tmp_path / "x.parquet"), capsys=capsys)
     assert proc.returncode == 3 and b"wx_obs, wy_obs, wz_obs" in proc.stderr
 
 
@@ -187,11 +187,11 @@ def test_summary_median_within_half_a_bin(rng):
     assert s.within == int((values <= 1e-6).sum())
 
 
-def test_compare_writes_per_row_figures_and_finds_shortcut_failures(rng, tmp_path):
+def test_compare_writes_per_row_figures_and_finds_shortcut_failures(rng, tmp_path, capsys):
     s = scene(rng)
     t = pa.table({**vec("H", s["H"]), **dict(zip(SIX, six(world(s["R"], s["I"])).T)), **vec("r", s["r"])})
     pq.write_table(t, tmp_path / "in.parquet")
-    proc = run_hconv("compare", str(tmp_path / "in.parquet"), str(tmp_path / "cmp.parquet"))
+    proc = hconv_inprocess("compare", str(tmp_path / "in.parquet"), str(tmp_path / "cmp.parquet"), capsys=capsys)
     assert proc.returncode == 0, proc.stderr.decode()
     out = pq.read_table(tmp_path / "cmp.parquet")
     assert out.num_rows == N and out.column_names[:12] == t.column_names
@@ -384,7 +384,7 @@ def diagonal_tensors(rng):
     ],
     ids=["planar", "special-rotation", "diagonal-tensor"],
 )
-def test_diagnose_ties_what_the_data_cannot_tell_apart(rng, tmp_path, make, name, tied):
+def test_diagnose_ties_what_the_data_cannot_tell_apart(rng, tmp_path, make, name, tied, capsys):
     s = make(rng)
     w_obs = plant(s, name)
     assert equivalent(s, w_obs) == tied  # the test's own reckoning of what is the same on this data
@@ -397,12 +397,12 @@ def test_diagnose_ties_what_the_data_cannot_tell_apart(rng, tmp_path, make, name
     assert all(ranks[n] == (1, tied - {n}) for n in tied)
     assert min(r for r, _ in ranks.values() if r > 1) == len(tied) + 1
 
-    proc = run_hconv("diagnose", str(tmp_path / "obs.parquet"), "--json")
+    proc = hconv_inprocess("diagnose", str(tmp_path / "obs.parquet"), "--json", capsys=capsys)
     assert proc.returncode == 0, proc.stderr.decode()
     got = json.loads(proc.stdout)
     assert {r["hypothesis"] for r in got if r["rank"] == 1} == tied
     assert all(set(r["tied_with"]) == tied - {r["hypothesis"]} for r in got if r["rank"] == 1)
-    text = run_hconv("diagnose", str(tmp_path / "obs.parquet")).stdout.decode()
+    text = hconv_inprocess("diagnose", str(tmp_path / "obs.parquet"), capsys=capsys).stdout.decode()
     names = ", ".join(n for n in diagnose.NAMES if n in tied)
     assert f"# tied for best, explaining the same rows with the same ω (to the data's precision): {names}" in text
     assert "# best:" not in text
@@ -496,26 +496,28 @@ def test_diagnose_mujoco_free_joint_qvel_is_omega_body_frame(tmp_path):
     assert first_group(d) == ["omega-body-frame"] and d.groups()[0][0].residual.share_within == 1.0
 
 
-def test_diagnose_scene_options_from_the_command_line(rng, tmp_path):
+def test_diagnose_scene_options_from_the_command_line(rng, tmp_path, capsys):
     s = scene(rng)
     Hb = np.einsum("nji,nj->ni", s["R"], s["H"])
     pq.write_table(scene_table({**s, "H": Hb}, solve(s["I"], Hb)), tmp_path / "obs.parquet")
-    proc = run_hconv("diagnose", str(tmp_path / "obs.parquet"), "--frame", "body", "--omega-frame", "world", "--json")
+    proc = hconv_inprocess(
+        "diagnose", str(tmp_path / "obs.parquet"), "--frame", "body", "--omega-frame", "world", "--json", capsys=capsys
+    )
     assert proc.returncode == 0, proc.stderr.decode()
     got = json.loads(proc.stdout)
     assert got[0]["hypothesis"] == "omega-body-frame" and got[0]["rank"] == 1 and got[0]["tied_with"] == []
     assert got[0]["share_explained"] == 1.0
-    proc = run_hconv("diagnose", str(tmp_path / "obs.parquet"), "--frame", "body")
+    proc = hconv_inprocess("diagnose", str(tmp_path / "obs.parquet"), "--frame", "body", capsys=capsys)
     assert proc.returncode == 0 and b"# best: exact" in proc.stdout
     assert (
         b"transposed-rotation, quat-xyzw (H and \xcf\x89 are declared in the body frame, so q turns nothing)"
         in proc.stdout
     )
-    proc = run_hconv("diagnose", str(tmp_path / "obs.parquet"), "--about", "free")
+    proc = hconv_inprocess("diagnose", str(tmp_path / "obs.parquet"), "--about", "free", capsys=capsys)
     assert proc.returncode == 0, proc.stderr.decode()
 
 
-def test_diagnose_degenerate_options_from_the_command_line(rng, tmp_path):
+def test_diagnose_degenerate_options_from_the_command_line(rng, tmp_path, capsys):
     """Thin rods, whose engine drops the axis of the (near-)zero moment: convert took --degenerate
     and --degenerate-rtol, diagnose did not, so exact could not explain such a log."""
     s = scene(rng)
@@ -529,19 +531,26 @@ def test_diagnose_degenerate_options_from_the_command_line(rng, tmp_path):
     w_B[:, :2] = H_B[:, :2] / moments  # the pseudo-inverse: nothing about the rod's own axis
     w_obs = np.einsum("nij,nj->ni", R, w_B)
     pq.write_table(scene_table({**s, "I": I}, w_obs), tmp_path / "rods.parquet")
-    proc = run_hconv(
-        "diagnose", str(tmp_path / "rods.parquet"), "--degenerate", "pinv", "--degenerate-rtol", "1e-6", "--json"
+    proc = hconv_inprocess(
+        "diagnose",
+        str(tmp_path / "rods.parquet"),
+        "--degenerate",
+        "pinv",
+        "--degenerate-rtol",
+        "1e-6",
+        "--json",
+        capsys=capsys,
     )
     assert proc.returncode == 0, proc.stderr.decode()
     got = json.loads(proc.stdout)
     assert got[0]["hypothesis"] == "exact" and got[0]["share_explained"] == 1.0
-    plain = json.loads(run_hconv("diagnose", str(tmp_path / "rods.parquet"), "--json").stdout)
+    plain = json.loads(hconv_inprocess("diagnose", str(tmp_path / "rods.parquet"), "--json", capsys=capsys).stdout)
     assert next(r for r in plain if r["hypothesis"] == "exact")["share_explained"] == 0.0
 
 
-def test_diagnose_of_no_rows_calls_nothing_best(tmp_path):
+def test_diagnose_of_no_rows_calls_nothing_best(tmp_path, capsys):
     (tmp_path / "empty.csv").write_text("Hx,Hy,Hz,I,wx_obs,wy_obs,wz_obs\n")
-    proc = run_hconv("diagnose", str(tmp_path / "empty.csv"))
+    proc = hconv_inprocess("diagnose", str(tmp_path / "empty.csv"), capsys=capsys)
     assert proc.returncode == 0, proc.stderr.decode()
     assert b"# hconv diagnose \xc2\xb7 0 rows" in proc.stdout
     assert b"best" not in proc.stdout and b"closest" not in proc.stdout

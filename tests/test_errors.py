@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from helpers import run_hconv
+from helpers import hconv_inprocess
 
 import hconv
 from hconv import errors
@@ -35,10 +35,10 @@ def test_option_spelled_as_a_flag_inside_a_command_and_restored_after_an_error()
         ({"degenerate_rtol": 2.0}, "degenerate_rtol must be at least 0", ["--degenerate-rtol", "2"]),
     ],
 )
-def test_option_error_names_the_keyword_in_python_and_the_flag_on_the_command_line(kwargs, python, command):
+def test_option_error_names_the_keyword_in_python_and_the_flag_on_the_command_line(kwargs, python, command, capsys):
     with pytest.raises(UsageError) as info:
         hconv.convert(np.ones(3), np.eye(3), **kwargs)
     assert str(info.value).startswith(python) and "--" not in str(info.value)
-    proc = run_hconv("one", "--H", "1,2,3", "--I", "1,2,3", *command)
+    proc = hconv_inprocess("one", "--H", "1,2,3", "--I", "1,2,3", *command, capsys=capsys)
     err = proc.stderr.decode()
     assert proc.returncode == 2 and err.startswith(f"hconv: error: {command[0]} ") and len(err.splitlines()) == 1

@@ -11,7 +11,7 @@ import numpy as np
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 import pytest
-from helpers import rel_err, run_hconv
+from helpers import hconv_inprocess, rel_err, run_hconv
 
 DATA = Path(__file__).resolve().parent.parent / "examples" / "data"
 
@@ -43,8 +43,8 @@ def omega(t, names=("wx", "wy", "wz")):
         ),
     ],
 )
-def test_readme_scene_examples_recover_the_true_omega(tmp_path, src, args, scale):
-    proc = run_hconv("convert", str(DATA / src), str(tmp_path / "out.csv"), *args)
+def test_readme_scene_examples_recover_the_true_omega(tmp_path, src, args, scale, capsys):
+    proc = hconv_inprocess("convert", str(DATA / src), str(tmp_path / "out.csv"), *args, capsys=capsys)
     assert proc.returncode == 0, proc.stderr.decode()
     t = pacsv.read_csv(tmp_path / "out.csv")
     assert set(t.column("status").to_pylist()) == {"ok"}
@@ -52,8 +52,10 @@ def test_readme_scene_examples_recover_the_true_omega(tmp_path, src, args, scale
     assert set(t.column("w_unit").to_pylist()) == {"deg/s" if scale != 1 else "rad/s"}
 
 
-def test_readme_rods_example_with_list_columns(tmp_path):
-    proc = run_hconv("convert", str(DATA / "rods.parquet"), str(tmp_path / "out.parquet"), "--degenerate", "pinv")
+def test_readme_rods_example_with_list_columns(tmp_path, capsys):
+    proc = hconv_inprocess(
+        "convert", str(DATA / "rods.parquet"), str(tmp_path / "out.parquet"), "--degenerate", "pinv", capsys=capsys
+    )
     assert proc.returncode == 0, proc.stderr.decode()
     t = pq.read_table(tmp_path / "out.parquet")
     assert set(t.column("status").to_pylist()) == {"degenerate"}
@@ -64,21 +66,23 @@ def test_readme_rods_example_with_list_columns(tmp_path):
     assert proc.returncode == 0 and proc.stdout.startswith(b"H,I,q,w_true,") and b'"[0.0, ' in proc.stdout
 
 
-def test_readme_engine_log_diagnosis(tmp_path):
-    proc = run_hconv("diagnose", str(DATA / "engine-log.csv"), "--json")
+def test_readme_engine_log_diagnosis(tmp_path, capsys):
+    proc = hconv_inprocess("diagnose", str(DATA / "engine-log.csv"), "--json", capsys=capsys)
     assert proc.returncode == 0, proc.stderr.decode()
     assert json.loads(proc.stdout)[0]["hypothesis"] == "transposed-rotation"
 
 
-def test_readme_free_body_log_diagnosis(tmp_path):
+def test_readme_free_body_log_diagnosis(tmp_path, capsys):
     """The MuJoCo-style log: body-frame ω logged as world, and the fix the diagnosis points to."""
-    proc = run_hconv("diagnose", str(DATA / "free-body-log.csv"), "--json")
+    proc = hconv_inprocess("diagnose", str(DATA / "free-body-log.csv"), "--json", capsys=capsys)
     assert proc.returncode == 0, proc.stderr.decode()
     top = json.loads(proc.stdout)[0]
     assert top["hypothesis"] == "omega-body-frame" and top["share_explained"] == 1.0 and top["tied_with"] == []
-    proc = run_hconv("diagnose", str(DATA / "free-body-log.csv"), "--omega-frame", "body", "--json")
+    proc = hconv_inprocess(
+        "diagnose", str(DATA / "free-body-log.csv"), "--omega-frame", "body", "--json", capsys=capsys
+    )
     assert json.loads(proc.stdout)[0]["hypothesis"] == "exact"
-    proc = run_hconv("convert", str(DATA / "free-body-log.csv"), str(tmp_path / "out.csv"))
+    proc = hconv_inprocess("convert", str(DATA / "free-body-log.csv"), str(tmp_path / "out.csv"), capsys=capsys)
     assert proc.returncode == 0, proc.stderr.decode()
     t = pacsv.read_csv(tmp_path / "out.csv")
     assert rel_err(omega(t), omega(t, ("w_true_x", "w_true_y", "w_true_z"))).max() < 1e-13
@@ -95,12 +99,12 @@ def test_readme_free_body_log_diagnosis(tmp_path):
         (["--H", "1,1,0", "--I", "0,1,1", "--degenerate", "pinv"], [0.0, 1.0, 0.0]),
     ],
 )
-def test_readme_one_examples(args, want):
-    proc = run_hconv("one", *args, "--json")
+def test_readme_one_examples(args, want, capsys):
+    proc = hconv_inprocess("one", *args, "--json", capsys=capsys)
     assert proc.returncode == 0, proc.stderr.decode()
     np.testing.assert_allclose(json.loads(proc.stdout)["w"], want, rtol=1e-15, atol=1e-16)
 
 
-def test_readme_unit_slip_example():
-    proc = run_hconv("one", "--H", "1,0,0", "--I", "1e-5", "--m", "1000", "--json")
+def test_readme_unit_slip_example(capsys):
+    proc = hconv_inprocess("one", "--H", "1,0,0", "--I", "1e-5", "--m", "1000", "--json", capsys=capsys)
     assert json.loads(proc.stdout)["status"] == "unit_suspect"

@@ -6,7 +6,7 @@ import numpy as np
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 import pytest
-from helpers import EPS, rel_err, run_hconv
+from helpers import EPS, hconv_inprocess, rel_err, run_hconv
 
 import hconv
 from hconv.tools.scene import KINDS, make_scene
@@ -42,9 +42,9 @@ def test_generate_bodies_are_physical_with_requested_cond(scene):
     assert (rel_err(res.w, w_true) <= 4 * res.cond * EPS).all()
 
 
-def test_generate_command_parquet_and_csv_agree(tmp_path):
+def test_generate_command_parquet_and_csv_agree(tmp_path, capsys):
     for ext in ("parquet", "csv"):
-        proc = run_hconv("generate", str(tmp_path / f"s.{ext}"), "--rows", "1000", "--seed", "9")
+        proc = hconv_inprocess("generate", str(tmp_path / f"s.{ext}"), "--rows", "1000", "--seed", "9", capsys=capsys)
         assert proc.returncode == 0, proc.stderr.decode()
     a, b = pq.read_table(tmp_path / "s.parquet"), pacsv.read_csv(tmp_path / "s.csv")
     assert a.num_rows == 1000 and a.column_names == b.column_names
@@ -52,20 +52,25 @@ def test_generate_command_parquet_and_csv_agree(tmp_path):
         np.testing.assert_array_equal(a.column(c).to_numpy(), b.column(c).to_numpy())
 
 
-def test_generate_same_seed_same_rows_other_seed_other_rows(tmp_path):
+def test_generate_same_seed_same_rows_other_seed_other_rows(tmp_path, capsys):
     for name, seed in (("a", "1"), ("b", "1"), ("c", "2")):
-        assert run_hconv("generate", str(tmp_path / f"{name}.parquet"), "-n", "500", "--seed", seed).returncode == 0
+        assert (
+            hconv_inprocess(
+                "generate", str(tmp_path / f"{name}.parquet"), "-n", "500", "--seed", seed, capsys=capsys
+            ).returncode
+            == 0
+        )
     a, b, c = (pq.read_table(tmp_path / f"{k}.parquet") for k in "abc")
     assert a.equals(b) and not a.equals(c)
 
 
-def test_generate_bad_arguments(tmp_path):
-    proc = run_hconv("generate", str(tmp_path / "x.csv"), "--rows", "5", "--scene", "blob")
+def test_generate_bad_arguments(tmp_path, capsys):
+    proc = hconv_inprocess("generate", str(tmp_path / "x.csv"), "--rows", "5", "--scene", "blob", capsys=capsys)
     assert proc.returncode == 2 and "--scene must be one of mix, box," in proc.stderr.decode()
-    proc = run_hconv("generate", str(tmp_path / "x.csv"), "--rows", "5", "--cond-max", "0.5")
+    proc = hconv_inprocess("generate", str(tmp_path / "x.csv"), "--rows", "5", "--cond-max", "0.5", capsys=capsys)
     assert proc.returncode == 2 and "--cond-max must be a finite number, at least 1" in proc.stderr.decode()
     (tmp_path / "y.csv").write_text("keep\n")
-    proc = run_hconv("generate", str(tmp_path / "y.csv"), "--rows", "5")
+    proc = hconv_inprocess("generate", str(tmp_path / "y.csv"), "--rows", "5", capsys=capsys)
     assert proc.returncode == 4 and (tmp_path / "y.csv").read_text() == "keep\n"
 
 

@@ -11,7 +11,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +18,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 import pytest
-from helpers import run_inprocess
+from helpers import StopAt, run_inprocess
 
 from hconv import METHODS
 from hconv.tables import csvio, parquetio
@@ -170,22 +169,22 @@ def test_convert_interrupted_leaves_no_output_and_no_temporary(big_file, tmp_pat
     # As from a terminal: Ctrl-C and SIGQUIT at their defaults. A child inherits an ignored signal,
     # and under HCONV_ENGINE=numba this process was caught with both ignored (the mark of a C
     # system() call running in another thread), so the child never saw the SIGINT and finished.
-    env = dict(os.environ, TMPDIR=str(tmp))
-    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=_terminal_signals, env=env)
-
-    def started():
-        here = any(p.name.endswith(".hconv-tmp") for p in tmp_path.iterdir())
-        return here or (dst == "-" and bool(spools() - before))
-
-    deadline = time.time() + 60
-    while time.time() < deadline and not started():
-        time.sleep(0.02)
-    time.sleep(0.2)
-    assert proc.poll() is None, "the conversion ended before it could be interrupted"
+    # The child stops as its first batch is written (helpers.StopAt), more to come: the signal
+    # lands mid-conversion however slow the machine, with a file to remove.
+    stop = StopAt(tmp_path.parent / f"{tmp_path.name}-hook", "hconv.tables.tableio:Output.write")
+    env = stop.env(dict(os.environ, TMPDIR=str(tmp)))
+    proc = subprocess.Popen(
+        args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=_terminal_signals, env=env, pass_fds=stop.fds
+    )
+    stop.started()
+    assert stop.reached(), "the conversion ended before it could be interrupted"
+    here = any(p.name.endswith(".hconv-tmp") for p in tmp_path.iterdir())
+    assert here or (dst == "-" and bool(spools() - before))  # a temporary file to remove
     status = Path(f"/proc/{proc.pid}/status")
     masks = [ln for ln in status.read_text().splitlines() if ln.startswith("Sig")] if status.exists() else []
     proc.send_signal(sig)
-    out, err = proc.communicate(timeout=60)
+    stop.release()
+    out, err = proc.communicate()
     assert proc.returncode == 130, (err, masks)  # the child's signal masks, if the signal was lost
     assert b"interrupted" in err and b"Traceback" not in err and len(err.strip().splitlines()) == 1
     assert out == b""  # with '-' as OUT, nothing reached stdout

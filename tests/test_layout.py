@@ -11,7 +11,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
-from helpers import run_hconv
+from helpers import hconv_inprocess
 
 from hconv.errors import InputError, UsageError
 from hconv.tables import layout, pipeline
@@ -149,10 +149,10 @@ def test_plan_map_taking_a_name_s_own_column_says_so(columns, mapping, needle):
     assert needle in msg and "give" in msg and "a column too" in msg
 
 
-def test_plan_map_clash_is_spelled_as_the_command_line_does(tmp_path):
+def test_plan_map_clash_is_spelled_as_the_command_line_does(tmp_path, capsys):
     src = tmp_path / "in.csv"
     src.write_text("Hx,Hy,Hz,I1,I2,I3\n1,2,3,4,5,6\n")
-    proc = run_hconv("convert", str(src), str(tmp_path / "o.csv"), "--map", "Hy=Hx")
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "o.csv"), "--map", "Hy=Hx", capsys=capsys)
     err = proc.stderr.decode().strip()
     assert proc.returncode == 3 and len(err.splitlines()) == 1
     assert "column 'Hx' is read as Hy: --map Hy=Hx); give Hx a column too, e.g. --map Hx=COLUMN" in err
@@ -231,18 +231,18 @@ def test_plan_field_units_refuses_a_unit_of_the_wrong_kind_naming_the_keyword():
         layout.plan(pa.schema([(c, pa.float64()) for c in names]), Job(field_units={"Ixx": "m/s"}), "engine")
 
 
-def test_plan_missing_vector_set_suggests_the_map_that_reads_look_alike_columns(tmp_path):
+def test_plan_missing_vector_set_suggests_the_map_that_reads_look_alike_columns(tmp_path, capsys):
     src = tmp_path / "in.csv"
     src.write_text("Lx,Ly,Lz,Ixx,Iyy,Izz,Ixy,Ixz,Iyz\n1,2,3,1,2,4,0,0,0\n")
     out = tmp_path / "o.csv"
-    proc = run_hconv("convert", str(src), str(out))
+    proc = hconv_inprocess("convert", str(src), str(out), capsys=capsys)
     err = proc.stderr.decode().strip()
     assert proc.returncode == 3 and len(err.splitlines()) == 1
     suggested = re.search(r"give (--map \S+)$", err)
     assert suggested, err
     assert "Ixx" not in suggested.group(1)  # the inertia's own columns are read by their names
     # the suggestion is a command that works: ω of the diagonal body is H / I per axis
-    proc = run_hconv("convert", str(src), str(out), *suggested.group(1).split())
+    proc = hconv_inprocess("convert", str(src), str(out), *suggested.group(1).split(), capsys=capsys)
     assert proc.returncode == 0, proc.stderr.decode()
     row = out.read_text().splitlines()[1].split(",")
     header = out.read_text().splitlines()[0].split(",")

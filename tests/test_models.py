@@ -22,7 +22,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 import pytest
-from helpers import axis_angle, mp_solve, need, quats, rodrigues, run_hconv
+from helpers import axis_angle, hconv_inprocess, mp_solve, need, quats, rodrigues, run_hconv
 from rich.console import Console
 
 from hconv import modelview
@@ -1051,7 +1051,7 @@ def test_table_columns_are_hconvs_input_contract(tmp_path):
 
 
 @pytest.mark.parametrize("form, ext", [("sym6", "csv"), ("principal", "parquet")])
-def test_roundtrip_bodies_into_convert_gives_inverse_inertia_times_H(tmp_path, form, ext):
+def test_roundtrip_bodies_into_convert_gives_inverse_inertia_times_H(tmp_path, form, ext, capsys):
     """Bodies with rotated inertials written by hconv bodies, read by hconv convert with an H per
     row: ω is I⁻¹H for the tensor built here from the same numbers (Rodrigues, 50-digit solve)."""
     rng = np.random.default_rng(7)
@@ -1067,7 +1067,7 @@ def test_roundtrip_bodies_into_convert_gives_inverse_inertia_times_H(tmp_path, f
     )
     (tmp_path / "m.xml").write_text(mjcf(bodies))
     out = tmp_path / f"bodies.{ext}"
-    proc = run_hconv("bodies", str(tmp_path / "m.xml"), str(out), "--form", form)
+    proc = hconv_inprocess("bodies", str(tmp_path / "m.xml"), str(out), "--form", form, capsys=capsys)
     assert proc.returncode == 0, proc.stderr.decode()
     t = pacsv.read_csv(out) if ext == "csv" else pq.read_table(out)
     H = rng.normal(size=(n, 3))
@@ -1075,7 +1075,7 @@ def test_roundtrip_bodies_into_convert_gives_inverse_inertia_times_H(tmp_path, f
     t = t.append_column("Hz", pa.array(H[:, 2]))
     src = tmp_path / f"with-H.{ext}"
     (pacsv.write_csv if ext == "csv" else pq.write_table)(t, src)
-    proc = run_hconv("convert", str(src), str(tmp_path / f"omega.{ext}"), "-q")
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / f"omega.{ext}"), "-q", capsys=capsys)
     assert proc.returncode == 0, proc.stderr.decode()
     res = pacsv.read_csv(tmp_path / f"omega.{ext}") if ext == "csv" else pq.read_table(tmp_path / f"omega.{ext}")
     w = np.column_stack([res.column(c).to_numpy() for c in ("wx", "wy", "wz")])
@@ -1151,8 +1151,8 @@ def test_show_escapes_a_tab_or_newline_in_a_name(tmp_path, terminal):
 # --- the command -----------------------------------------------------------------------------
 
 
-def test_cli_bodies_in_a_pipe_is_tab_separated():
-    proc = run_hconv("bodies", str(EXAMPLES / "arm.urdf"))
+def test_cli_bodies_in_a_pipe_is_tab_separated(capsys):
+    proc = hconv_inprocess("bodies", str(EXAMPLES / "arm.urdf"), capsys=capsys)
     assert proc.returncode == 0, proc.stderr.decode()
     lines = proc.stdout.decode().splitlines()
     assert lines[0].startswith("# hconv bodies") and lines[2] == "body\tm\tI1\tI2\tI3\tstatus\treason"
@@ -1167,20 +1167,24 @@ def test_cli_bodies_in_a_pipe_is_tab_separated():
     assert rows["forearm_link"][5] == "not_physical" and "sign slip" in rows["forearm_link"][6]
 
 
-def test_cli_bodies_writes_files_atomically_and_refuses_to_overwrite(tmp_path):
+def test_cli_bodies_writes_files_atomically_and_refuses_to_overwrite(tmp_path, capsys):
     out = tmp_path / "arm.csv"
-    proc = run_hconv("bodies", str(EXAMPLES / "arm.urdf"), str(out))
+    proc = hconv_inprocess("bodies", str(EXAMPLES / "arm.urdf"), str(out), capsys=capsys)
     assert proc.returncode == 0 and b"7 bodies: 3 ok" in proc.stderr
     assert pacsv.read_csv(out).num_rows == 7
-    proc = run_hconv("bodies", str(EXAMPLES / "arm.urdf"), str(out))
+    proc = hconv_inprocess("bodies", str(EXAMPLES / "arm.urdf"), str(out), capsys=capsys)
     assert proc.returncode == 4 and b"already exists; pass --force" in proc.stderr
-    assert run_hconv("bodies", str(EXAMPLES / "arm.urdf"), str(out), "--force", "-q").stderr == b""
+    assert hconv_inprocess("bodies", str(EXAMPLES / "arm.urdf"), str(out), "--force", "-q", capsys=capsys).stderr == b""
     proc = run_hconv("bodies", str(EXAMPLES / "arm.urdf"), "-", "--to", "csv", "-q")
     assert proc.stdout.startswith(b"body,m,rx,ry,rz,Ixx,")
-    proc = run_hconv("bodies", str(EXAMPLES / "arm.urdf"), str(tmp_path / "x.csv"), "--form", "full9")
+    proc = hconv_inprocess(
+        "bodies", str(EXAMPLES / "arm.urdf"), str(tmp_path / "x.csv"), "--form", "full9", capsys=capsys
+    )
     assert proc.returncode == 2 and b"--form must be one of sym6, principal, got 'full9'" in proc.stderr
     assert not (tmp_path / "x.csv").exists()
-    proc = run_hconv("bodies", str(EXAMPLES / "arm.urdf"), str(EXAMPLES / "arm.urdf"), "--to", "csv", "--force")
+    proc = hconv_inprocess(
+        "bodies", str(EXAMPLES / "arm.urdf"), str(EXAMPLES / "arm.urdf"), "--to", "csv", "--force", capsys=capsys
+    )
     assert proc.returncode == 4 and b"is the input file" in proc.stderr
 
 
@@ -1196,38 +1200,40 @@ def test_cli_bodies_writes_files_atomically_and_refuses_to_overwrite(tmp_path):
         (("--form", "principal", "--force"), "hconv: error: --form and --force are for OUT, which is not given;"),
     ],
 )
-def test_cli_bodies_without_out_checks_options_as_with_it(args, says):
+def test_cli_bodies_without_out_checks_options_as_with_it(args, says, capsys):
     """Before: without OUT, --form weird and --to csv were ignored, exit 0 and the table."""
-    proc = run_hconv("bodies", str(EXAMPLES / "arm.urdf"), *args)
+    proc = hconv_inprocess("bodies", str(EXAMPLES / "arm.urdf"), *args, capsys=capsys)
     assert proc.returncode == 2 and proc.stdout == b""
     assert proc.stderr.decode().startswith(says) and proc.stderr.count(b"\n") == 1
 
 
-def test_cli_bodies_strict_exits_5_when_a_body_is_not_ok(tmp_path):
-    proc = run_hconv("bodies", str(EXAMPLES / "arm.urdf"), "--strict")
+def test_cli_bodies_strict_exits_5_when_a_body_is_not_ok(tmp_path, capsys):
+    proc = hconv_inprocess("bodies", str(EXAMPLES / "arm.urdf"), "--strict", capsys=capsys)
     assert proc.returncode == 5 and b"4 of 7 bodies are not ok" in proc.stderr and b"forearm_link" in proc.stdout
-    proc = run_hconv("bodies", str(EXAMPLES / "arm.urdf"), str(tmp_path / "o.csv"), "--strict")
+    proc = hconv_inprocess("bodies", str(EXAMPLES / "arm.urdf"), str(tmp_path / "o.csv"), "--strict", capsys=capsys)
     assert proc.returncode == 5 and b"nothing was written" in proc.stderr and not (tmp_path / "o.csv").exists()
     (tmp_path / "good.urdf").write_text(urdf(urdf_link("a", 1.0, np.diag([0.1, 0.2, 0.25]))))
-    assert run_hconv("bodies", str(tmp_path / "good.urdf"), "--strict").returncode == 0
+    assert hconv_inprocess("bodies", str(tmp_path / "good.urdf"), "--strict", capsys=capsys).returncode == 0
 
 
-def test_cli_bodies_strict_fails_a_model_with_no_bodies(tmp_path):
+def test_cli_bodies_strict_fails_a_model_with_no_bodies(tmp_path, capsys):
     (tmp_path / "empty.xml").write_text("<mujoco><worldbody/></mujoco>")
-    proc = run_hconv("bodies", str(tmp_path / "empty.xml"), str(tmp_path / "o.csv"), "--strict")
+    proc = hconv_inprocess("bodies", str(tmp_path / "empty.xml"), str(tmp_path / "o.csv"), "--strict", capsys=capsys)
     err = proc.stderr.decode()
     assert proc.returncode == 5 and "has no bodies to check (--strict)" in err and len(err.splitlines()) == 1
     assert not (tmp_path / "o.csv").exists()
-    assert run_hconv("bodies", str(tmp_path / "empty.xml")).returncode == 0  # without --strict: listed, 0 bodies
+    assert (
+        hconv_inprocess("bodies", str(tmp_path / "empty.xml"), capsys=capsys).returncode == 0
+    )  # without --strict: listed, 0 bodies
 
 
 @pytest.mark.parametrize(
     "text", [LAUGHS, "<robot><link name='a'><inertial><mass value='x'/></inertial></link></robot>", "<robot>"]
 )
-def test_cli_bodies_bad_model_is_one_line_exit_3(tmp_path, text):
+def test_cli_bodies_bad_model_is_one_line_exit_3(tmp_path, text, capsys):
     path = tmp_path / "bad.urdf"
     path.write_text(text)
-    proc = run_hconv("bodies", str(path))
+    proc = hconv_inprocess("bodies", str(path), capsys=capsys)
     err = proc.stderr.decode()
     assert proc.returncode == 3 and err.startswith(f"hconv: error: {path}") and err.count("\n") == 1
     assert "Traceback" not in err and proc.stdout == b""

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from helpers import run_hconv
+from helpers import hconv_inprocess
 
 import hconv
 from hconv.errors import UsageError
@@ -22,7 +22,7 @@ def _message(fn) -> str:
     return str(info.value)
 
 
-def test_check_precision_one_message_from_every_entry(tmp_path):
+def test_check_precision_one_message_from_every_entry(tmp_path, capsys):
     want = "precision must be 64 or 32, got 16"  # Python callers are told the keyword
     assert _message(lambda: hconv.convert(H, I, precision=16)) == want
     assert _message(lambda: Job(precision=16)) == want
@@ -33,7 +33,7 @@ def test_check_precision_one_message_from_every_entry(tmp_path):
         ["convert", str(src), str(tmp_path / "o.csv"), "--precision", "16"],
         ["one", "--H", "1,2,3", "--I", "1", "--precision", "16"],
     ):
-        proc = run_hconv(*args)
+        proc = hconv_inprocess(*args, capsys=capsys)
         assert proc.returncode == 2 and proc.stderr.decode().strip() == f"hconv: error: {want}"
 
 
@@ -69,9 +69,9 @@ def test_conventions_needs_name_each_reason():
     assert need["r"] == "method 'document' needs the offset r"
 
 
-def test_choices_are_the_clis():
+def test_choices_are_the_clis(capsys):
     # the CLI builds its choices from these tuples: an unknown one is refused by the command line itself
-    proc = run_hconv("one", "--H", "1,2,3", "--I", "1", "--about", "corner")
+    proc = hconv_inprocess("one", "--H", "1,2,3", "--I", "1", "--about", "corner", capsys=capsys)
     assert proc.returncode == 2 and all(c in proc.stderr.decode() for c in options.ABOUT)
 
 

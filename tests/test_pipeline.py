@@ -34,10 +34,14 @@ def test_ordered_map_keeps_input_order(threads):
 
 def test_ordered_map_uses_several_threads():
     seen = set()
+    # The first two items wait for each other: they pass only if two threads run them at once
+    # (one thread would wait out the timeout, which only a broken ordered_map reaches).
+    together = threading.Barrier(2, timeout=600)
 
     def record(k):
         seen.add(threading.get_ident())
-        time.sleep(0.01)
+        if k < 2:
+            together.wait()
         return k
 
     assert list(pipeline.ordered_map(record, range(12), 3)) == list(range(12))

@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 import pytest
-from helpers import EPS, mp_solve, physical_bodies, rel_err, run_hconv, spd_bodies
+from helpers import EPS, hconv_inprocess, mp_solve, physical_bodies, rel_err, spd_bodies
 
 import hconv
 from hconv.tools import stability
@@ -51,9 +51,9 @@ def test_stability_run_float32_flags_past_its_digits(points):
     assert all(p.flagged == 1.0 for p in f32)
 
 
-def test_stability_command_writes_png_and_tables(tmp_path):
+def test_stability_command_writes_png_and_tables(tmp_path, capsys):
     out = tmp_path / "stab.png"
-    proc = run_hconv("stability", "--rows", "4", "--out", str(out))
+    proc = hconv_inprocess("stability", "--rows", "4", "--out", str(out), capsys=capsys)
     assert proc.returncode == 0, proc.stderr.decode()
     data = out.read_bytes()
     assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 50_000
@@ -62,15 +62,15 @@ def test_stability_command_writes_png_and_tables(tmp_path):
         assert s.title in text
 
 
-def test_stability_command_svg_and_json(tmp_path):
+def test_stability_command_svg_and_json(tmp_path, capsys):
     out = tmp_path / "stab.svg"
-    proc = run_hconv("stability", "--rows", "4", "--out", str(out), "--json")
+    proc = hconv_inprocess("stability", "--rows", "4", "--out", str(out), "--json", capsys=capsys)
     assert proc.returncode == 0
     assert out.read_text().lstrip().startswith("<?xml")
     rows = json.loads(proc.stdout)
     assert {"sweep", "param", "method", "precision", "median_error", "worst_error", "flagged"} <= set(rows[0])
 
 
-def test_stability_command_rejects_other_chart_formats(tmp_path):
-    proc = run_hconv("stability", "--out", str(tmp_path / "stab.jpg"))
+def test_stability_command_rejects_other_chart_formats(tmp_path, capsys):
+    proc = hconv_inprocess("stability", "--out", str(tmp_path / "stab.jpg"), capsys=capsys)
     assert proc.returncode == 2 and "name the chart .png or .svg" in proc.stderr.decode()

@@ -14,7 +14,7 @@ from pathlib import Path
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
-from helpers import run_hconv, run_inprocess, terminal_signals
+from helpers import StopAt, run_hconv, run_inprocess, terminal_signals
 
 import hconv.errors
 
@@ -22,25 +22,30 @@ ROOT = Path(__file__).resolve().parents[1]
 SCENE_CSV = ROOT / "examples" / "data" / "scene.csv"
 
 
-def _hconv(*args: str, tmpdir: Path, **kw) -> subprocess.Popen:
-    """The real command, with its own temporary directory so that what it leaves there is seen."""
+def _hconv(*args: str, tmpdir: Path, stop: StopAt | None = None, **kw) -> subprocess.Popen:
+    """The real command, with its own temporary directory so that what it leaves there is seen;
+    ``stop``: a point where it waits for the test (helpers.StopAt)."""
     env = dict(os.environ, TMPDIR=str(tmpdir), COLUMNS="200")
-    return subprocess.Popen(
+    proc = subprocess.Popen(
         [sys.executable, "-m", "hconv", *args],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
-        env=env,
+        env=stop.env(env) if stop else env,
         preexec_fn=terminal_signals,
+        pass_fds=stop.fds if stop else (),
         **kw,
     )
+    if stop:
+        stop.started()
+    return proc
 
 
-def _wait_for(found, what: str, proc: subprocess.Popen, seconds: float = 60) -> None:
-    deadline = time.time() + seconds
-    while time.time() < deadline and not found():
+def _wait_for(found, what: str, proc: subprocess.Popen) -> None:
+    """Until ``found()``: a file hconv makes while it runs and keeps while it waits (on a pipe, or
+    at a StopAt), so no deadline; a run that ends first fails the test."""
+    while not found():
         assert proc.poll() is None, f"hconv ended before {what}: {proc.stderr.read().decode() if proc.stderr else ''}"
         time.sleep(0.02)
-    assert found(), f"no {what} after {seconds} s"
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
@@ -50,14 +55,18 @@ def test_open_input_interrupted_while_spooling_stdin_leaves_no_spool(sig, tmp_pa
     spools = tmp_path / "tmp"
     spools.mkdir()
     out = tmp_path / "out.csv"
-    proc = _hconv("convert", "-", str(out), "--from", "csv", "-q", tmpdir=spools, stdin=subprocess.PIPE)
+    # Stopped as it reads its first chunk, the spool made (helpers.StopAt). Sent as soon as the
+    # spool was seen, a SIGINT once left the child reading the open pipe for ever (issue 25).
+    stop = StopAt(tmp_path / "hook", "hconv.tables.tableio:_read_chunk")
+    proc = _hconv("convert", "-", str(out), "--from", "csv", "-q", tmpdir=spools, stop=stop, stdin=subprocess.PIPE)
     assert proc.stdin is not None and proc.stderr is not None
-    proc.stdin.write(SCENE_CSV.read_bytes())
+    proc.stdin.write(SCENE_CSV.read_bytes()[:4096])  # within the pipe's buffer: hconv waits at the stop
     proc.stdin.flush()  # and the pipe stays open: hconv is still reading it
-    _wait_for(lambda: any(spools.iterdir()), "spool of stdin", proc)
-    time.sleep(0.2)
+    assert stop.reached(), proc.stderr.read().decode()
+    assert any(spools.iterdir())  # the spool of stdin, to be removed
     proc.send_signal(sig)
-    code = proc.wait(timeout=60)
+    stop.release()
+    code = proc.wait()
     err = proc.stderr.read().decode()
     proc.stdin.close()
     assert code == 130, err
@@ -124,10 +133,12 @@ def test_output_removes_the_temporary_file_of_a_killed_run_and_says_so(left, tmp
     spools = tmp_path / "tmp"
     spools.mkdir()
     out = tmp_path / "out.parquet"
-    if left == "output":  # a conversion slow enough to be caught at work: the interpreted engine
+    if left == "output":  # caught at work: stopped as it writes its first batch (helpers.StopAt)
         _scene_parquet(tmp_path / "big.parquet", 500)
         args = ["convert", str(tmp_path / "big.parquet"), str(out), "--engine", "python", "--threads", "1"]
-        proc = _hconv(*args, tmpdir=spools)
+        stop = StopAt(tmp_path.parent / f"{tmp_path.name}-hook", "hconv.tables.tableio:Output.write")
+        proc = _hconv(*args, tmpdir=spools, stop=stop)
+        assert stop.reached(), proc.communicate()[1].decode()
         where = tmp_path
     elif left == "stdin":  # still reading a pipe that stays open
         proc = _hconv("convert", "-", str(out), "--from", "csv", tmpdir=spools, stdin=subprocess.PIPE)
@@ -139,9 +150,10 @@ def test_output_removes_the_temporary_file_of_a_killed_run_and_says_so(left, tmp
         where = spools
     temporaries = lambda: [p for p in where.iterdir() if p.name.endswith(".hconv-tmp")]  # noqa: E731
     _wait_for(temporaries, "temporary file", proc)
-    time.sleep(0.3)
     proc.kill()
-    proc.wait(timeout=60)  # reaped: a zombie still holds its pid
+    proc.wait()  # reaped: a zombie still holds its pid
+    if left == "output":
+        stop.release()
     for f in (proc.stdin, proc.stdout, proc.stderr):
         if f:
             f.close()

@@ -11,7 +11,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
-from helpers import mp_solve, need, physical_bodies, rel_err, run_hconv, six, vec, w_of
+from helpers import hconv_inprocess, mp_solve, need, physical_bodies, rel_err, six, vec, w_of
 
 import hconv
 from hconv.errors import UsageError
@@ -57,15 +57,21 @@ def test_convert_gram_centimetre_inputs_give_the_same_omega(rng):
     assert got.schema.field("Ixy").metadata[b"unit"] == b"g*cm**2"  # the unit it was read in
 
 
-def test_convert_parquet_unit_metadata_is_read(tmp_path, rng):
+def test_convert_parquet_unit_metadata_is_read(tmp_path, rng, capsys):
     I = physical_bodies(rng, 20)
     H = rng.normal(size=(20, 3))
     fields = [pa.field(c, pa.float64(), metadata={"unit": "g*cm**2/s"}) for c in ("Hx", "Hy", "Hz")]
     fields += [pa.field(c, pa.float64(), metadata={"unit": "g*cm**2"}) for c in SIX]
     t = pa.Table.from_arrays([pa.array(x) for x in np.concatenate([H.T, six(I).T]) * 1e7], schema=pa.schema(fields))
     pq.write_table(t, tmp_path / "cgs.parquet")
-    proc = run_hconv(
-        "convert", str(tmp_path / "cgs.parquet"), str(tmp_path / "out.parquet"), "--omega-unit", "deg/s", "-q"
+    proc = hconv_inprocess(
+        "convert",
+        str(tmp_path / "cgs.parquet"),
+        str(tmp_path / "out.parquet"),
+        "--omega-unit",
+        "deg/s",
+        "-q",
+        capsys=capsys,
     )
     assert proc.returncode == 0, proc.stderr.decode()
     out = pq.read_table(tmp_path / "out.parquet")
@@ -109,8 +115,8 @@ def test_status_unit_suspect_catches_gram_centimetre_slip():
     assert got == ["ok", "unit_suspect", "unit_suspect", "unit_suspect"]
 
 
-def test_one_units_and_omega_unit():
-    proc = run_hconv(
+def test_one_units_and_omega_unit(capsys):
+    proc = hconv_inprocess(
         "one",
         "--H",
         "1e7,0,0",
@@ -123,6 +129,7 @@ def test_one_units_and_omega_unit():
         "--omega-unit",
         "deg/s",
         "--json",
+        capsys=capsys,
     )
     assert proc.returncode == 0, proc.stderr.decode()
     import json
@@ -131,9 +138,20 @@ def test_one_units_and_omega_unit():
     assert out["unit"] == "deg/s" and out["w"][0] == pytest.approx(math.degrees(0.5), rel=1e-15)
 
 
-def test_convert_omega_unit_refused_for_document_methods():
-    proc = run_hconv(
-        "one", "--H", "1,0,0", "--I", "2,2,2", "--r", "1,1,0", "--method", "document", "--omega-unit", "deg/s"
+def test_convert_omega_unit_refused_for_document_methods(capsys):
+    proc = hconv_inprocess(
+        "one",
+        "--H",
+        "1,0,0",
+        "--I",
+        "2,2,2",
+        "--r",
+        "1,1,0",
+        "--method",
+        "document",
+        "--omega-unit",
+        "deg/s",
+        capsys=capsys,
     )
     assert proc.returncode == 2 and b"m^2/s" in proc.stderr
 
