@@ -549,8 +549,7 @@ def convert_cmd(
         "default 0: one task per file (the join costs most of a conversion: docs/scaling.md)",
     ),
 ) -> None:
-    """Convert every row of a CSV or Parquet table, or of each file of a dataset; OUT gets the input
-    columns, ω and diagnostics."""
+    """Convert each row of a CSV or Parquet file, or of each file of a dataset: OUT gets its columns, ω, diagnostics."""
     from hconv import report
     from hconv.tables import dataset, paths
 
