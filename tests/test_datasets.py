@@ -310,7 +310,7 @@ def test_convert_dataset_interrupted_keeps_complete_files_in_a_partial_manifest_
     out = tmp_path / "out"
     # The child stops as its third file starts, two written (helpers.StopAt): the signal lands
     # mid-run however slow the machine.
-    stop = StopAt(tmp_path / "hook", "hconv.tables.dataset:convert_one#3")
+    stop = StopAt(tmp_path / "hook", "hconv.tables.runners:convert_one#3")
     env = stop.env(dict(os.environ, TMPDIR=str(spools), COLUMNS="200"))
     proc = subprocess.Popen(
         [sys.executable, "-m", "hconv", "convert", "data", "out", "--threads", "1"],

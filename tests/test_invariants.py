@@ -171,7 +171,7 @@ def test_convert_interrupted_leaves_no_output_and_no_temporary(big_file, tmp_pat
     # system() call running in another thread), so the child never saw the SIGINT and finished.
     # The child stops as its first batch is written (helpers.StopAt), more to come: the signal
     # lands mid-conversion however slow the machine, with a file to remove.
-    stop = StopAt(tmp_path.parent / f"{tmp_path.name}-hook", "hconv.tables.tableio:Output.write")
+    stop = StopAt(tmp_path.parent / f"{tmp_path.name}-hook", "hconv.tables.output:Output.write")
     env = stop.env(dict(os.environ, TMPDIR=str(tmp)))
     proc = subprocess.Popen(
         args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=_terminal_signals, env=env, pass_fds=stop.fds
