@@ -230,7 +230,7 @@ JOB_OPTIONS = {
             "auto",
             "--engine",
             metavar="ENGINE",
-            help="auto (for files: numpy; see hconv engines), numpy, numba (pip install 'hconv\\[fast]') or python",
+            help="auto (for files: numpy; see hconv engines), compiled or numpy (the reference)",
         ),
     ),
     "quat_order": (
@@ -776,21 +776,13 @@ def bench_cmd(
 @app.command("engines")
 @friendly
 def engines_cmd(
-    compile_now: bool = typer.Option(
-        False, "--compile", help="compile the numba engine now (once per machine), so that auto can use it"
-    ),
+    compile_now: bool = typer.Option(False, "--compile", hidden=True, help="nothing to do: kept for old instructions"),
 ) -> None:
-    """List the engines that convert rows, and whether the compiled one is installed and compiled."""
+    """List the engines that convert rows, and what auto picks."""
     from hconv.solve import engines
 
-    if compile_now:
-        if not engines.numba_installed():
-            raise UsageError(f"--compile needs numba: {engines.NUMBA_FIX}")
-        from hconv.solve import compiled
-
-        seconds, compiled_now = compiled.warm()
-        done = "compiled the numba engine" if compiled_now else "loaded the numba engine from numba's cache"
-        print(f"{done} in {seconds:.1f} s")
+    if compile_now:  # the compiled engine is built when hconv is installed
+        print("nothing to compile: the compiled engine is built when hconv is installed")
     _listing(engines.listing())
 
 

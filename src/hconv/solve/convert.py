@@ -18,20 +18,20 @@ Diagnostics per row:
 * ``cond``: the 2-norm condition number of I, |moment|max / |moment|min.
 * ``status``: see :mod:`hconv.solve.status`.
 
-The numpy engine, which converts in blocks of rows, is :mod:`hconv.solve.blocks`; the row engines
-(``numba``, ``python``) are dispatched here, and the rows they leave go to it.
+The numpy engine, which converts in blocks of rows, is :mod:`hconv.solve.blocks`; the compiled
+engine (:mod:`hconv.solve.compiled`) is dispatched here, and the rows it leaves go to the numpy
+engine.
 """
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, fields, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from hconv.errors import UsageError, option
-from hconv.solve import arguments, blocks, engines, forms, methods, options, rows, status
+from hconv.solve import arguments, blocks, compiled, engines, forms, methods, options, status
 
 
 @dataclass(frozen=True)
@@ -48,7 +48,7 @@ class Result:
     #: more than one was dropped; and how many axes were dropped, (N,) int8
     null_axis: np.ndarray | None = None
     null_dim: np.ndarray | None = None
-    #: the engine that converted the rows: numpy, numba or python (hconv.solve.engines)
+    #: the engine that converted the rows: numpy or compiled (hconv.solve.engines)
     engine: str = "numpy"
     #: --about free only: (N,) bool, rows on which taking r × m·v out of H lost digits by the bound
     #: that sets the status cancellation, also where a status before it holds the row (a row has
@@ -113,7 +113,7 @@ def convert(
     ``extra_k`` adds to the method's error constant K for the ``ill_conditioned`` test, for a
     caller that has already rounded H in a way that grows with cond (a frame rotation: 2).
 
-    ``engine`` (auto, numpy, numba or python) picks the code that converts; see
+    ``engine`` (auto, compiled or numpy) picks the code that converts; see
     :mod:`hconv.solve.engines`. Every engine gives the same answers (docs/engines.md).
 
     Numbers that carry a unit or a mask, which ``np.asarray`` would make bare numbers of, are
@@ -250,11 +250,7 @@ def convert_columns(
     if degenerate != "error":
         deg = blocks.Degenerate(np.full((n, 3), np.nan), np.zeros(n, dtype=np.int8))
     opts = blocks.Options(m, dtype, form.diagonal, degenerate_rtol, extra_k)
-    covered = engines.covers(m, precision, degenerate, form.name, degenerate_rtol)
-    start = time.perf_counter()
-    blocks.convert_blocks(n, opts, form, I, H, r, w, cond, code, residual, deg, covered)
-    if covered:
-        engines.spend(time.perf_counter() - start)  # auto's count of what numba would have saved
+    blocks.convert_blocks(n, opts, form, I, H, r, w, cond, code, residual, deg)
     axis, dim = (None, None) if deg is None else (deg.axis, deg.dim)
     return Result(w, residual, cond, code, m.unit, m.name, axis, dim)
 
@@ -262,8 +258,8 @@ def convert_columns(
 def _convert_rows(
     used: str, m: methods.Method, form: forms.Form, I: np.ndarray, H: np.ndarray, diagnostics: bool, extra_k: float
 ) -> Result:
-    """:func:`convert_columns` by a row engine (``numba`` or ``python``); the rows it leaves
-    (``fallback``) are converted by the numpy engine and put in their places."""
+    """:func:`convert_columns` by the compiled engine; the rows it leaves (``fallback``) are
+    converted by the numpy engine and put in their places."""
     n = H.shape[1]
     I = np.asarray(I, dtype=np.float64)
     H = np.asarray(H, dtype=np.float64)
@@ -271,16 +267,11 @@ def _convert_rows(
     cond = np.empty(n)
     code = np.empty(n, dtype=np.uint8)
     residual = np.empty(n if diagnostics else 0)
-    fallback = np.zeros(n, dtype=bool)
+    fallback = np.empty(n, dtype=bool)
     cond_limit = blocks.ill_conditioned_above(m, extra_k)
-    nine = rows.FORMS[form.name]
-    if used == "numba":
-        from hconv.solve import compiled  # numba's import: only here, when it runs
-
-        compiled.convert_rows(I, nine, H, m.refines, diagnostics, cond_limit, w, cond, code, residual, fallback)
-        compiled.mark()
-    else:
-        _python_rows(I, nine, H, m.refines, diagnostics, cond_limit, w, cond, code, residual, fallback)
+    compiled.convert_rows(
+        I, engines.FORMS[form.name], H, m.refines, diagnostics, cond_limit, w, cond, code, residual, fallback
+    )
     rest = np.flatnonzero(fallback)
     if rest.size:
         sub = convert_columns(
@@ -290,39 +281,3 @@ def _convert_rows(
         if sub.residual is not None:
             residual[rest] = sub.residual
     return Result(w, residual if diagnostics else None, cond, code, m.unit, m.name, engine=used)
-
-
-def _python_rows(
-    I: np.ndarray,
-    nine: bool,
-    H: np.ndarray,
-    refined: bool,
-    diagnostics: bool,
-    cond_limit: float,
-    w: np.ndarray,
-    cond: np.ndarray,
-    code: np.ndarray,
-    residual: np.ndarray,
-    fallback: np.ndarray,
-) -> None:
-    """:func:`hconv.solve.rows.convert_rows` interpreted, on Python floats (numpy scalars would
-    cost several times more per operation)."""
-    for i, (values, (h0, h1, h2)) in enumerate(zip(I.T.tolist(), H.T.tolist())):
-        if nine:
-            xx, yy, zz, xy, xz, yz, asym = rows.sym_of_nine(*values)
-        else:
-            (xx, yy, zz, xy, xz, yz), asym = values, False
-        if asym:
-            fallback[i] = True
-            continue
-        try:
-            w0, w1, w2, c, k, res, fb = rows.convert_one(
-                xx, yy, zz, xy, xz, yz, h0, h1, h2, refined, diagnostics, cond_limit
-            )
-        except (ZeroDivisionError, ValueError):  # Python raises where IEEE gives inf or NaN
-            fallback[i] = True
-            continue
-        w[i] = w0, w1, w2
-        cond[i], code[i], fallback[i] = c, k, fb
-        if diagnostics:
-            residual[i] = res

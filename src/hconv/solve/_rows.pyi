@@ -1,0 +1,20 @@
+# The compiled engine's C code (_rows.c): what hconv.solve.compiled calls.
+import numpy as np
+
+def configure(constants: dict[str, float], /) -> None: ...
+def convert(
+    I: np.ndarray,
+    nine: bool,
+    H: np.ndarray,
+    refined: bool,
+    diagnostics: bool,
+    cond_limit: float,
+    w: np.ndarray,
+    cond: np.ndarray,
+    code: np.ndarray,
+    residual: np.ndarray,
+    fallback: np.ndarray,
+    start: int,
+    stop: int,
+    /,
+) -> None: ...
