@@ -13,7 +13,7 @@ from setuptools import Extension, setup
 if sys.platform == "win32":
     flags = ["/O2", "/fp:precise"]
 else:
-    flags = ["-O2", "-ffp-contract=off", "-fno-fast-math"]
+    flags = ["-O3", "-ffp-contract=off", "-fno-math-errno", "-fno-trapping-math"]
 
 setup(
     ext_modules=[

@@ -25,169 +25,247 @@
 #include <numpy/arrayobject.h>
 
 /* The constants, from hconv's Python modules (hconv.solve.compiled passes them to configure()),
- * so that each is stated once, where the numpy engine states it. */
+ * so that each is stated once, where the numpy engine states it. Codes are held as doubles: the
+ * loops over rows compute in doubles only, which lets the compiler run two rows at once. */
 static struct {
-    double split, singular_limit, grid, safe, stop, tiny, s0, s1, s2, s3, s4, root_range;
+    double split, singular_limit, grid, safe, inv_safe, stop, tiny, s0, s1, s2, s3, s4, root_range, inv_root_range;
     double symmetry_rtol, triangle_rtol, ill_tol, eps, sqrt_eps, max;
-    int newton_steps, max_refine_steps;
-    uint8_t ok, singular, not_physical, ill_conditioned, inaccurate;
+    int max_refine_steps;
+    double ok, singular, not_physical, ill_conditioned, inaccurate;
     int ready;
 } K;
 
+/* spectrum.ROOT_NEWTON_STEPS, a constant here so that the loop unrolls; configure() refuses
+ * another value. */
+#define NEWTON_STEPS 2
+/* Rows per chunk: the chunk's scratch (about 45 numbers a row) stays in the L1 cache. */
+#define CH 64
+/* What the verdict says of a row: the numpy engine must convert it, it has no answer (singular),
+ * or it has one. */
+#define FALLBACK 0.0
+#define NO_ANSWER 1.0
+#define ANSWER 2.0
+
 static inline double pmax(double a, double b) { return b > a ? b : a; }
 static inline double pmin(double a, double b) { return b < a ? b : a; }
-
-typedef struct {
-    double d1, d2, d3, l21, l31, l32;
-} Factors;
-
-/* linsolve.ldlt_factor */
-static inline Factors ldlt(double xx, double yy, double zz, double xy, double xz, double yz)
-{
-    Factors f;
-    f.d1 = xx;
-    f.l21 = xy / f.d1;
-    f.l31 = xz / f.d1;
-    f.d2 = yy - f.l21 * xy;
-    double t = yz - f.l31 * xy;
-    f.l32 = t / f.d2;
-    f.d3 = zz - f.l31 * xz;
-    f.d3 -= t * f.l32;
-    return f;
-}
-
-/* linsolve.ldlt_solve, one right-hand side */
-static inline void ldlt_solve(const Factors *f, double h0, double h1, double h2, double x[3])
-{
-    double y1 = h0;
-    double y2 = h1 - f->l21 * y1;
-    double y3 = h2 - f->l31 * y1;
-    y3 -= f->l32 * y2;
-    double x2 = y3 / f->d3;
-    double x1 = y2 / f->d2;
-    x1 -= f->l32 * x2;
-    double x0 = y1 / f->d1;
-    x0 -= f->l21 * x1;
-    x0 -= f->l31 * x2;
-    x[0] = x0;
-    x[1] = x1;
-    x[2] = x2;
-}
-
-/* spectrum._largest_root within ROOT_RANGE: the largest eigenvalue and its error bound.
- * cos(acos(r)/3) = 1/2 + u*t with u = sqrt(1 + r) and t the root of t^2 + (2u/3) t^3 = 1/6,
- * from the fit ROOT_START and Newton steps (spectrum.py says why there is no trigonometry). */
-static inline double largest_root(double xx, double yy, double zz, double xy, double xz, double yz, double *err)
-{
-    double q = (xx + yy + zz) * (1.0 / 3.0);
-    double aq = xx - q, bq = yy - q, cq = zz - q;
-    double p = sqrt((aq * aq + bq * bq + cq * cq + 2.0 * (xy * xy + xz * xz + yz * yz)) * (1.0 / 6.0));
-    double ip = 1.0 / (p > 0 ? p : 1.0);
-    double det = aq * (bq * cq - yz * yz) - xy * (xy * cq - yz * xz) + xz * (xy * yz - bq * xz);
-    double r = pmin(pmax(det * (0.5 * ip * ip * ip), -1.0), 1.0);
-    double u = sqrt(1.0 + r);
-    double t = K.s0 + u * (K.s1 + u * (K.s2 + u * (K.s3 + u * K.s4)));
-    double k = (2.0 / 3.0) * u;
-    for (int i = 0; i < K.newton_steps; i++) {
-        double t2 = t * t;
-        t -= (t2 + k * t2 * t - (1.0 / 6.0)) / (2.0 * t + 3.0 * k * t2);
-    }
-    double hi = q + p * (1.0 + 2.0 * (u * t));
-    *err = p * pmin(K.sqrt_eps, 16.0 * K.eps / sqrt(pmax(1.0 - r * r, K.eps))) + 8.0 * K.eps * fabs(q);
-    return hi;
-}
 
 /* |v| is 0 or within the double-double residual's safe range (linsolve.in_safe_range) */
 static inline int safe(double v)
 {
     double m = fabs(v);
-    return (m == 0.0) | ((m < K.safe) & (m > 1.0 / K.safe));
+    return (m == 0.0) | ((m < K.safe) & (m > K.inv_safe));
 }
 
-static inline void split(double a, double *hi, double *lo)
+/* omega finite and not on the grid of subnormal numbers (the numpy engine's `inaccurate`) */
+static inline int final_w(double w0, double w1, double w2)
 {
-    double c = K.split * a;
-    *hi = c - (c - a);
-    *lo = a - *hi;
+    double wmax = pmax(pmax(fabs(w0), fabs(w1)), fabs(w2));
+    return ((w0 + w1 + w2) * 0.0 == 0.0) & ((wmax == 0) | (wmax >= K.grid));
 }
 
-/* s - (a . x) in double the precision: one row of linsolve.residual_dd, operation for operation */
-static inline double dot_row(double s, const double a[3], const double x[3], const double xh[3], const double xl[3])
+/* One chunk's scratch, a column per quantity: the inputs; LDL^T's factors and answer; the
+ * verdict's cond, status code, state and safe; a refinement's x, last correction c and whether
+ * it goes on (X for the answer's, R for the reference's); the residual and whether the row's
+ * answers are final. Columns of one struct, so that the compiler can prove them apart. */
+typedef struct {
+    double xx[CH], yy[CH], zz[CH], xy[CH], xz[CH], yz[CH], h0[CH], h1[CH], h2[CH];
+    double d1[CH], d2[CH], d3[CH], l21[CH], l31[CH], l32[CH], w0[CH], w1[CH], w2[CH];
+    double cond[CH], code[CH], state[CH], safe[CH];
+    double x0[CH], x1[CH], x2[CH], xc[CH], xon[CH];
+    double r0[CH], r1[CH], r2[CH], rc[CH], ron[CH];
+    double res[CH], fin[CH];
+    int asym[CH];
+} Chunk;
+
+/* The numbers and the verdict of the m rows, with no branch. The numbers: LDL^T
+ * (linsolve.ldlt_factor) and its answer (linsolve.ldlt_solve), the closed-form largest and
+ * smallest principal moments (spectrum). The verdict: cond, the status code, and the state; each
+ * test is the numpy engine's (blocks._convert_block, spectrum.eigenvalues), and a row that any of
+ * them cannot settle is FALLBACK. */
+static void numbers_chunk(Chunk *restrict s, int m, double cond_limit)
 {
-    double err = 0.0;
-    for (int j = 0; j < 3; j++) {
-        double ah, al;
-        split(a[j], &ah, &al);
-        double p = a[j] * x[j];
-        double e = ah * xh[j] - p;
-        e += ah * xl[j];
-        e += al * xh[j];
-        e += al * xl[j];
-        double s_new = s - p;
-        double bb = s_new - s;
-        double q = s - (s_new - bb);
-        bb += p;
-        q -= bb;
-        if (j == 0) {
-            err = q - e;
-        } else {
-            q -= e;
-            err += q;
+    for (int j = 0; j < m; j++) {
+        double xx = s->xx[j], yy = s->yy[j], zz = s->zz[j], xy = s->xy[j], xz = s->xz[j], yz = s->yz[j];
+        double h0 = s->h0[j], h1 = s->h1[j], h2 = s->h2[j];
+        /* LDL^T */
+        double d1 = xx;
+        double l21 = xy / d1;
+        double l31 = xz / d1;
+        double d2 = yy - l21 * xy;
+        double t = yz - l31 * xy;
+        double l32 = t / d2;
+        double d3 = zz - l31 * xz;
+        d3 -= t * l32;
+        /* the largest moment within ROOT_RANGE and its error bound (spectrum._largest_root):
+         * cos(acos(r)/3) = 1/2 + u*t with u = sqrt(1 + r) and t the root of
+         * t^2 + (2u/3) t^3 = 1/6, from the fit ROOT_START and Newton steps (no trigonometry) */
+        double q = (xx + yy + zz) * (1.0 / 3.0);
+        double aq = xx - q, bq = yy - q, cq = zz - q;
+        double p = sqrt((aq * aq + bq * bq + cq * cq + 2.0 * (xy * xy + xz * xz + yz * yz)) * (1.0 / 6.0));
+        double ip = 1.0 / (p > 0 ? p : 1.0);
+        double det = aq * (bq * cq - yz * yz) - xy * (xy * cq - yz * xz) + xz * (xy * yz - bq * xz);
+        double r = pmin(pmax(det * (0.5 * ip * ip * ip), -1.0), 1.0);
+        double u = sqrt(1.0 + r);
+        double tt = K.s0 + u * (K.s1 + u * (K.s2 + u * (K.s3 + u * K.s4)));
+        double k = (2.0 / 3.0) * u;
+        for (int i = 0; i < NEWTON_STEPS; i++) {
+            double t2 = tt * tt;
+            tt -= (t2 + k * t2 * tt - (1.0 / 6.0)) / (2.0 * tt + 3.0 * k * t2);
         }
-        s = s_new;
+        double hi = q + p * (1.0 + 2.0 * (u * tt));
+        double hi_err = p * pmin(K.sqrt_eps, 16.0 * K.eps / sqrt(pmax(1.0 - r * r, K.eps))) + 8.0 * K.eps * fabs(q);
+        /* the smallest, from the pivots (spectrum.smallest_root) */
+        double tr = xx + yy + zz;
+        double inv = 1.0 / hi;
+        double sm = (tr - hi) * inv;
+        double pr = (d1 * inv) * (d2 * inv) * (d3 * inv);
+        double root = sqrt(pmax(sm * sm - 4.0 * pr, 0.0));
+        double lo = (2.0 * pr / (sm + root)) * hi;
+        /* LDL^T's answer */
+        double y1 = h0;
+        double y2 = h1 - l21 * y1;
+        double y3 = h2 - l31 * y1;
+        y3 -= l32 * y2;
+        double w2 = y3 / d3;
+        double w1 = y2 / d2;
+        w1 -= l32 * w2;
+        double w0 = y1 / d1;
+        w0 -= l21 * w1;
+        w0 -= l31 * w2;
+
+        /* x*0 is 0 for a finite x and NaN for NaN or an infinity (max and comparisons skip a NaN) */
+        int finite = (xx + yy + zz + xy + xz + yz + h0 + h1 + h2) * 0.0 == 0.0;
+        double big = pmax(pmax(pmax(fabs(xx), fabs(yy)), pmax(fabs(zz), fabs(xy))), pmax(fabs(xz), fabs(yz)));
+        int usable = finite & (big >= K.inv_root_range) & (big <= K.root_range);
+        usable &= (pmin(pmin(d1, d2), d3) > 0) & (fabs(l32) <= K.max); /* positive definite: LDL^T is stable */
+        /* where the closed form cannot decide, the numpy engine asks LAPACK */
+        usable &= (fabs(lo) <= K.max) & (lo > 0) & (fabs(2.0 * hi - tr) > 1e-9 * tr + 4.0 * hi_err);
+        double mid = tr - hi - lo;
+        double a0 = fabs(lo), a1 = fabs(mid), a2 = fabs(hi);
+        double top = pmax(a0, a2);
+        double small = pmin(pmin(a0, a1), a2);
+        double ratio = top / (small > 0 ? small : 1.0); /* no division on a branch: rows go together */
+        double cond = small > 0 ? ratio : INFINITY;
+        /* statuses in status.PRECEDENCE's order: a later write wins */
+        double code = cond > cond_limit ? K.ill_conditioned : K.ok;
+        code = hi - mid - lo > K.triangle_rtol * (a0 + a1 + a2) ? K.not_physical : code;
+        int singular = small <= K.singular_limit * top;
+        code = singular ? K.singular : code;
+        /* overflow, or omega on the grid of subnormal numbers: the numpy engine's rules */
+        int w_ok = final_w(w0, w1, w2);
+        double state = usable ? (singular ? NO_ANSWER : (w_ok ? ANSWER : FALLBACK)) : FALLBACK;
+        int sf = safe(xx) & safe(yy) & safe(zz) & safe(xy) & safe(xz) & safe(yz) & safe(h0) & safe(h1) & safe(h2);
+        s->d1[j] = d1, s->d2[j] = d2, s->d3[j] = d3, s->l21[j] = l21, s->l31[j] = l31, s->l32[j] = l32;
+        s->w0[j] = w0, s->w1[j] = w1, s->w2[j] = w2;
+        s->cond[j] = cond, s->code[j] = code, s->state[j] = state, s->safe[j] = sf ? 1.0 : 0.0;
     }
+}
+
+/* s - (a . x) in double the precision, for x split into xh + xl: one row of
+ * linsolve.residual_dd, operation for operation */
+static inline double dot_row(double s, double a0, double a1, double a2, double x0, double x1, double x2,
+                             double xh0, double xh1, double xh2, double xl0, double xl1, double xl2)
+{
+    double c, ah, al, p, e, s_new, bb, q, err;
+#define TERM(a, x, xh, xl)                                                                                   \
+    c = K.split * (a);                                                                                       \
+    ah = c - (c - (a));                                                                                      \
+    al = (a) - ah;                                                                                           \
+    p = (a) * (x);                                                                                           \
+    e = ah * (xh) - p;                                                                                       \
+    e += ah * (xl);                                                                                          \
+    e += al * (xh);                                                                                          \
+    e += al * (xl);                                                                                          \
+    s_new = s - p;                                                                                           \
+    bb = s_new - s;                                                                                          \
+    q = s - (s_new - bb);                                                                                    \
+    bb += p;                                                                                                 \
+    q -= bb;                                                                                                 \
+    s = s_new
+    TERM(a0, x0, xh0, xl0);
+    err = q - e;
+    TERM(a1, x1, xh1, xl1);
+    q -= e;
+    err += q;
+    TERM(a2, x2, xh2, xl2);
+    q -= e;
+    err += q;
+#undef TERM
     return err + s;
 }
 
-typedef struct {
-    double xx, yy, zz, xy, xz, yz, h0, h1, h2;
-} Row;
-
-/* One step of linsolve._refine: x corrected by the solve of its double-double residual;
- * returns the correction's size relative to x, squared. */
-static inline double refine_step(const Row *a, const Factors *f, double x[3])
+/* One step of linsolve._refine for row j from x: x corrected by the LDL^T solve of its
+ * double-double residual, and the correction's size relative to x, squared (*c). */
+static inline void refine_step(const Chunk *restrict s, int j, double *x0, double *x1, double *x2, double *c)
 {
-    double xh[3], xl[3], r[3], dx[3];
-    for (int j = 0; j < 3; j++)
-        split(x[j], &xh[j], &xl[j]);
-    const double r0[3] = {a->xx, a->xy, a->xz}, r1[3] = {a->xy, a->yy, a->yz}, r2[3] = {a->xz, a->yz, a->zz};
-    r[0] = dot_row(a->h0, r0, x, xh, xl);
-    r[1] = dot_row(a->h1, r1, x, xh, xl);
-    r[2] = dot_row(a->h2, r2, x, xh, xl);
-    ldlt_solve(f, r[0], r[1], r[2], dx);
-    x[0] += dx[0];
-    x[1] += dx[1];
-    x[2] += dx[2];
-    double c = dx[0] * dx[0] + dx[1] * dx[1] + dx[2] * dx[2];
-    c /= x[0] * x[0] + x[1] * x[1] + x[2] * x[2];
-    return c;
+    double xx = s->xx[j], yy = s->yy[j], zz = s->zz[j], xy = s->xy[j], xz = s->xz[j], yz = s->yz[j];
+    double v0 = *x0, v1 = *x1, v2 = *x2, t;
+    t = K.split * v0;
+    double xh0 = t - (t - v0), xl0 = v0 - xh0;
+    t = K.split * v1;
+    double xh1 = t - (t - v1), xl1 = v1 - xh1;
+    t = K.split * v2;
+    double xh2 = t - (t - v2), xl2 = v2 - xh2;
+    double r0 = dot_row(s->h0[j], xx, xy, xz, v0, v1, v2, xh0, xh1, xh2, xl0, xl1, xl2);
+    double r1 = dot_row(s->h1[j], xy, yy, yz, v0, v1, v2, xh0, xh1, xh2, xl0, xl1, xl2);
+    double r2 = dot_row(s->h2[j], xz, yz, zz, v0, v1, v2, xh0, xh1, xh2, xl0, xl1, xl2);
+    double l21 = s->l21[j], l31 = s->l31[j], l32 = s->l32[j];
+    double y1 = r0;
+    double y2 = r1 - l21 * y1;
+    double y3 = r2 - l31 * y1;
+    y3 -= l32 * y2;
+    double dx2 = y3 / s->d3[j];
+    double dx1 = y2 / s->d2[j];
+    dx1 -= l32 * dx2;
+    double dx0 = y1 / s->d1[j];
+    dx0 -= l21 * dx1;
+    dx0 -= l31 * dx2;
+    v0 += dx0;
+    v1 += dx1;
+    v2 += dx2;
+    double cc = dx0 * dx0 + dx1 * dx1 + dx2 * dx2;
+    cc /= v0 * v0 + v1 * v1 + v2 * v2;
+    *x0 = v0, *x1 = v1, *x2 = v2, *c = cc;
 }
 
-/* The rest of linsolve._refine after its first step (which gave x and c), with its stopping rule
- * applied to this row alone: stop when the next correction is predicted below STOP, or when a
- * correction fails to shrink fourfold (that step is kept). */
-static inline void refine_on(const Row *a, const Factors *f, double x[3], double c)
+/* linsolve._refine of every row from (f0, f1, f2) into (x0, x1, x2), its stopping rule applied
+ * to each row alone: after the first step, a row goes on while its correction shrinks fourfold
+ * and the next is predicted above STOP; each round takes a step on every row and keeps it where
+ * the row goes on (so the loops have no branch), and rounds stop when no row goes on. Rows
+ * without an answer or with inputs outside the safe range take no further step. */
+static void refine_chunk(const Chunk *restrict s, int m, const double *f0, const double *f1, const double *f2, double *x0,
+                         double *x1, double *x2, double *xc, double *on)
 {
-    if (!(c < 0.25))
-        return;
-    double pred = c * c;
-    for (int i = 1; i < K.max_refine_steps; i++) {
-        if (!(pred > K.stop && c > K.tiny))
+    for (int j = 0; j < m; j++) {
+        double v0 = f0[j], v1 = f1[j], v2 = f2[j], c;
+        refine_step(s, j, &v0, &v1, &v2, &c);
+        int go = (s->state[j] == ANSWER) & (s->safe[j] == 1.0) & (c < 0.25) & (c * c > K.stop) & (c > K.tiny);
+        x0[j] = v0, x1[j] = v1, x2[j] = v2, xc[j] = c, on[j] = go ? 1.0 : 0.0;
+    }
+    for (int round = 1; round < K.max_refine_steps; round++) {
+        int going = 0;
+        for (int j = 0; j < m; j++)
+            going += on[j] == 1.0;
+        if (going == 0)
             break;
-        double prev = c;
-        c = refine_step(a, f, x);
-        double ratio = c / prev;
-        if (!(ratio < 0.25))
-            break;
-        pred = c * ratio;
+        for (int j = 0; j < m; j++) {
+            double v0 = x0[j], v1 = x1[j], v2 = x2[j], c = xc[j], c_next;
+            refine_step(s, j, &v0, &v1, &v2, &c_next);
+            int o = on[j] == 1.0;
+            double ratio = c_next / c;
+            x0[j] = o ? v0 : x0[j];
+            x1[j] = o ? v1 : x1[j];
+            x2[j] = o ? v2 : x2[j];
+            xc[j] = o ? c_next : c;
+            on[j] = o & (ratio < 0.25) & (c_next * ratio > K.stop) & (c_next > K.tiny) ? 1.0 : 0.0;
+        }
     }
 }
 
 /* metrics.relative_error for one row */
-static inline double relative_error(const double x[3], const double rr[3])
+static inline double relative_error(double x0, double x1, double x2, double r0, double r1, double r2)
 {
-    double d0 = x[0] - rr[0], d1 = x[1] - rr[1], d2 = x[2] - rr[2];
-    double r0 = rr[0], r1 = rr[1], r2 = rr[2];
+    double d0 = x0 - r0, d1 = x1 - r1, d2 = x2 - r2;
     double unit = pmax(pmax(fabs(r0), fabs(r1)), fabs(r2));
     unit = ((unit > 0) & (unit <= K.max)) ? unit : 1.0;
     d0 /= unit, d1 /= unit, d2 /= unit, r0 /= unit, r1 /= unit, r2 /= unit;
@@ -197,107 +275,103 @@ static inline double relative_error(const double x[3], const double rr[3])
     return den > 0 ? ratio : (num == 0 ? 0.0 : num * INFINITY);
 }
 
-/* omega finite and not on the grid of subnormal numbers (the numpy engine's `inaccurate`) */
-static inline int final_w(const double w[3])
+/* refined's answer and the residual of the m rows: omega into X (refined) or left in W, the
+ * residual, and whether both are final (fin: 1.0; 0.0 sends the row to the numpy engine). The
+ * residual's reference is a refinement of its own: from LDL^T's answer for exact (the first
+ * correction is that answer's error), from the refined answer for refined. */
+static void finish_chunk(Chunk *restrict s, int m, int refined, int diagnostics)
 {
-    double wmax = pmax(pmax(fabs(w[0]), fabs(w[1])), fabs(w[2]));
-    return ((w[0] + w[1] + w[2]) * 0.0 == 0.0) & ((wmax == 0) | (wmax >= K.grid));
-}
-
-typedef struct {
-    double w[3], cond, residual;
-    uint8_t code;
-    int fallback;
-} Out;
-
-/* One symmetric row: blocks._convert_block's answers for it, or fallback. */
-static void convert_row(const Row *a, int refined, int diagnostics, double cond_limit, Out *o)
-{
-    o->fallback = 1;
-    o->w[0] = o->w[1] = o->w[2] = o->cond = o->residual = NAN;
-    o->code = K.ok;
-    double xx = a->xx, yy = a->yy, zz = a->zz, xy = a->xy, xz = a->xz, yz = a->yz;
-    /* the numbers: LDL^T, the closed-form largest and smallest principal moments, LDL^T's answer */
-    Factors f = ldlt(xx, yy, zz, xy, xz, yz);
-    double hi_err;
-    double hi = largest_root(xx, yy, zz, xy, xz, yz, &hi_err);
-    double tr = xx + yy + zz;
-    double inv = 1.0 / hi;
-    double s = (tr - hi) * inv;
-    double p = (f.d1 * inv) * (f.d2 * inv) * (f.d3 * inv);
-    double root = sqrt(pmax(s * s - 4.0 * p, 0.0));
-    double lo = (2.0 * p / (s + root)) * hi;
-    double w[3];
-    ldlt_solve(&f, a->h0, a->h1, a->h2, w);
-
-    /* the verdict: each test is the numpy engine's; a row any of them cannot settle falls back */
-    /* x*0 is 0 for a finite x and NaN for NaN or an infinity (max and comparisons skip a NaN) */
-    int finite = (xx + yy + zz + xy + xz + yz + a->h0 + a->h1 + a->h2) * 0.0 == 0.0;
-    double big = pmax(pmax(pmax(fabs(xx), fabs(yy)), pmax(fabs(zz), fabs(xy))), pmax(fabs(xz), fabs(yz)));
-    int usable = finite & (big >= 1.0 / K.root_range) & (big <= K.root_range);
-    usable &= (pmin(pmin(f.d1, f.d2), f.d3) > 0) & (fabs(f.l32) <= K.max); /* positive definite */
-    /* where the closed form cannot decide, the numpy engine asks LAPACK */
-    usable &= (fabs(lo) <= K.max) & (lo > 0) & (fabs(2.0 * hi - tr) > 1e-9 * tr + 4.0 * hi_err);
-    if (!usable)
-        return;
-    double mid = tr - hi - lo;
-    double a0 = fabs(lo), a1 = fabs(mid), a2 = fabs(hi);
-    double top = pmax(a0, a2);
-    double small = pmin(pmin(a0, a1), a2);
-    double cond = small > 0 ? top / small : INFINITY;
-    /* statuses in status.PRECEDENCE's order: a later write wins */
-    uint8_t code = cond > cond_limit ? K.ill_conditioned : K.ok;
-    if (hi - mid - lo > K.triangle_rtol * (a0 + a1 + a2))
-        code = K.not_physical;
-    if (small <= K.singular_limit * top) {
-        o->cond = cond; /* no answer, so no residual either */
-        o->code = K.singular;
-        o->fallback = 0;
-        return;
-    }
-    if (!final_w(w))
-        return;
-    double res = NAN;
-    if (refined || diagnostics) {
-        if (!(safe(xx) & safe(yy) & safe(zz) & safe(xy) & safe(xz) & safe(yz) & safe(a->h0) & safe(a->h1) &
-              safe(a->h2)))
-            return;
-        double x[3] = {w[0], w[1], w[2]};
-        refine_on(a, &f, x, refine_step(a, &f, x)); /* from LDL^T's answer */
-        if (refined) {
-            w[0] = x[0], w[1] = x[1], w[2] = x[2];
-            if (!final_w(w))
-                return;
-            if (diagnostics) /* the reference starts again from the refined answer */
-                refine_on(a, &f, x, refine_step(a, &f, x));
-        }
+    refine_chunk(s, m, s->w0, s->w1, s->w2, s->x0, s->x1, s->x2, s->xc, s->xon);
+    if (refined && diagnostics)
+        refine_chunk(s, m, s->x0, s->x1, s->x2, s->r0, s->r1, s->r2, s->rc, s->ron);
+    const double *a0 = refined ? s->x0 : s->w0, *a1 = refined ? s->x1 : s->w1, *a2 = refined ? s->x2 : s->w2;
+    const double *b0 = refined ? s->r0 : s->x0, *b1 = refined ? s->r1 : s->x1, *b2 = refined ? s->r2 : s->x2;
+    for (int j = 0; j < m; j++) {
+        int fin = final_w(a0[j], a1[j], a2[j]);
+        double res = NAN;
         if (diagnostics) {
-            if (!(safe(x[0]) & safe(x[1]) & safe(x[2])))
-                return;
-            res = relative_error(w, x);
-            /* inaccurate takes a row only from ok: it comes after the statuses above */
-            if (res > K.ill_tol && code == K.ok)
-                code = K.inaccurate;
+            fin &= safe(b0[j]) & safe(b1[j]) & safe(b2[j]);
+            res = relative_error(a0[j], a1[j], a2[j], b0[j], b1[j], b2[j]);
         }
+        s->res[j] = res;
+        s->fin[j] = fin ? 1.0 : 0.0;
     }
-    o->w[0] = w[0], o->w[1] = w[1], o->w[2] = w[2];
-    o->cond = cond;
-    o->code = code;
-    o->residual = res;
-    o->fallback = 0;
 }
 
 /* Nine row-major numbers: the six of their symmetric part; returns whether they are not symmetric
  * (forms._sym3_of_nine's test; NaN rows fall back too). */
-static inline int sym_of_nine(const double v[9], Row *a)
+static inline int sym_of_nine(const double v[9], double out[6])
 {
     double skew = pmax(pmax(fabs(v[1] - v[3]), fabs(v[2] - v[6])), fabs(v[5] - v[7]));
     double scale = pmax(pmax(pmax(fabs(v[0]), fabs(v[1])), pmax(fabs(v[2]), fabs(v[3]))),
                         pmax(pmax(fabs(v[4]), fabs(v[5])), pmax(fabs(v[6]), fabs(v[7]))));
     scale = pmax(scale, fabs(v[8]));
-    a->xx = v[0], a->yy = v[4], a->zz = v[8];
-    a->xy = 0.5 * (v[1] + v[3]), a->xz = 0.5 * (v[2] + v[6]), a->yz = 0.5 * (v[5] + v[7]);
+    out[0] = v[0], out[1] = v[4], out[2] = v[8];
+    out[3] = 0.5 * (v[1] + v[3]), out[4] = 0.5 * (v[2] + v[6]), out[5] = 0.5 * (v[5] + v[7]);
     return skew > K.symmetry_rtol * scale || skew != skew;
+}
+
+typedef struct {
+    const char *Ib, *Hb;
+    npy_intp Is0, Is1, Hs0, Hs1;
+    int nine, refined, diagnostics;
+    double cond_limit;
+    double *w, *cond, *residual;
+    uint8_t *code;
+    npy_bool *fallback;
+} Job;
+
+/* Rows start..start+m (m <= CH) of the job, through one chunk's scratch. */
+static void convert_chunk(const Job *jb, Chunk *restrict s, npy_intp start, int m)
+{
+#define AT(base, s0, s1, k, i) (*(const double *)((base) + (k) * (s0) + (i) * (s1)))
+    for (int j = 0; j < m; j++) {
+        npy_intp i = start + j;
+        double six[6];
+        s->asym[j] = 0;
+        if (jb->nine) {
+            double v[9];
+            for (int k = 0; k < 9; k++)
+                v[k] = AT(jb->Ib, jb->Is0, jb->Is1, k, i);
+            s->asym[j] = sym_of_nine(v, six);
+        } else {
+            for (int k = 0; k < 6; k++)
+                six[k] = AT(jb->Ib, jb->Is0, jb->Is1, k, i);
+        }
+        s->xx[j] = six[0], s->yy[j] = six[1], s->zz[j] = six[2];
+        s->xy[j] = six[3], s->xz[j] = six[4], s->yz[j] = six[5];
+        s->h0[j] = AT(jb->Hb, jb->Hs0, jb->Hs1, 0, i);
+        s->h1[j] = AT(jb->Hb, jb->Hs0, jb->Hs1, 1, i);
+        s->h2[j] = AT(jb->Hb, jb->Hs0, jb->Hs1, 2, i);
+    }
+#undef AT
+    numbers_chunk(s, m, jb->cond_limit);
+    int more = jb->refined || jb->diagnostics;
+    if (more)
+        finish_chunk(s, m, jb->refined, jb->diagnostics);
+    const double *a0 = jb->refined ? s->x0 : s->w0, *a1 = jb->refined ? s->x1 : s->w1;
+    const double *a2 = jb->refined ? s->x2 : s->w2;
+    for (int j = 0; j < m; j++) {
+        npy_intp i = start + j;
+        double state = s->state[j];
+        int answered = state == ANSWER;
+        double code = s->code[j];
+        int lost = s->asym[j] | (state == FALLBACK);
+        if (more) /* refinement needs safe inputs, and its answer must pass the checks again */
+            lost |= answered & ((s->safe[j] != 1.0) | (s->fin[j] != 1.0));
+        jb->w[3 * i] = answered ? a0[j] : NAN;
+        jb->w[3 * i + 1] = answered ? a1[j] : NAN;
+        jb->w[3 * i + 2] = answered ? a2[j] : NAN;
+        if (jb->diagnostics) {
+            double res = answered ? s->res[j] : NAN;
+            jb->residual[i] = res;
+            /* inaccurate takes a row only from ok: it comes after the statuses set above */
+            code = (res > K.ill_tol) & (code == K.ok) ? K.inaccurate : code;
+        }
+        jb->cond[i] = s->cond[j];
+        jb->code[i] = (uint8_t)code;
+        jb->fallback[i] = (npy_bool)lost;
+    }
 }
 
 static int get(PyObject *c, const char *name, double *out)
@@ -324,10 +398,16 @@ static int configure_from(PyObject *c)
         get(c, "OK", &codes[0]) || get(c, "SINGULAR", &codes[1]) || get(c, "NOT_PHYSICAL", &codes[2]) ||
         get(c, "ILL_CONDITIONED", &codes[3]) || get(c, "INACCURATE", &codes[4]))
         return -1;
-    K.newton_steps = (int)steps;
+    if (steps != NEWTON_STEPS) {
+        PyErr_Format(PyExc_ValueError, "_rows.configure: ROOT_NEWTON_STEPS is %g; this build has %d", steps,
+                     NEWTON_STEPS);
+        return -1;
+    }
     K.max_refine_steps = (int)refine_steps;
-    K.ok = (uint8_t)codes[0], K.singular = (uint8_t)codes[1], K.not_physical = (uint8_t)codes[2];
-    K.ill_conditioned = (uint8_t)codes[3], K.inaccurate = (uint8_t)codes[4];
+    K.inv_safe = 1.0 / K.safe;
+    K.inv_root_range = 1.0 / K.root_range;
+    K.ok = codes[0], K.singular = codes[1], K.not_physical = codes[2];
+    K.ill_conditioned = codes[3], K.inaccurate = codes[4];
     K.ready = 1;
     return 0;
 }
@@ -358,7 +438,7 @@ static int check(PyArrayObject *a, const char *name, int ndim, npy_intp d0, npy_
 
 /* convert(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, start, stop):
  * rows start..stop of I and H into the same rows of the outputs (residual written with
- * diagnostics only), without the GIL. */
+ * diagnostics only), a chunk of CH rows at a time, without the GIL. */
 static PyObject *convert(PyObject *self, PyObject *args)
 {
     PyArrayObject *In, *H, *w, *cond, *code, *residual, *fallback;
@@ -387,45 +467,18 @@ static PyObject *convert(PyObject *self, PyObject *args)
         PyErr_SetString(PyExc_ValueError, "_rows.convert: rows start..stop out of range");
         return NULL;
     }
-    const char *Ib = PyArray_BYTES(In), *Hb = PyArray_BYTES(H);
-    npy_intp Is0 = PyArray_STRIDE(In, 0), Is1 = PyArray_STRIDE(In, 1);
-    npy_intp Hs0 = PyArray_STRIDE(H, 0), Hs1 = PyArray_STRIDE(H, 1);
-    double *wp = (double *)PyArray_DATA(w), *cp = (double *)PyArray_DATA(cond);
-    double *rp = (double *)PyArray_DATA(residual);
-    uint8_t *kp = (uint8_t *)PyArray_DATA(code);
-    npy_bool *fp = (npy_bool *)PyArray_DATA(fallback);
+    Job jb = {PyArray_BYTES(In), PyArray_BYTES(H), PyArray_STRIDE(In, 0), PyArray_STRIDE(In, 1),
+              PyArray_STRIDE(H, 0), PyArray_STRIDE(H, 1), nine, refined, diagnostics, cond_limit,
+              (double *)PyArray_DATA(w), (double *)PyArray_DATA(cond), (double *)PyArray_DATA(residual),
+              (uint8_t *)PyArray_DATA(code), (npy_bool *)PyArray_DATA(fallback)};
+    Chunk *s = PyMem_RawMalloc(sizeof(Chunk));
+    if (!s)
+        return PyErr_NoMemory();
     Py_BEGIN_ALLOW_THREADS;
-    for (npy_intp i = start; i < stop; i++) {
-        Row a;
-        Out o;
-        int asym = 0;
-#define AT(base, s0, s1, j) (*(const double *)((base) + (j) * (s0) + i * (s1)))
-        if (nine) {
-            double v[9];
-            for (int j = 0; j < 9; j++)
-                v[j] = AT(Ib, Is0, Is1, j);
-            asym = sym_of_nine(v, &a);
-        } else {
-            a.xx = AT(Ib, Is0, Is1, 0), a.yy = AT(Ib, Is0, Is1, 1), a.zz = AT(Ib, Is0, Is1, 2);
-            a.xy = AT(Ib, Is0, Is1, 3), a.xz = AT(Ib, Is0, Is1, 4), a.yz = AT(Ib, Is0, Is1, 5);
-        }
-        a.h0 = AT(Hb, Hs0, Hs1, 0), a.h1 = AT(Hb, Hs0, Hs1, 1), a.h2 = AT(Hb, Hs0, Hs1, 2);
-#undef AT
-        if (asym) {
-            o.fallback = 1;
-            o.w[0] = o.w[1] = o.w[2] = o.cond = o.residual = NAN;
-            o.code = K.ok;
-        } else {
-            convert_row(&a, refined, diagnostics, cond_limit, &o);
-        }
-        wp[3 * i] = o.w[0], wp[3 * i + 1] = o.w[1], wp[3 * i + 2] = o.w[2];
-        cp[i] = o.cond;
-        kp[i] = o.code;
-        fp[i] = (npy_bool)o.fallback;
-        if (diagnostics)
-            rp[i] = o.residual;
-    }
+    for (npy_intp i = start; i < stop; i += CH)
+        convert_chunk(&jb, s, i, (int)(stop - i < CH ? stop - i : CH));
     Py_END_ALLOW_THREADS;
+    PyMem_RawFree(s);
     Py_RETURN_NONE;
 }
 
