@@ -46,6 +46,14 @@ static struct {
 #define NO_ANSWER 1.0
 #define ANSWER 2.0
 
+/* The loops over a chunk: inlined into convert_chunk, so that each of its versions (WIDEST) has
+ * them compiled for its own vectors. */
+#if defined(__GNUC__)
+#define HOT __attribute__((always_inline)) inline
+#else
+#define HOT inline
+#endif
+
 static inline double pmax(double a, double b) { return b > a ? b : a; }
 static inline double pmin(double a, double b) { return b < a ? b : a; }
 
@@ -82,7 +90,7 @@ typedef struct {
  * smallest principal moments (spectrum). The verdict: cond, the status code, and the state; each
  * test is the numpy engine's (blocks._convert_block, spectrum.eigenvalues), and a row that any of
  * them cannot settle is FALLBACK. */
-static void numbers_chunk(Chunk *restrict s, int m, double cond_limit)
+HOT static void numbers_chunk(Chunk *restrict s, int m, double cond_limit)
 {
     for (int j = 0; j < m; j++) {
         double xx = s->xx[j], yy = s->yy[j], zz = s->zz[j], xy = s->xy[j], xz = s->xz[j], yz = s->yz[j];
@@ -228,39 +236,44 @@ static inline void refine_step(const Chunk *restrict s, int j, double *x0, doubl
     *x0 = v0, *x1 = v1, *x2 = v2, *c = cc;
 }
 
-/* linsolve._refine of every row from (f0, f1, f2) into (x0, x1, x2), its stopping rule applied
- * to each row alone: after the first step, a row goes on while its correction shrinks fourfold
- * and the next is predicted above STOP; each round takes a step on every row and keeps it where
- * the row goes on (so the loops have no branch), and rounds stop when no row goes on. Rows
- * without an answer or with inputs outside the safe range take no further step. */
-static void refine_chunk(const Chunk *restrict s, int m, const double *f0, const double *f1, const double *f2, double *x0,
-                         double *x1, double *x2, double *xc, double *on)
-{
-    for (int j = 0; j < m; j++) {
-        double v0 = f0[j], v1 = f1[j], v2 = f2[j], c;
-        refine_step(s, j, &v0, &v1, &v2, &c);
-        int go = (s->state[j] == ANSWER) & (s->safe[j] == 1.0) & (c < 0.25) & (c * c > K.stop) & (c > K.tiny);
-        x0[j] = v0, x1[j] = v1, x2[j] = v2, xc[j] = c, on[j] = go ? 1.0 : 0.0;
+#define REFINE_CHUNK(name, F0, F1, F2, X0, X1, X2, XC, ON)                                                 \
+    HOT static void name(Chunk *restrict s, int m)                                                             \
+    {                                                                                                        \
+        for (int j = 0; j < m; j++) {                                                                        \
+            double v0 = s->F0[j], v1 = s->F1[j], v2 = s->F2[j], c;                                           \
+            refine_step(s, j, &v0, &v1, &v2, &c);                                                            \
+            int go = (s->state[j] == ANSWER) & (s->safe[j] == 1.0) & (c < 0.25) & (c * c > K.stop) &         \
+                     (c > K.tiny);                                                                           \
+            s->X0[j] = v0, s->X1[j] = v1, s->X2[j] = v2, s->XC[j] = c, s->ON[j] = go ? 1.0 : 0.0;           \
+        }                                                                                                    \
+        for (int round = 1; round < K.max_refine_steps; round++) {                                           \
+            int going = 0;                                                                                   \
+            for (int j = 0; j < m; j++)                                                                      \
+                going += s->ON[j] == 1.0;                                                                    \
+            if (going == 0)                                                                                  \
+                break;                                                                                       \
+            for (int j = 0; j < m; j++) {                                                                    \
+                double v0 = s->X0[j], v1 = s->X1[j], v2 = s->X2[j], c = s->XC[j], c_next;                   \
+                refine_step(s, j, &v0, &v1, &v2, &c_next);                                                   \
+                int o = s->ON[j] == 1.0;                                                                     \
+                double ratio = c_next / c;                                                                   \
+                s->X0[j] = o ? v0 : s->X0[j];                                                                \
+                s->X1[j] = o ? v1 : s->X1[j];                                                                \
+                s->X2[j] = o ? v2 : s->X2[j];                                                                \
+                s->XC[j] = o ? c_next : c;                                                                   \
+                s->ON[j] = o & (ratio < 0.25) & (c_next * ratio > K.stop) & (c_next > K.tiny) ? 1.0 : 0.0;   \
+            }                                                                                                \
+        }                                                                                                    \
     }
-    for (int round = 1; round < K.max_refine_steps; round++) {
-        int going = 0;
-        for (int j = 0; j < m; j++)
-            going += on[j] == 1.0;
-        if (going == 0)
-            break;
-        for (int j = 0; j < m; j++) {
-            double v0 = x0[j], v1 = x1[j], v2 = x2[j], c = xc[j], c_next;
-            refine_step(s, j, &v0, &v1, &v2, &c_next);
-            int o = on[j] == 1.0;
-            double ratio = c_next / c;
-            x0[j] = o ? v0 : x0[j];
-            x1[j] = o ? v1 : x1[j];
-            x2[j] = o ? v2 : x2[j];
-            xc[j] = o ? c_next : c;
-            on[j] = o & (ratio < 0.25) & (c_next * ratio > K.stop) & (c_next > K.tiny) ? 1.0 : 0.0;
-        }
-    }
-}
+/* linsolve._refine of every row from F into X, its stopping rule applied to each row alone: after
+ * the first step, a row goes on while its correction shrinks fourfold and the next is predicted
+ * above STOP; each round takes a step on every row and keeps it where the row goes on (so the
+ * loops have no branch), and rounds stop when no row goes on. Rows without an answer or with
+ * inputs outside the safe range take no further step. One function per pair of columns, so that
+ * the compiler sees them apart: from LDL^T's answer into X, and from X into R. */
+REFINE_CHUNK(refine_w_into_x, w0, w1, w2, x0, x1, x2, xc, xon)
+REFINE_CHUNK(refine_x_into_r, x0, x1, x2, r0, r1, r2, rc, ron)
+#undef REFINE_CHUNK
 
 /* metrics.relative_error for one row */
 static inline double relative_error(double x0, double x1, double x2, double r0, double r1, double r2)
@@ -279,11 +292,11 @@ static inline double relative_error(double x0, double x1, double x2, double r0, 
  * residual, and whether both are final (fin: 1.0; 0.0 sends the row to the numpy engine). The
  * residual's reference is a refinement of its own: from LDL^T's answer for exact (the first
  * correction is that answer's error), from the refined answer for refined. */
-static void finish_chunk(Chunk *restrict s, int m, int refined, int diagnostics)
+HOT static void finish_chunk(Chunk *restrict s, int m, int refined, int diagnostics)
 {
-    refine_chunk(s, m, s->w0, s->w1, s->w2, s->x0, s->x1, s->x2, s->xc, s->xon);
+    refine_w_into_x(s, m);
     if (refined && diagnostics)
-        refine_chunk(s, m, s->x0, s->x1, s->x2, s->r0, s->r1, s->r2, s->rc, s->ron);
+        refine_x_into_r(s, m);
     const double *a0 = refined ? s->x0 : s->w0, *a1 = refined ? s->x1 : s->w1, *a2 = refined ? s->x2 : s->w2;
     const double *b0 = refined ? s->r0 : s->x0, *b1 = refined ? s->r1 : s->x1, *b2 = refined ? s->r2 : s->x2;
     for (int j = 0; j < m; j++) {
@@ -321,8 +334,17 @@ typedef struct {
     npy_bool *fallback;
 } Job;
 
+/* Wider vectors where the CPU has them, chosen when the module loads (an x86-64 wheel must run on
+ * any x86-64): more rows at once, the same operations on each, so the same bits. No FMA: the
+ * flags forbid contraction, and neither target implies it. */
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+#define WIDEST __attribute__((target_clones("avx512f", "avx2", "default")))
+#else
+#define WIDEST
+#endif
+
 /* Rows start..start+m (m <= CH) of the job, through one chunk's scratch. */
-static void convert_chunk(const Job *jb, Chunk *restrict s, npy_intp start, int m)
+WIDEST __attribute__((noinline)) static void convert_chunk(const Job *jb, Chunk *restrict s, npy_intp start, int m)
 {
 #define AT(base, s0, s1, k, i) (*(const double *)((base) + (k) * (s0) + (i) * (s1)))
     for (int j = 0; j < m; j++) {

@@ -132,6 +132,10 @@ def convert(
     * a list or tuple holding Quantities, masked arrays or such DataArrays is a UsageError:
       pass one of them for the whole array.
     """
+    if job is None and r is None and precision is None and degenerate is None and degenerate_rtol is None:
+        fast = _plain_call(H, I, method, diagnostics, extra_k, engine)
+        if fast is not None:
+            return fast
     opts = options.configure(
         options.Options,
         "hconv.convert",
@@ -173,6 +177,48 @@ def convert(
     if args.quantities:  # ω in the registry of the first Quantity given (pint refuses to mix registries)
         res = replace(res, w=args.quantities[0](res.w, res.unit))
     return res
+
+
+#: The methods a plain call may name for :func:`_plain_call`: the compiled engine's.
+_PLAIN_METHODS = {None: "exact", "exact": "exact", "refined": "refined"}
+
+
+def _plain_call(
+    H: object, I: object, method: object, diagnostics: object, extra_k: object, engine: object
+) -> Result | None:
+    """:func:`convert` for the call the compiled engine answers without the checks and repacking
+    that other calls need, so that one body or a few rows cost little more than the compiled
+    code itself: float64 ndarrays (one body or a stack) of six or nine numbers, no offset, an
+    exact-family method the engine covers, the defaults otherwise. None for any other call,
+    which then takes the general path (and its checks and messages)."""
+    if (
+        type(H) is not np.ndarray
+        or type(I) is not np.ndarray
+        or H.dtype != np.float64
+        or I.dtype != np.float64
+        or extra_k != 0.0
+        or type(extra_k) not in (int, float)
+        or diagnostics not in (None, True, False)
+        or type(diagnostics) not in (type(None), bool)
+        or engine not in (None, "auto", "compiled")
+        or not isinstance(method, (str, type(None)))
+        or method not in _PLAIN_METHODS
+    ):
+        return None
+    single = H.ndim == 1
+    if single:
+        if H.shape != (3,) or I.shape not in ((3, 3), (6,)):
+            return None
+        H, I = H[None], I[None]
+    elif H.ndim != 2 or H.shape[1] != 3 or I.shape[0] != H.shape[0] or I.shape[1:] not in ((3, 3), (6,)):
+        return None
+    if engine in (None, "auto") and engines.resolve_environment() != "compiled":
+        return None
+    form, values = forms.from_array(I)
+    res = _convert_rows(
+        "compiled", methods.get(_PLAIN_METHODS[method]), form, values, H.T, diagnostics is not False, 0.0
+    )
+    return res.body(0) if single else res
 
 
 def _refuse_scene(opts: options.Options) -> None:

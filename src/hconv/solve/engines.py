@@ -82,6 +82,13 @@ def _from_environment() -> str:
     return value
 
 
+def resolve_environment() -> str:
+    """What ``auto`` resolves to for a run the compiled engine covers: ``compiled``, unless
+    HCONV_ENGINE says otherwise."""
+    chosen = _from_environment()
+    return "compiled" if chosen == "auto" else chosen
+
+
 def for_files(engine: str) -> str:
     """The engine a file conversion runs: auto there means numpy, unless HCONV_ENGINE says
     otherwise (the file pipeline's use of the compiled engine, with reading, converting and
