@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Reproduce the benchmark figures and charts of docs/bench.md with one command, from the repository root:
 #   bash benchmarks/run.sh
-# It installs the bench extra (matplotlib, numba) into .venv, then runs the full benchmark
+# It installs hconv (building its compiled engine) and the bench extra (matplotlib) into .venv,
+# then runs the full benchmark
 # (2M rows, 3 repeats, peak memory on 20M rows; about 5 minutes and 4 GB of temporary disk) and
 # the stability sweeps. Run it on an otherwise idle machine: the targets are ratios within one run.
 set -euo pipefail

@@ -171,7 +171,7 @@ HOT static void numbers_chunk(Chunk *restrict s, int m, double cond_limit)
 
 /* s - (a . x) in double the precision, for x split into xh + xl: one row of
  * linsolve.residual_dd, operation for operation */
-static inline double dot_row(double s, double a0, double a1, double a2, double x0, double x1, double x2,
+HOT static double dot_row(double s, double a0, double a1, double a2, double x0, double x1, double x2,
                              double xh0, double xh1, double xh2, double xl0, double xl1, double xl2)
 {
     double c, ah, al, p, e, s_new, bb, q, err;
@@ -204,7 +204,7 @@ static inline double dot_row(double s, double a0, double a1, double a2, double x
 
 /* One step of linsolve._refine for row j from x: x corrected by the LDL^T solve of its
  * double-double residual, and the correction's size relative to x, squared (*c). */
-static inline void refine_step(const Chunk *restrict s, int j, double *x0, double *x1, double *x2, double *c)
+HOT static void refine_step(const Chunk *restrict s, int j, double *x0, double *x1, double *x2, double *c)
 {
     double xx = s->xx[j], yy = s->yy[j], zz = s->zz[j], xy = s->xy[j], xz = s->xz[j], yz = s->yz[j];
     double v0 = *x0, v1 = *x1, v2 = *x2, t;
@@ -297,18 +297,24 @@ HOT static void finish_chunk(Chunk *restrict s, int m, int refined, int diagnost
     refine_w_into_x(s, m);
     if (refined && diagnostics)
         refine_x_into_r(s, m);
-    const double *a0 = refined ? s->x0 : s->w0, *a1 = refined ? s->x1 : s->w1, *a2 = refined ? s->x2 : s->w2;
-    const double *b0 = refined ? s->r0 : s->x0, *b1 = refined ? s->r1 : s->x1, *b2 = refined ? s->r2 : s->x2;
-    for (int j = 0; j < m; j++) {
-        int fin = final_w(a0[j], a1[j], a2[j]);
-        double res = NAN;
-        if (diagnostics) {
-            fin &= safe(b0[j]) & safe(b1[j]) & safe(b2[j]);
-            res = relative_error(a0[j], a1[j], a2[j], b0[j], b1[j], b2[j]);
-        }
-        s->res[j] = res;
-        s->fin[j] = fin ? 1.0 : 0.0;
+    /* one loop per case, naming its columns, so that the compiler sees them apart */
+#define FINISH(A0, A1, A2, B0, B1, B2)                                                                       \
+    for (int j = 0; j < m; j++) {                                                                            \
+        int fin = final_w(s->A0[j], s->A1[j], s->A2[j]) & safe(s->B0[j]) & safe(s->B1[j]) & safe(s->B2[j]);  \
+        s->res[j] = relative_error(s->A0[j], s->A1[j], s->A2[j], s->B0[j], s->B1[j], s->B2[j]);             \
+        s->fin[j] = fin ? 1.0 : 0.0;                                                                         \
     }
+    if (!refined) { /* exact with the residual: omega stays LDL^T's, the reference is X */
+        FINISH(w0, w1, w2, x0, x1, x2)
+    } else if (diagnostics) {
+        FINISH(x0, x1, x2, r0, r1, r2)
+    } else {
+        for (int j = 0; j < m; j++) {
+            s->res[j] = NAN;
+            s->fin[j] = final_w(s->x0[j], s->x1[j], s->x2[j]) ? 1.0 : 0.0;
+        }
+    }
+#undef FINISH
 }
 
 /* Nine row-major numbers: the six of their symmetric part; returns whether they are not symmetric
