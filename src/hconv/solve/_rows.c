@@ -22,6 +22,7 @@
 #include <Python.h>
 #include <math.h>
 #include <stdint.h>
+#include <string.h>
 #include <numpy/arrayobject.h>
 
 /* The constants, from hconv's Python modules (hconv.solve.compiled passes them to configure()),
@@ -466,7 +467,8 @@ static int check(PyArrayObject *a, const char *name, int ndim, npy_intp d0, npy_
 
 /* convert(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, start, stop):
  * rows start..stop of I and H into the same rows of the outputs (residual written with
- * diagnostics only), a chunk of CH rows at a time, without the GIL. */
+ * diagnostics only), a chunk of CH rows at a time, without the GIL; returns how many of them are
+ * fallback. */
 static PyObject *convert(PyObject *self, PyObject *args)
 {
     PyArrayObject *In, *H, *w, *cond, *code, *residual, *fallback;
@@ -502,15 +504,59 @@ static PyObject *convert(PyObject *self, PyObject *args)
     Chunk *s = PyMem_RawMalloc(sizeof(Chunk));
     if (!s)
         return PyErr_NoMemory();
+    npy_intp lost = 0;
     Py_BEGIN_ALLOW_THREADS;
     for (npy_intp i = start; i < stop; i += CH)
         convert_chunk(&jb, s, i, (int)(stop - i < CH ? stop - i : CH));
+    for (npy_intp i = start; i < stop; i++)
+        lost += jb.fallback[i] != 0;
     Py_END_ALLOW_THREADS;
     PyMem_RawFree(s);
-    Py_RETURN_NONE;
+    return PyLong_FromSsize_t(lost);
+}
+
+/* one(I, nine, H, refined, diagnostics, cond_limit): one body, I (3, 3) or (6,) and H (3,)
+ * contiguous float64 (else None: the caller takes the general path), converted with the GIL held
+ * (a few microseconds): (w (3,), cond, code, residual, fallback), numpy scalars as a stacked
+ * result's rows are, residual None without diagnostics. */
+static PyObject *one(PyObject *self, PyObject *args)
+{
+    PyArrayObject *In, *H;
+    int nine, refined, diagnostics;
+    double cond_limit;
+    if (!PyArg_ParseTuple(args, "O!pO!ppd", &PyArray_Type, &In, &nine, &PyArray_Type, &H, &refined, &diagnostics,
+                          &cond_limit))
+        return NULL;
+    if (!K.ready || PyArray_TYPE(In) != NPY_FLOAT64 || PyArray_TYPE(H) != NPY_FLOAT64 ||
+        !PyArray_IS_C_CONTIGUOUS(In) || !PyArray_IS_C_CONTIGUOUS(H) || PyArray_SIZE(H) != 3 ||
+        PyArray_SIZE(In) != (nine ? 9 : 6))
+        Py_RETURN_NONE;
+    double w[3], cond, residual = NAN;
+    uint8_t code;
+    npy_bool fallback;
+    Job jb = {PyArray_BYTES(In), PyArray_BYTES(H), sizeof(double), 0, sizeof(double), 0, nine, refined, diagnostics,
+              cond_limit, w, &cond, &residual, &code, &fallback};
+    Chunk s; /* about 23 kB of stack */
+    convert_chunk(&jb, &s, 0, 1);
+    npy_intp three = 3;
+    PyObject *wa = PyArray_SimpleNew(1, &three, NPY_FLOAT64);
+    if (!wa)
+        return NULL;
+    memcpy(PyArray_DATA((PyArrayObject *)wa), w, sizeof w);
+    PyArray_Descr *f64 = PyArray_DescrFromType(NPY_FLOAT64), *u8 = PyArray_DescrFromType(NPY_UINT8);
+    PyObject *c = PyArray_Scalar(&cond, f64, NULL), *k = PyArray_Scalar(&code, u8, NULL);
+    PyObject *r = diagnostics ? PyArray_Scalar(&residual, f64, NULL) : (Py_INCREF(Py_None), Py_None);
+    Py_DECREF(f64);
+    Py_DECREF(u8);
+    if (!c || !k || !r) {
+        Py_XDECREF(c), Py_XDECREF(k), Py_XDECREF(r), Py_DECREF(wa);
+        return NULL;
+    }
+    return Py_BuildValue("(NNNNO)", wa, c, k, r, fallback ? Py_True : Py_False);
 }
 
 static PyMethodDef methods[] = {
+    {"one", one, METH_VARARGS, "one(I, nine, H, refined, diagnostics, cond_limit): one body, or None."},
     {"configure", configure, METH_VARARGS, "configure(constants): the constants of hconv's Python modules."},
     {"convert", convert, METH_VARARGS,
      "convert(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, start, stop)"},

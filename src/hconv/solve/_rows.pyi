@@ -1,7 +1,12 @@
 # The compiled engine's C code (_rows.c): what hconv.solve.compiled calls.
+from typing import Any
+
 import numpy as np
 
 def configure(constants: dict[str, float], /) -> None: ...
+def one(
+    I: np.ndarray, nine: bool, H: np.ndarray, refined: bool, diagnostics: bool, cond_limit: float, /
+) -> tuple[np.ndarray, Any, Any, Any, bool] | None: ...
 def convert(
     I: np.ndarray,
     nine: bool,
@@ -17,4 +22,4 @@ def convert(
     start: int,
     stop: int,
     /,
-) -> None: ...
+) -> int: ...

@@ -29,6 +29,7 @@ from __future__ import annotations
 import math
 import threading
 from concurrent.futures import ThreadPoolExecutor
+from typing import Any
 
 import numpy as np
 
@@ -39,9 +40,9 @@ from hconv.solve import _rows  # the C extension (setup.py)
 from hconv.solve.engines import available_cores
 from hconv.solve.status import CODE, ILL_CONDITIONED_TOL, SINGULAR_RTOL_EPS, SYMMETRY_RTOL, TRIANGLE_RTOL
 
-#: Rows per block a thread converts at a time: a call of fewer than two blocks stays on its
-#: caller's thread (starting threads would cost more than they save).
-BLOCK_ROWS = 32768
+#: Rows per thread below which a call stays on its caller's thread (handing rows to another
+#: thread would cost more than it saves).
+BLOCK_ROWS = 4096
 
 _EPS = float(np.finfo(np.float64).eps)
 #: The status codes this engine sets, status.py's. The C code writes them in the order of
@@ -110,6 +111,15 @@ def _shared_pool(threads: int) -> ThreadPoolExecutor:
         return _pool
 
 
+def one(
+    I: np.ndarray, nine: bool, H: np.ndarray, refined: bool, diagnostics: bool, cond_limit: float
+) -> tuple[np.ndarray, Any, Any, Any, bool] | None:
+    """One body, ``I`` ``(3, 3)`` or ``(6,)`` and ``H`` ``(3,)`` contiguous float64, in the caller's
+    thread: ``(w (3,), cond, status code, residual or None, fallback)``, numpy scalars as a
+    stacked Result's rows hold them, or None for arrays of another layout."""
+    return _rows.one(I, nine, H, refined, diagnostics, cond_limit)
+
+
 def convert_rows(
     I: np.ndarray,
     nine: bool,
@@ -122,22 +132,24 @@ def convert_rows(
     code: np.ndarray,
     residual: np.ndarray,
     fallback: np.ndarray,
-) -> None:
+) -> int:
     """Every row of ``I`` ``(6, N)`` or, with ``nine``, ``(9, N)`` row-major, and ``H`` ``(3, N)``,
     into ``w`` ``(N, 3)``, ``cond``, ``code`` (uint8), ``residual`` (written only with
     ``diagnostics``; else any length) and ``fallback`` (bool) ``(N,)``, which marks the rows
-    left for the numpy engine. Blocks of :data:`BLOCK_ROWS` rows run on every core, each
-    without the GIL; the bits do not depend on the blocks or the threads (rows are independent)."""
+    left for the numpy engine; returns how many those are. Blocks of rows run on every core, the
+    caller's thread taking one, each without the GIL; the bits do not depend on the blocks or the
+    threads (rows are independent)."""
     n = H.shape[1]
     args = (I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback)
     threads = _threads(n)
     if threads == 1:
-        _rows.convert(*args, 0, n)
-        return
-    # as many blocks as threads, or more of BLOCK_ROWS each: equal shares when the cores are free,
-    # and a slow core (a shared machine) holds up the others by one block at most
-    size = max(BLOCK_ROWS, -(-n // (threads * 4)))
-    pool = _shared_pool(threads)
-    futures = [pool.submit(_rows.convert, *args, lo, min(n, lo + size)) for lo in range(0, n, size)]
-    for f in futures:  # re-raises a block's exception here
-        f.result()
+        return _rows.convert(*args, 0, n)
+    # one block per thread when they are few; more, of at least BLOCK_ROWS, for large calls, so
+    # that a slow core (a shared machine) holds up the others by one block at most
+    parts = threads if n < 16 * threads * BLOCK_ROWS else 4 * threads
+    size = -(-n // parts)
+    starts = range(0, n, size)
+    pool = _shared_pool(threads - 1)
+    futures = [pool.submit(_rows.convert, *args, lo, min(n, lo + size)) for lo in starts[1:]]
+    lost = _rows.convert(*args, 0, min(n, size))
+    return lost + sum(f.result() for f in futures)  # re-raises a block's exception here

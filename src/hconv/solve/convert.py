@@ -181,6 +181,7 @@ def convert(
 
 #: The methods a plain call may name for :func:`_plain_call`: the compiled engine's.
 _PLAIN_METHODS = {None: "exact", "exact": "exact", "refined": "refined"}
+_F64 = np.dtype(np.float64)
 
 
 def _plain_call(
@@ -189,36 +190,46 @@ def _plain_call(
     """:func:`convert` for the call the compiled engine answers without the checks and repacking
     that other calls need, so that one body or a few rows cost little more than the compiled
     code itself: float64 ndarrays (one body or a stack) of six or nine numbers, no offset, an
-    exact-family method the engine covers, the defaults otherwise. None for any other call,
-    which then takes the general path (and its checks and messages)."""
+    exact-family method the engine covers, the defaults otherwise. None for any other call, and
+    for one body the compiled engine leaves to numpy: the general path then takes it (and its
+    checks and messages)."""
     if (
         type(H) is not np.ndarray
         or type(I) is not np.ndarray
-        or H.dtype != np.float64
-        or I.dtype != np.float64
-        or extra_k != 0.0
-        or type(extra_k) not in (int, float)
-        or diagnostics not in (None, True, False)
-        or type(diagnostics) not in (type(None), bool)
-        or engine not in (None, "auto", "compiled")
-        or not isinstance(method, (str, type(None)))
-        or method not in _PLAIN_METHODS
+        or H.dtype is not _F64
+        or I.dtype is not _F64
+        or not (extra_k == 0.0 and type(extra_k) in (int, float))
+        or not (diagnostics is None or diagnostics is True or diagnostics is False)
+        or not (engine is None or engine == "auto" or engine == "compiled")
+        or not (method is None or (type(method) is str and method in _PLAIN_METHODS))
     ):
         return None
-    single = H.ndim == 1
-    if single:
+    if engine != "compiled" and engines.resolve_environment() != "compiled":
+        return None
+    m = methods.get(_PLAIN_METHODS[method])
+    with_residual = diagnostics is not False
+    if H.ndim == 1:
         if H.shape != (3,) or I.shape not in ((3, 3), (6,)):
             return None
-        H, I = H[None], I[None]
-    elif H.ndim != 2 or H.shape[1] != 3 or I.shape[0] != H.shape[0] or I.shape[1:] not in ((3, 3), (6,)):
-        return None
-    if engine in (None, "auto") and engines.resolve_environment() != "compiled":
+        one = compiled.one(I, I.ndim == 2, H, m.refines, with_residual, _cond_limit(m))
+        if one is None or one[4]:
+            return None
+        w, cond, code, residual, _ = one
+        return Result(w, residual, cond, code, m.unit, m.name, engine="compiled")
+    if H.ndim != 2 or H.shape[1] != 3 or I.shape[0] != H.shape[0] or I.shape[1:] not in ((3, 3), (6,)):
         return None
     form, values = forms.from_array(I)
-    res = _convert_rows(
-        "compiled", methods.get(_PLAIN_METHODS[method]), form, values, H.T, diagnostics is not False, 0.0
-    )
-    return res.body(0) if single else res
+    return _convert_rows("compiled", m, form, values, H.T, with_residual, 0.0)
+
+
+_limits: dict[str, float] = {}
+
+
+def _cond_limit(m: methods.Method) -> float:
+    """:func:`hconv.solve.blocks.ill_conditioned_above` of ``m`` with no extra K, once per method."""
+    if m.name not in _limits:
+        _limits[m.name] = blocks.ill_conditioned_above(m, 0.0)
+    return _limits[m.name]
 
 
 def _refuse_scene(opts: options.Options) -> None:
@@ -314,12 +325,10 @@ def _convert_rows(
     code = np.empty(n, dtype=np.uint8)
     residual = np.empty(n if diagnostics else 0)
     fallback = np.empty(n, dtype=bool)
-    cond_limit = blocks.ill_conditioned_above(m, extra_k)
-    compiled.convert_rows(
-        I, engines.FORMS[form.name], H, m.refines, diagnostics, cond_limit, w, cond, code, residual, fallback
-    )
-    rest = np.flatnonzero(fallback)
-    if rest.size:
+    cond_limit = _cond_limit(m) if extra_k == 0.0 else blocks.ill_conditioned_above(m, extra_k)
+    nine = engines.FORMS[form.name]
+    if compiled.convert_rows(I, nine, H, m.refines, diagnostics, cond_limit, w, cond, code, residual, fallback):
+        rest = np.flatnonzero(fallback)
         sub = convert_columns(
             H[:, rest], form, I[:, rest], method=m, diagnostics=diagnostics, extra_k=extra_k, engine="numpy"
         )

@@ -169,7 +169,11 @@ def compiled_loop(I: Sym3, H: np.ndarray) -> Callable[[], None]:
     n = H.shape[1]
     I6 = np.stack(list(I))
     out = (np.empty((n, 3)), np.empty(n), np.empty(n, np.uint8), np.empty(0), np.empty(n, bool))
-    return lambda: _rows.convert(I6, False, H, False, False, np.inf, *out, 0, n)
+
+    def loop() -> None:
+        _rows.convert(I6, False, H, False, False, np.inf, *out, 0, n)
+
+    return loop
 
 
 _YARDSTICK = """
