@@ -790,10 +790,11 @@ def _listing(entries: list[tuple[str, ...]]) -> None:
     """Print ``(name, paragraph, ...)`` entries as a name column beside paragraphs wrapped at
     spaces to 80 columns, or to a narrower terminal, so that no line is cut or runs over. A
     no-break space keeps a number with its unit."""
+    width = max(len(name) for name, *_ in entries) + 2
     for name, *paragraphs in entries:
         for k, text in enumerate(paragraphs):
-            first = f"{name:<8}" if k == 0 else " " * 8
-            print(_fill(text, sys.stdout, " " * 8, first))
+            first = f"{name:<{width}}" if k == 0 else " " * width
+            print(_fill(text, sys.stdout, " " * width, first))
 
 
 @app.command("methods")
