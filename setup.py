@@ -18,8 +18,8 @@ else:
 setup(
     ext_modules=[
         Extension(
-            "hconv.solve._rows",
-            ["src/hconv/solve/_rows.c"],
+            "hconv.solve.rowcode",
+            ["src/hconv/solve/rowcode.c"],
             include_dirs=[numpy.get_include()],
             extra_compile_args=flags,
             define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],

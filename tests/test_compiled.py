@@ -1,4 +1,4 @@
-"""The compiled engine (hconv.solve.compiled, its C code in hconv.solve._rows) against the numpy
+"""The compiled engine (hconv.solve.compiled, its C code in hconv.solve.rowcode) against the numpy
 engine and against independent references.
 
 The contract (docs/engines.md): ω of ``exact``, ``cond`` and every status are the numpy engine's
@@ -44,7 +44,7 @@ def _rows_of(I: np.ndarray, H: np.ndarray, refined: bool = False, diagnostics: b
 def test_extension_is_built_and_configured():
     """The package carries the built C code (pip builds it at install): no JIT, nothing compiled
     at run time."""
-    ext = importlib.import_module("hconv.solve._rows")
+    ext = importlib.import_module("hconv.solve.rowcode")
     assert Path(ext.__file__).suffix in (".so", ".pyd")
     with pytest.raises(KeyError, match="SPLIT missing"):
         ext.configure({})
@@ -124,17 +124,17 @@ def test_convert_rows_same_bits_whatever_the_blocks_and_threads(rng, monkeypatch
     ref = _rows_of(I, H, refined=True)
     assert 0 < ref[4].mean() < 1
     names: set = set()
-    real = compiled._rows.convert
+    real = compiled.rowcode.convert
 
     class Recording:
-        configure = compiled._rows.configure
+        configure = compiled.rowcode.configure
 
         @staticmethod
         def convert(*args):
             names.add(threading.current_thread().name)
             return real(*args)
 
-    monkeypatch.setattr(compiled, "_rows", Recording)
+    monkeypatch.setattr(compiled, "rowcode", Recording)
     for block, cores in ((997, 2), (4096, 3), (len(H), 4)):
         monkeypatch.setattr(compiled, "BLOCK_ROWS", block)
         monkeypatch.setattr(compiled, "available_cores", lambda cores=cores: cores)

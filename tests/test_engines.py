@@ -114,7 +114,7 @@ def test_convert_in_a_fresh_process_loads_the_extension_and_no_jit():
         "    assert hconv.convert(np.ones((n, 3)), np.tile(np.diag([1.0, 2.0, 2.5]), (n, 1, 1))).engine == 'compiled'"
     )
     loaded = _modules_after(code)
-    assert "hconv.solve._rows" in loaded
+    assert "hconv.solve.rowcode" in loaded
     assert not {"numba", "llvmlite"} & loaded
 
 

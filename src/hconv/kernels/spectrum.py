@@ -71,7 +71,7 @@ def _largest_root(I: Sym3) -> tuple[np.ndarray, np.ndarray]:
     rounding (tests/test_spectrum.py, against mpmath), where acos and cos cost several times more,
     compiled or not (docs/measurements.md). Near r = −1 (the two largest roots meet) the answer is
     ill-conditioned in r itself: the error grows to about p·eps / √(1 − r²), capped at p·√eps.
-    The compiled engine's ``largest_root`` (src/hconv/solve/_rows.c) is the same arithmetic for one
+    The compiled engine's ``largest_root`` (src/hconv/solve/rowcode.c) is the same arithmetic for one
     row.
     """
     # Beyond ROOT_RANGE, scaled by a power of two near the largest entry (exact), so that squares
@@ -91,7 +91,7 @@ def _largest_root(I: Sym3) -> tuple[np.ndarray, np.ndarray]:
 def largest_root(I: Sym3) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_largest_root` for tensors whose entries all lie within ROOT_RANGE (not rescaled):
     the largest moment and its error bound, ``(N,)`` each. No call to ``frexp`` or a reduction:
-    the arithmetic the compiled engine's ``largest_root`` (src/hconv/solve/_rows.c) does for one row."""
+    the arithmetic the compiled engine's ``largest_root`` (src/hconv/solve/rowcode.c) does for one row."""
     a, b, c, d, e, f = I
     q = (a + b + c) * (1.0 / 3.0)
     aq, bq, cq = a - q, b - q, c - q

@@ -1,4 +1,4 @@
-"""The compiled engine: hconv's row code in C (``src/hconv/solve/_rows.c``, built when hconv is
+"""The compiled engine: hconv's row code in C (``src/hconv/solve/rowcode.c``, built when hconv is
 installed), one fused pass per row, its blocks of rows on every core.
 
 It covers the common case and says so per row: the methods registered with ``row_engine``
@@ -36,7 +36,7 @@ import numpy as np
 from hconv.kernels.eft import splitter
 from hconv.kernels.linsolve import MAX_REFINE_STEPS, STOP_TOL
 from hconv.kernels.spectrum import ROOT_NEWTON_STEPS, ROOT_RANGE, ROOT_START
-from hconv.solve import _rows  # the C extension (setup.py)
+from hconv.solve import rowcode  # the C extension (setup.py)
 from hconv.solve.engines import available_cores
 from hconv.solve.status import CODE, ILL_CONDITIONED_TOL, SINGULAR_RTOL_EPS, SYMMETRY_RTOL, TRIANGLE_RTOL
 
@@ -82,7 +82,7 @@ def constants() -> dict[str, float]:
 
 
 def _configure() -> None:
-    _rows.configure(constants())
+    rowcode.configure(constants())
 
 
 _configure()
@@ -117,7 +117,7 @@ def one(
     """One body, ``I`` ``(3, 3)`` or ``(6,)`` and ``H`` ``(3,)`` contiguous float64, in the caller's
     thread: ``(w (3,), cond, status code, residual or None, fallback)``, numpy scalars as a
     stacked Result's rows hold them, or None for arrays of another layout."""
-    return _rows.one(I, nine, H, refined, diagnostics, cond_limit)
+    return rowcode.one(I, nine, H, refined, diagnostics, cond_limit)
 
 
 def convert_rows(
@@ -143,13 +143,13 @@ def convert_rows(
     args = (I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback)
     threads = _threads(n)
     if threads == 1:
-        return _rows.convert(*args, 0, n)
+        return rowcode.convert(*args, 0, n)
     # one block per thread when they are few; more, of at least BLOCK_ROWS, for large calls, so
     # that a slow core (a shared machine) holds up the others by one block at most
     parts = threads if n < 16 * threads * BLOCK_ROWS else 4 * threads
     size = -(-n // parts)
     starts = range(0, n, size)
     pool = _shared_pool(threads - 1)
-    futures = [pool.submit(_rows.convert, *args, lo, min(n, lo + size)) for lo in starts[1:]]
-    lost = _rows.convert(*args, 0, min(n, size))
+    futures = [pool.submit(rowcode.convert, *args, lo, min(n, lo + size)) for lo in starts[1:]]
+    lost = rowcode.convert(*args, 0, min(n, size))
     return lost + sum(f.result() for f in futures)  # re-raises a block's exception here

@@ -164,14 +164,14 @@ def accuracy(rows: int = 300, seed: int = 0) -> dict:
 def compiled_loop(I: Sym3, H: np.ndarray) -> Callable[[], None]:
     """The yardstick: the compiled engine's row code on one thread, ``exact`` without the
     residual, ready to time (LDLᵀ, the closed-form moments and every status in one pass)."""
-    from hconv.solve import _rows  # the compiled engine's C code
+    from hconv.solve import rowcode  # the compiled engine's C code
 
     n = H.shape[1]
     I6 = np.stack(list(I))
     out = (np.empty((n, 3)), np.empty(n), np.empty(n, np.uint8), np.empty(0), np.empty(n, bool))
 
     def loop() -> None:
-        _rows.convert(I6, False, H, False, False, np.inf, *out, 0, n)
+        rowcode.convert(I6, False, H, False, False, np.inf, *out, 0, n)
 
     return loop
 

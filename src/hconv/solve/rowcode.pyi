@@ -1,4 +1,4 @@
-# The compiled engine's C code (_rows.c): what hconv.solve.compiled calls.
+# The compiled engine's C code (rowcode.c): what hconv.solve.compiled calls.
 from typing import Any
 
 import numpy as np

@@ -1,4 +1,4 @@
-/* hconv.solve._rows: the compiled engine's row code, one fused pass per row.
+/* hconv.solve.rowcode: the compiled engine's row code, one fused pass per row.
  *
  * What it computes and what it leaves is hconv.solve.compiled's docstring; this file is its
  * arithmetic. Every operation is the numpy engine's (hconv.kernels.linsolve, .spectrum, .metrics,
@@ -407,7 +407,7 @@ static int get(PyObject *c, const char *name, double *out)
 {
     PyObject *v = PyDict_GetItemString(c, name);
     if (!v) {
-        PyErr_Format(PyExc_KeyError, "_rows.configure: %s missing", name);
+        PyErr_Format(PyExc_KeyError, "rowcode.configure: %s missing", name);
         return -1;
     }
     *out = PyFloat_AsDouble(v);
@@ -428,7 +428,7 @@ static int configure_from(PyObject *c)
         get(c, "ILL_CONDITIONED", &codes[3]) || get(c, "INACCURATE", &codes[4]))
         return -1;
     if (steps != NEWTON_STEPS) {
-        PyErr_Format(PyExc_ValueError, "_rows.configure: ROOT_NEWTON_STEPS is %g; this build has %d", steps,
+        PyErr_Format(PyExc_ValueError, "rowcode.configure: ROOT_NEWTON_STEPS is %g; this build has %d", steps,
                      NEWTON_STEPS);
         return -1;
     }
@@ -455,11 +455,11 @@ static int check(PyArrayObject *a, const char *name, int ndim, npy_intp d0, npy_
 {
     if (PyArray_NDIM(a) != ndim || PyArray_TYPE(a) != type || PyArray_DIM(a, 0) != d0 ||
         (ndim == 2 && PyArray_DIM(a, 1) != d1)) {
-        PyErr_Format(PyExc_ValueError, "_rows.convert: %s has the wrong shape or dtype", name);
+        PyErr_Format(PyExc_ValueError, "rowcode.convert: %s has the wrong shape or dtype", name);
         return -1;
     }
     if (writable && !(PyArray_IS_C_CONTIGUOUS(a) && PyArray_ISWRITEABLE(a))) {
-        PyErr_Format(PyExc_ValueError, "_rows.convert: %s must be contiguous and writable", name);
+        PyErr_Format(PyExc_ValueError, "rowcode.convert: %s must be contiguous and writable", name);
         return -1;
     }
     return 0;
@@ -480,11 +480,11 @@ static PyObject *convert(PyObject *self, PyObject *args)
                           &PyArray_Type, &residual, &PyArray_Type, &fallback, &start, &stop))
         return NULL;
     if (!K.ready) {
-        PyErr_SetString(PyExc_RuntimeError, "_rows.convert: configure() first");
+        PyErr_SetString(PyExc_RuntimeError, "rowcode.convert: configure() first");
         return NULL;
     }
     if (PyArray_NDIM(H) != 2) {
-        PyErr_SetString(PyExc_ValueError, "_rows.convert: H must be (3, N)");
+        PyErr_SetString(PyExc_ValueError, "rowcode.convert: H must be (3, N)");
         return NULL;
     }
     npy_intp n = PyArray_DIM(H, 1);
@@ -494,7 +494,7 @@ static PyObject *convert(PyObject *self, PyObject *args)
         check(residual, "residual", 1, diagnostics ? n : PyArray_DIM(residual, 0), 0, NPY_FLOAT64, 1))
         return NULL;
     if (start < 0 || stop > n || start > stop) {
-        PyErr_SetString(PyExc_ValueError, "_rows.convert: rows start..stop out of range");
+        PyErr_SetString(PyExc_ValueError, "rowcode.convert: rows start..stop out of range");
         return NULL;
     }
     Job jb = {PyArray_BYTES(In), PyArray_BYTES(H), PyArray_STRIDE(In, 0), PyArray_STRIDE(In, 1),
@@ -563,9 +563,9 @@ static PyMethodDef methods[] = {
     {NULL, NULL, 0, NULL},
 };
 
-static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_rows", "hconv's compiled row code.", -1, methods};
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "rowcode", "hconv's compiled row code.", -1, methods};
 
-PyMODINIT_FUNC PyInit__rows(void)
+PyMODINIT_FUNC PyInit_rowcode(void)
 {
     import_array();
     return PyModule_Create(&module);
