@@ -124,3 +124,42 @@ def test_covers_follows_the_row_engine_field():
     assert not engines.covers(dataclasses.replace(exact, name="exact-numpy", row_engine=False), 64, "error", "sym6")
     assert engines.covers(dataclasses.replace(exact, name="exact-twin"), 64, "error", "full9")
     assert engines.scope_text().startswith("--method exact or refined on sym6 or full9 tensors")
+
+
+def _same_result(a: hconv.Result, b: hconv.Result) -> None:
+    """Every field the same, bits, types and shapes (NaN equal to NaN)."""
+    assert dataclasses.fields(a) == dataclasses.fields(b)
+    for f in dataclasses.fields(a):
+        x, y = getattr(a, f.name), getattr(b, f.name)
+        assert type(x) is type(y), f.name
+        if isinstance(x, (np.ndarray, np.generic)):
+            assert x.shape == y.shape and np.array_equal(x, y, equal_nan=True), f.name
+        else:
+            assert x == y, f.name
+
+
+@pytest.mark.parametrize("method", [None, "refined"])
+@pytest.mark.parametrize("diagnostics", [None, False])
+def test_convert_plain_call_gives_the_general_paths_result(method, diagnostics, rng, fresh):
+    """Plain calls (float64 arrays, default options) skip the general path's checks: one body by
+    its own C entry, a small stack by another; the Result is the one the general path gives
+    (precision=64 spelled out takes that path)."""
+    from helpers import hard_bodies, physical_bodies, six
+
+    I, H = physical_bodies(rng, 50), rng.normal(size=(50, 3))
+    hard, Hh = hard_bodies(rng)  # rows the compiled engine leaves: the short path must too
+    kw = {"method": method, "diagnostics": diagnostics}
+    for h, i in [(H[0], I[0]), (H[0], six(I)[0]), (H, I), (H, six(I)), (Hh[0], hard[0]), (Hh, hard), (Hh[5], hard[5])]:
+        _same_result(hconv.convert(h, i, **kw), hconv.convert(h, i, precision=64, **kw))
+    assert hconv.convert(H[0], I[0], **kw).engine == "compiled"
+    assert hconv.convert(Hh[0], hard[0], **kw).status == "invalid_input"  # a NaN: the numpy engine's row
+
+
+def test_convert_plain_call_follows_the_environment(fresh, monkeypatch):
+    h, i = np.array([1.0, 2.0, 3.0]), np.diag([1.0, 2.0, 3.0])
+    monkeypatch.setenv("HCONV_ENGINE", "numpy")
+    assert hconv.convert(h, i).engine == "numpy" and hconv.convert(h[None], i[None]).engine == "numpy"
+    assert hconv.convert(h, i, engine="compiled").engine == "compiled"
+    monkeypatch.setenv("HCONV_ENGINE", "gpu")
+    with pytest.raises(UsageError, match="HCONV_ENGINE must be one of auto, numpy, compiled, got 'gpu'"):
+        hconv.convert(h, i)

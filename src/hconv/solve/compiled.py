@@ -120,6 +120,15 @@ def one(
     return rowcode.one(I, nine, H, refined, diagnostics, cond_limit)
 
 
+def stack(
+    I: np.ndarray, H: np.ndarray, refined: bool, diagnostics: bool, cond_limit: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None] | None:
+    """A small stack as numpy users hold it, ``I`` ``(N, 3, 3)`` or ``(N, 6)`` and ``H``
+    ``(N, 3)`` float64, on the caller's thread into new arrays: ``(w (N, 3), cond, status codes,
+    residual or None)``; None when a row is left to the numpy engine, or for another layout."""
+    return rowcode.stack(I, H, refined, diagnostics, cond_limit)
+
+
 def convert_rows(
     I: np.ndarray,
     nine: bool,

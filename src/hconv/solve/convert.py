@@ -25,7 +25,8 @@ engine.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields, replace
+import os
+from dataclasses import MISSING, dataclass, fields, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -204,9 +205,10 @@ def _plain_call(
         or not (method is None or (type(method) is str and method in _PLAIN_METHODS))
     ):
         return None
-    if engine != "compiled" and engines.resolve_environment() != "compiled":
+    forced = os.environ.get("HCONV_ENGINE")  # any other value: the general path (and its message)
+    if engine != "compiled" and forced and forced not in ("auto", "compiled"):
         return None
-    m = methods.get(_PLAIN_METHODS[method])
+    m = methods.METHODS[_PLAIN_METHODS[method]]
     with_residual = diagnostics is not False
     if H.ndim == 1:
         if H.shape != (3,) or I.shape not in ((3, 3), (6,)):
@@ -215,14 +217,32 @@ def _plain_call(
         if one is None or one[4]:
             return None
         w, cond, code, residual, _ = one
-        return Result(w, residual, cond, code, m.unit, m.name, engine="compiled")
+        return _compiled_result(w, residual, cond, code, m)
     if H.ndim != 2 or H.shape[1] != 3 or I.shape[0] != H.shape[0] or I.shape[1:] not in ((3, 3), (6,)):
         return None
+    if H.shape[0] < 2 * compiled.BLOCK_ROWS:  # one thread's worth: the call's own cost counts
+        small = compiled.stack(I, H, m.refines, with_residual, _cond_limit(m))
+        if small is not None:
+            w, cond, code, residual = small
+            return _compiled_result(w, residual, cond, code, m)
     form, values = forms.from_array(I)
     return _convert_rows("compiled", m, form, values, H.T, with_residual, 0.0)
 
 
 _limits: dict[str, float] = {}
+#: Result's fields with defaults, for :func:`_compiled_result`.
+_RESULT_DEFAULTS = {f.name: f.default for f in fields(Result) if f.default is not MISSING}
+
+
+def _compiled_result(w: object, residual: object, cond: object, code: object, m: methods.Method) -> Result:
+    """``Result(w, residual, cond, code, m.unit, m.name, engine="compiled")``, made without the
+    frozen dataclass's ``__init__``, whose guarded field-by-field setting cost half of a small
+    call (2.3 µs against a 4 µs conversion of 100 rows)."""
+    res = object.__new__(Result)
+    res.__dict__.update(_RESULT_DEFAULTS)
+    res.__dict__.update(w=w, residual=residual, cond=cond, status_code=code, unit=m.unit, method=m.name)
+    res.__dict__["engine"] = "compiled"
+    return res
 
 
 def _cond_limit(m: methods.Method) -> float:

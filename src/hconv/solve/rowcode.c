@@ -555,7 +555,62 @@ static PyObject *one(PyObject *self, PyObject *args)
     return Py_BuildValue("(NNNNO)", wa, c, k, r, fallback ? Py_True : Py_False);
 }
 
+/* stack(I, H, refined, diagnostics, cond_limit): a stack of bodies as numpy users hold it, I
+ * (N, 3, 3) (its rows of three contiguous) or (N, 6) and H (N, 3), float64, converted on the
+ * caller's thread into new arrays: (w (N, 3), cond, code, residual or None). None when a row is
+ * left to the numpy engine, or for arrays of another layout: the caller then takes the general
+ * path. For small stacks, whose cost is mostly the call's. */
+static PyObject *stack(PyObject *self, PyObject *args)
+{
+    PyArrayObject *In, *H;
+    int refined, diagnostics;
+    double cond_limit;
+    if (!PyArg_ParseTuple(args, "O!O!ppd", &PyArray_Type, &In, &PyArray_Type, &H, &refined, &diagnostics,
+                          &cond_limit))
+        return NULL;
+    if (!K.ready || PyArray_TYPE(In) != NPY_FLOAT64 || PyArray_TYPE(H) != NPY_FLOAT64 || PyArray_NDIM(H) != 2 ||
+        PyArray_DIM(H, 1) != 3)
+        Py_RETURN_NONE;
+    npy_intp n = PyArray_DIM(H, 0);
+    int nine = PyArray_NDIM(In) == 3;
+    if (PyArray_DIM(In, 0) != n || n == 0)
+        Py_RETURN_NONE;
+    if (nine ? PyArray_DIM(In, 1) != 3 || PyArray_DIM(In, 2) != 3 || PyArray_STRIDE(In, 1) != 3 * PyArray_STRIDE(In, 2)
+             : PyArray_NDIM(In) != 2 || PyArray_DIM(In, 1) != 6)
+        Py_RETURN_NONE;
+    npy_intp dims[2] = {n, 3};
+    PyObject *w = PyArray_SimpleNew(2, dims, NPY_FLOAT64), *cond = PyArray_SimpleNew(1, dims, NPY_FLOAT64);
+    PyObject *code = PyArray_SimpleNew(1, dims, NPY_UINT8);
+    PyObject *res = diagnostics ? PyArray_SimpleNew(1, dims, NPY_FLOAT64) : (Py_INCREF(Py_None), Py_None);
+    npy_bool *fallback = PyMem_RawMalloc(n * sizeof(npy_bool));
+    Chunk *s = PyMem_RawMalloc(sizeof(Chunk));
+    if (!w || !cond || !code || !res || !fallback || !s) {
+        Py_XDECREF(w), Py_XDECREF(cond), Py_XDECREF(code), Py_XDECREF(res);
+        PyMem_RawFree(fallback), PyMem_RawFree(s);
+        return PyErr_NoMemory();
+    }
+    Job jb = {PyArray_BYTES(In), PyArray_BYTES(H), PyArray_STRIDE(In, PyArray_NDIM(In) - 1), PyArray_STRIDE(In, 0),
+              PyArray_STRIDE(H, 1), PyArray_STRIDE(H, 0), nine, refined, diagnostics, cond_limit,
+              (double *)PyArray_DATA((PyArrayObject *)w), (double *)PyArray_DATA((PyArrayObject *)cond),
+              diagnostics ? (double *)PyArray_DATA((PyArrayObject *)res) : NULL,
+              (uint8_t *)PyArray_DATA((PyArrayObject *)code), fallback};
+    npy_intp lost = 0;
+    Py_BEGIN_ALLOW_THREADS;
+    for (npy_intp i = 0; i < n; i += CH)
+        convert_chunk(&jb, s, i, (int)(n - i < CH ? n - i : CH));
+    for (npy_intp i = 0; i < n; i++)
+        lost += fallback[i] != 0;
+    Py_END_ALLOW_THREADS;
+    PyMem_RawFree(fallback), PyMem_RawFree(s);
+    if (lost) {
+        Py_DECREF(w), Py_DECREF(cond), Py_DECREF(code), Py_DECREF(res);
+        Py_RETURN_NONE;
+    }
+    return Py_BuildValue("(NNNN)", w, cond, code, res);
+}
+
 static PyMethodDef methods[] = {
+    {"stack", stack, METH_VARARGS, "stack(I, H, refined, diagnostics, cond_limit): a small stack, or None."},
     {"one", one, METH_VARARGS, "one(I, nine, H, refined, diagnostics, cond_limit): one body, or None."},
     {"configure", configure, METH_VARARGS, "configure(constants): the constants of hconv's Python modules."},
     {"convert", convert, METH_VARARGS,

@@ -7,6 +7,9 @@ def configure(constants: dict[str, float], /) -> None: ...
 def one(
     I: np.ndarray, nine: bool, H: np.ndarray, refined: bool, diagnostics: bool, cond_limit: float, /
 ) -> tuple[np.ndarray, Any, Any, Any, bool] | None: ...
+def stack(
+    I: np.ndarray, H: np.ndarray, refined: bool, diagnostics: bool, cond_limit: float, /
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None] | None: ...
 def convert(
     I: np.ndarray,
     nine: bool,
