@@ -166,3 +166,22 @@ def test_compiled_status_codes_are_status_py_and_written_in_its_precedence():
     # and inaccurate takes a row only from ok: right only while PRECEDENCE orders them so
     places = [PRECEDENCE.index(n) for n in ("singular", "not_physical", "ill_conditioned", "inaccurate")]
     assert places == sorted(places)
+
+
+def test_convert_rows_in_a_forked_child_after_the_parent_used_threads(rng, monkeypatch):
+    """A forked process (a multiprocessing or Dask worker) inherits the parent's pool without its
+    threads: its first threaded call must start threads of its own, not wait on the parent's."""
+    import multiprocessing
+
+    monkeypatch.setattr(compiled, "BLOCK_ROWS", 16)
+    monkeypatch.setattr(compiled, "available_cores", lambda: 2)
+    I, H = physical_bodies(rng, 200), rng.normal(size=(200, 3))
+    parent = _rows_of(I, H)[0]  # the pool starts here
+    ctx = multiprocessing.get_context("fork")
+    with ctx.Pool(1) as pool:
+        child = pool.apply_async(_child_rows, (I, H)).get(timeout=60)
+    assert same_bits(child, parent)
+
+
+def _child_rows(I: np.ndarray, H: np.ndarray) -> np.ndarray:
+    return _rows_of(I, H)[0]

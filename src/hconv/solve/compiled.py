@@ -27,6 +27,7 @@ Shapes: I ``(k, N)`` in its form's value order (six numbers or nine row-major), 
 from __future__ import annotations
 
 import math
+import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
@@ -88,6 +89,7 @@ def _configure() -> None:
 _configure()
 _pool: ThreadPoolExecutor | None = None
 _pool_threads = 0
+_pool_pid = 0
 _pool_lock = threading.Lock()
 
 
@@ -103,11 +105,13 @@ def _threads(n: int) -> int:
 
 def _shared_pool(threads: int) -> ThreadPoolExecutor:
     """One pool for the process, started on the first call that needs it (a pool per call would
-    start threads every time)."""
-    global _pool, _pool_threads
+    start threads every time), and again in a process forked from it (a multiprocessing or Dask
+    worker), which inherits the pool but not its threads."""
+    global _pool, _pool_threads, _pool_pid
     with _pool_lock:
-        if _pool is None or _pool_threads < threads:
-            _pool, _pool_threads = ThreadPoolExecutor(threads, thread_name_prefix="hconv-rows"), threads
+        if _pool is None or _pool_threads < threads or _pool_pid != os.getpid():
+            _pool = ThreadPoolExecutor(threads, thread_name_prefix="hconv-rows")
+            _pool_threads, _pool_pid = threads, os.getpid()
         return _pool
 
 
