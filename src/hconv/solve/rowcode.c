@@ -4,12 +4,14 @@
  * arithmetic. Every operation is the numpy engine's (hconv.kernels.linsolve, .spectrum, .metrics,
  * hconv.solve.blocks), written in the same order with the same parentheses, so that `exact`'s
  * omega, cond and every status are the same bits. It must be compiled so that it rounds as
- * written: no contraction into fused multiply-adds (-ffp-contract=off) and no fast-math
- * (setup.py). A row this code cannot settle is marked fallback and converted by the numpy engine.
+ * written (setup.py): no contraction into fused multiply-adds (-ffp-contract=off) and no
+ * fast-math; -fno-math-errno and -fno-trapping-math only let the compiler vectorise sqrt and
+ * turn branches into selects, which changes no result. A row this code cannot settle is marked
+ * fallback and converted by the numpy engine.
  *
- * min and max here are Python's (the first argument unless the second compares greater or
- * smaller), which hconv's row code was specified in; where a NaN makes them differ from numpy's,
- * the row is not finite and falls back either way.
+ * pmin and pmax keep the first argument unless the second compares smaller or greater (as
+ * Python's min and max, which the row code was first written with); where a NaN makes them
+ * differ from numpy's, the row is not finite and falls back either way.
  *
  * Shapes, as hconv.solve.convert's internal layout: I is (k, N) in its form's value order (six
  * numbers xx yy zz xy xz yz, or nine row-major), H (3, N) [kg m^2/s], any strides; outputs
@@ -27,7 +29,7 @@
 
 /* The constants, from hconv's Python modules (hconv.solve.compiled passes them to configure()),
  * so that each is stated once, where the numpy engine states it. Codes are held as doubles: the
- * loops over rows compute in doubles only, which lets the compiler run two rows at once. */
+ * loops over rows compute in doubles only, which lets the compiler run several rows at once. */
 static struct {
     double split, singular_limit, grid, safe, inv_safe, stop, tiny, s0, s1, s2, s3, s4, root_range, inv_root_range;
     double symmetry_rtol, triangle_rtol, ill_tol, eps, sqrt_eps, max;
@@ -39,7 +41,7 @@ static struct {
 /* spectrum.ROOT_NEWTON_STEPS, a constant here so that the loop unrolls; configure() refuses
  * another value. */
 #define NEWTON_STEPS 2
-/* Rows per chunk: the chunk's scratch (about 45 numbers a row) stays in the L1 cache. */
+/* Rows per chunk: the chunk's scratch (35 numbers a row, 18 kB) stays in the L1 cache. */
 #define CH 64
 /* What the verdict says of a row: the numpy engine must convert it, it has no answer (singular),
  * or it has one. */
@@ -51,8 +53,13 @@ static struct {
  * them compiled for its own vectors. */
 #if defined(__GNUC__)
 #define HOT __attribute__((always_inline)) inline
+#define NOINLINE __attribute__((noinline))
 #else
 #define HOT inline
+#define NOINLINE
+#endif
+#if defined(_MSC_VER)
+#define restrict __restrict
 #endif
 
 static inline double pmax(double a, double b) { return b > a ? b : a; }
@@ -351,7 +358,7 @@ typedef struct {
 #endif
 
 /* Rows start..start+m (m <= CH) of the job, through one chunk's scratch. */
-WIDEST __attribute__((noinline)) static void convert_chunk(const Job *jb, Chunk *restrict s, npy_intp start, int m)
+WIDEST NOINLINE static void convert_chunk(const Job *jb, Chunk *restrict s, npy_intp start, int m)
 {
 #define AT(base, s0, s1, k, i) (*(const double *)((base) + (k) * (s0) + (i) * (s1)))
     for (int j = 0; j < m; j++) {
