@@ -361,21 +361,35 @@ typedef struct {
 WIDEST NOINLINE static void convert_chunk(const Job *jb, Chunk *restrict s, npy_intp start, int m)
 {
 #define AT(base, s0, s1, k, i) (*(const double *)((base) + (k) * (s0) + (i) * (s1)))
+    if (jb->nine && jb->Is0 == sizeof(double) && jb->Is1 == 9 * sizeof(double)) {
+        /* an (N, 3, 3) stack as numpy holds it: each row's nine numbers together */
+        const double *rows = (const double *)jb->Ib + 9 * start;
+        for (int j = 0; j < m; j++) {
+            double six[6];
+            s->asym[j] = sym_of_nine(rows + 9 * j, six);
+            s->xx[j] = six[0], s->yy[j] = six[1], s->zz[j] = six[2];
+            s->xy[j] = six[3], s->xz[j] = six[4], s->yz[j] = six[5];
+        }
+    } else {
+        for (int j = 0; j < m; j++) {
+            npy_intp i = start + j;
+            double six[6];
+            s->asym[j] = 0;
+            if (jb->nine) {
+                double v[9];
+                for (int k = 0; k < 9; k++)
+                    v[k] = AT(jb->Ib, jb->Is0, jb->Is1, k, i);
+                s->asym[j] = sym_of_nine(v, six);
+            } else {
+                for (int k = 0; k < 6; k++)
+                    six[k] = AT(jb->Ib, jb->Is0, jb->Is1, k, i);
+            }
+            s->xx[j] = six[0], s->yy[j] = six[1], s->zz[j] = six[2];
+            s->xy[j] = six[3], s->xz[j] = six[4], s->yz[j] = six[5];
+        }
+    }
     for (int j = 0; j < m; j++) {
         npy_intp i = start + j;
-        double six[6];
-        s->asym[j] = 0;
-        if (jb->nine) {
-            double v[9];
-            for (int k = 0; k < 9; k++)
-                v[k] = AT(jb->Ib, jb->Is0, jb->Is1, k, i);
-            s->asym[j] = sym_of_nine(v, six);
-        } else {
-            for (int k = 0; k < 6; k++)
-                six[k] = AT(jb->Ib, jb->Is0, jb->Is1, k, i);
-        }
-        s->xx[j] = six[0], s->yy[j] = six[1], s->zz[j] = six[2];
-        s->xy[j] = six[3], s->xz[j] = six[4], s->yz[j] = six[5];
         s->h0[j] = AT(jb->Hb, jb->Hs0, jb->Hs1, 0, i);
         s->h1[j] = AT(jb->Hb, jb->Hs0, jb->Hs1, 1, i);
         s->h2[j] = AT(jb->Hb, jb->Hs0, jb->Hs1, 2, i);
