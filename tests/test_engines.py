@@ -74,6 +74,16 @@ def test_check_engine_refuses_a_gone_engine_naming_compiled(gone, fresh):
         hconv.convert(np.ones(3), np.eye(3), engine="gpu")
 
 
+@pytest.mark.parametrize("gone", ["numba", "python"])
+def test_resolve_environment_refuses_a_gone_engine_naming_compiled(gone, fresh, monkeypatch):
+    monkeypatch.setenv("HCONV_ENGINE", gone)
+    message = rf"^HCONV_ENGINE={gone} is gone: .*; use HCONV_ENGINE=compiled \(or unset it for auto\)$"
+    with pytest.raises(UsageError, match=message):
+        hconv.convert(np.ones(3), np.eye(3))
+    with pytest.raises(UsageError, match=message):
+        hconv.convert(np.ones((5, 3)), np.tile(np.eye(3), (5, 1, 1)), method="refined")
+
+
 def test_engines_command_lists_the_compiled_engine_and_compile_does_nothing(capsys, fresh):
     proc = hconv_inprocess("engines", "--compile", capsys=capsys)
     out = proc.stdout.decode()

@@ -77,6 +77,11 @@ def _from_environment() -> str:
     value = os.environ.get("HCONV_ENGINE")
     if not value:
         return "auto"
+    if value in GONE:  # scripts and CI configurations written for the engines hconv had
+        raise UsageError(
+            f"HCONV_ENGINE={value} is gone: the compiled engine is built into hconv now; "
+            f"use HCONV_ENGINE={GONE[value]} (or unset it for auto)"
+        )
     if value not in ENGINES:
         raise UsageError(f"HCONV_ENGINE must be one of {', '.join(ENGINES)}, got {value!r}; unset it for auto")
     return value
