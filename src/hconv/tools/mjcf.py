@@ -69,10 +69,13 @@ def _compiler(root: Node) -> tuple[_Compiler, list[str]]:
     return _Compiler(degrees, seq, fromgeom), notes
 
 
-def bodies(root: Node, path: Path, shown: str, budget: Budget) -> tuple[list[ReadBody], list[str]]:
+def bodies(
+    root: Node, path: Path, shown: str, budget: Budget, include_root: Path | None = None
+) -> tuple[list[ReadBody], list[str]]:
     """The bodies of MJCF model ``root`` (read from ``path``, shown as ``shown``), depth first in the
-    file's order, and notes on what hconv did not follow."""
-    expand_includes(root, path, shown, budget)
+    file's order, and notes on what hconv did not follow. ``include_root``: the folder within which
+    includes may go (:func:`hconv.tools.modelxml.expand_includes`)."""
+    expand_includes(root, path, shown, budget, include_root)
     comp, notes = _compiler(root)
     for n in walk(root):
         if n.tag in ("replicate", "attach", "composite", "flexcomp"):

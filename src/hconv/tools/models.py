@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hconv.errors import UsageError, option
 from hconv.kernels.inertia import Sym3, principal_frame
 from hconv.solve import forms, status, units
 from hconv.solve.options import check_choice
@@ -121,22 +122,45 @@ class Model:
         return pa.Table.from_arrays([a for a, _ in cols.values()], schema=pa.schema(fields))
 
 
-def read_model(path: str | os.PathLike) -> Model:
+def read_model(path: str | os.PathLike, *, root: str | os.PathLike | None = None) -> Model:
     """Read the bodies of a URDF, SDF or MJCF model (told apart by the root element) and check
-    each one; InputError (one line: file, line, element and the fix) for a file it cannot read."""
+    each one; InputError (one line: file, line, element and the fix) for a file it cannot read.
+
+    ``root``: a folder holding the model's, within which MJCF includes may go (metaworld's
+    models include ``../scene/basic_scene.xml``); by default the model's own folder."""
     shown = os.fspath(path)
+    include_root = None if root is None else _include_root(Path(root), Path(path))
     budget = Budget(shown)
-    root = read(Path(path), shown, budget)
-    readers = {"robot": ("URDF", urdf.bodies), "sdf": ("SDF", sdf.bodies), "mujoco": ("MJCF", mjcf.bodies)}
-    if root.tag not in readers:
+    top = read(Path(path), shown, budget)
+    if top.tag not in _READERS:
         raise error(
-            root,
+            top,
             "is the root element, so this is not a model hconv reads",
             "give a URDF (<robot>), SDF (<sdf>) or MJCF (<mujoco>) file",
         )
-    fmt, reader = readers[root.tag]
-    raws, notes = reader(root, Path(path), shown, budget)
+    fmt, reader = _READERS[top.tag]
+    if fmt == "MJCF":
+        raws, notes = mjcf.bodies(top, Path(path), shown, budget, include_root=include_root)
+    else:
+        raws, notes = reader(top, Path(path), shown, budget)
     return Model(shown, fmt, tuple(_check(raws)), tuple(notes))
+
+
+_READERS = {"robot": ("URDF", urdf.bodies), "sdf": ("SDF", sdf.bodies), "mujoco": ("MJCF", mjcf.bodies)}
+
+
+def _include_root(root: Path, model: Path) -> Path:
+    """``root``, checked: a folder that holds the model's; UsageError naming the option otherwise."""
+    if not root.is_dir():
+        raise UsageError(f"{option('root', os.fspath(root))} is not a folder; name the folder includes may come from")
+    folder = model.resolve().parent
+    held = root.resolve()
+    if held != folder and held not in folder.parents:
+        raise UsageError(
+            f"{option('root', os.fspath(root))} does not hold the model's folder {str(folder)!r}; "
+            "name a folder that holds both the model and what it includes"
+        )
+    return held
 
 
 def write_bodies(
