@@ -127,3 +127,24 @@ def test_read_mjcf_include_with_a_backslash_not_found_says_how_it_was_read(tmp_p
         models.read_model(model)
     msg = str(e.value)
     assert "assets/gone.xml, each backslash read as /, as MuJoCo reads it)" in msg and "\n" not in msg
+
+
+def test_read_mjcf_nested_include_found_beside_the_including_file_as_mujoco_does(tmp_path):
+    """MuJoCo 4.0 looks for an included file's include beside the main model, then beside the
+    file that includes it; hconv looked beside the main model only, and said "cannot be read"."""
+    model = metaworld_like(tmp_path)
+    scene = tmp_path / "scene" / "basic_scene.xml"
+    scene.write_text(scene.read_text().replace("../objects/assets/table.xml", "table.xml"))
+    (tmp_path / "objects" / "assets" / "table.xml").rename(tmp_path / "scene" / "table.xml")
+    got = models.read_model(model, root=tmp_path)
+    assert [b.name for b in got.bodies] == ["tablelink", "RetainingWall", "obj"]
+    # one beside the main model too: that one is read, as MuJoCo reads it
+    (tmp_path / "sawyer_xyz" / "table.xml").write_text(
+        f"<mujocoinclude><worldbody><body name='near'><freejoint/>{inertial(7, '1 1 1')}</body>"
+        "</worldbody></mujocoinclude>"
+    )
+    got = models.read_model(model, root=tmp_path)
+    assert [b.name for b in got.bodies] == ["near", "RetainingWall", "obj"]
+    mujoco = need("mujoco")
+    mj = mujoco.MjModel.from_xml_path(str(model))
+    assert [mj.body(k).name for k in range(1, mj.nbody)] == ["near", "RetainingWall", "obj"]

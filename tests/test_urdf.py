@@ -53,7 +53,7 @@ def test_read_urdf_fixed_links_fused_by_mujoco_are_noted_with_the_fused_body(tmp
     got = {b.name: b for b in models.read_model(path).bodies}
     assert got["FR_calf"].m == 0.166  # the file's value
     calf = got["FR_calf"].reason
-    assert calf.startswith("MuJoCo fuses 'FR_foot', 'FR_toe_frame' into it (fixed joints; fusestatic, on for URDF): there m")
+    assert calf.startswith("MuJoCo fuses 'FR_foot', 'FR_toe_frame' into it (fixed joints; fusestatic, on for URDF):")
     fused_m = float(calf.split("there m = ")[1].split(" kg")[0])
     fused_moments = [float(x) for x in calf.split("I1, I2, I3 = ")[1].split(" kg·m²")[0].split(", ")]
     for name in ("FR_foot", "FR_toe_frame"):

@@ -10,10 +10,11 @@ names the file, the line and the fix):
   again if an encoding hid them from that scan, never reads a DTD, and refuses an entity
   reference that a DTD it did not read might define.
 * pull in other files, except MJCF's ``<include file=...>``: relative to the main model's folder,
-  as MuJoCo resolves it (a backslash read as ``/``, as MuJoCo 4.0 reads it on Linux too), and only
-  inside that folder, or inside a root folder the user names (``--root``; metaworld's models
-  include ``../scene/...``): a ``..`` or a symbolic link that leads beyond it is refused; each
-  file at most once (as MuJoCo), which also ends cycles. XInclude is not processed and is
+  as MuJoCo resolves it (an included file's own include, when not found there, beside that file,
+  where MuJoCo 4.0 looks next; a backslash read as ``/``, as MuJoCo 4.0 reads it on Linux too),
+  and only inside that folder, or inside a root folder the user names (``--root``; metaworld's
+  models include ``../scene/...``): a ``..`` or a symbolic link that leads beyond it is refused;
+  each file at most once (as MuJoCo), which also ends cycles. XInclude is not processed and is
   refused, since ignoring it would drop bodies.
 * exhaust memory or time: a model larger than :data:`MAX_BYTES`, with all it includes, is refused;
   so is one of more than :data:`MAX_ELEMENTS` elements or nested deeper than :data:`MAX_DEPTH`,
@@ -429,7 +430,11 @@ def expand_includes(
             name = child.attrib.get("file")
             if not name or not name.strip():
                 raise error(child, "has no attribute file", 'name the file to include: <include file="parts.xml"/>')
-            target = _include_target(child, name, folder, allowed, include_root is not None)
+            # MuJoCo (4.0) looks beside the main model first, then beside the including file
+            base, beside = folder, ch[0].parent
+            if beside != folder and not _exists(folder / _slashed(name)) and _exists(beside / _slashed(name)):
+                base = beside
+            target = _include_target(child, name, base, allowed, include_root is not None)
             if target in seen:  # read before: a cycle when it is one of the files this include is in
                 files: list[Path] = []
                 link: _Chain | None = ch
@@ -490,6 +495,14 @@ def _check_included(node: Node, name: str, target: Path, shown: str) -> None:
         raise error(
             node, f"names {quote(name)}{at}, which cannot be read: {exc.strerror or exc}", "check its permissions"
         ) from None
+
+
+def _exists(path: Path) -> bool:
+    """Whether ``path`` leads to something (False for a link loop or a name the system refuses)."""
+    try:
+        return os.path.exists(path)
+    except (OSError, ValueError):
+        return False
 
 
 def _slashed(name: str) -> str:
