@@ -148,3 +148,9 @@ def test_read_mjcf_nested_include_found_beside_the_including_file_as_mujoco_does
     mujoco = need("mujoco")
     mj = mujoco.MjModel.from_xml_path(str(model))
     assert [mj.body(k).name for k in range(1, mj.nbody)] == ["near", "RetainingWall", "obj"]
+
+
+def test_cli_bodies_root_in_the_refusal_is_quoted_for_the_shell(tmp_path, capsys):
+    model = metaworld_like(tmp_path / "my models")
+    refused = hconv_inprocess("bodies", str(model), capsys=capsys)
+    assert f"give --root '{tmp_path / 'my models'}' to let" in refused.stderr.decode()

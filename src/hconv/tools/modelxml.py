@@ -34,13 +34,14 @@ import errno
 import itertools
 import os
 import re
+import shlex
 import stat
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from xml.parsers import expat
 
-from hconv.errors import InputError, option
+from hconv.errors import InputError, on_command_line, option
 
 #: The largest model file hconv reads [bytes]. Real URDF, SDF and MJCF files are kilobytes to a
 #: few megabytes (meshes live in files of their own); a file beyond this is not a model.
@@ -497,6 +498,12 @@ def _check_included(node: Node, name: str, target: Path, shown: str) -> None:
         ) from None
 
 
+def _pasteable(folder: Path) -> str:
+    """``folder`` as the reader pastes it: quoted for the shell on the command line (a space in
+    it must not split the option), as it is for Python, where :func:`option` quotes it."""
+    return shlex.quote(str(folder)) if on_command_line() else str(folder)
+
+
 def _exists(path: Path) -> bool:
     """Whether ``path`` leads to something (False for a link loop or a name the system refuses)."""
     try:
@@ -538,7 +545,7 @@ def _include_target(node: Node, name: str, folder: Path, allowed: Path, named_ro
             where += f" {quote(str(allowed))}"
         common = Path(os.path.commonpath([allowed, target]))
         fix = (
-            f"MuJoCo reads it; give {option('root', str(common))} to let includes come from within that folder"
+            f"MuJoCo reads it; give {option('root', _pasteable(common))} to let includes come from within that folder"
             if common != Path(common.anchor)
             else "copy the file into the model's folder"
         )
