@@ -12,7 +12,7 @@ from helpers import need
 from hconv.tools import models
 
 # One leg of a Unitree A1 as its URDF writes it: the calf (0.166 kg) with a foot (0.06 kg) fixed
-# to it, and a massless sensor frame fixed to the foot; the trunk is the root, and an imu is
+# to it, a massless frame fixed to the foot and a pad (0.02 kg) to that; the trunk is the root, and an imu is
 # fixed to it. Inertials and joints are rotated, so that the fused tensor needs every frame.
 A1_LEG = """<?xml version="1.0"?>
 <robot name="a1">{extension}
@@ -35,7 +35,11 @@ A1_LEG = """<?xml version="1.0"?>
     <origin xyz="0 0 -0.2" rpy="0.2 -0.1 0.4"/></joint>
   <link name="FR_toe_frame"/>
   <joint name="FR_toe_fixed" type="fixed"><parent link="FR_foot"/><child link="FR_toe_frame"/>
-    <origin xyz="0 0 -0.02"/></joint>
+    <origin xyz="0 0 -0.02" rpy="0 0.5 0"/></joint>
+  <link name="FR_toe_pad"><inertial><origin xyz="0.01 0 0" rpy="0.3 0 0"/><mass value="0.02"/>
+    <inertia ixx="2e-06" ixy="0" ixz="0" iyy="3e-06" iyz="0" izz="4e-06"/></inertial></link>
+  <joint name="FR_pad_fixed" type="fixed"><parent link="FR_toe_frame"/><child link="FR_toe_pad"/>
+    <origin xyz="0.01 0.02 -0.01" rpy="0 0 0.7"/></joint>
 </robot>
 """
 
@@ -53,10 +57,10 @@ def test_read_urdf_fixed_links_fused_by_mujoco_are_noted_with_the_fused_body(tmp
     got = {b.name: b for b in models.read_model(path).bodies}
     assert got["FR_calf"].m == 0.166  # the file's value
     calf = got["FR_calf"].reason
-    assert calf.startswith("MuJoCo fuses 'FR_foot', 'FR_toe_frame' into it (fixed joints; fusestatic, on for URDF):")
+    assert calf.startswith("MuJoCo fuses 'FR_foot', 'FR_toe_frame', 'FR_toe_pad' into it (fixed joints; fusestatic")
     fused_m = float(calf.split("there m = ")[1].split(" kg")[0])
     fused_moments = [float(x) for x in calf.split("I1, I2, I3 = ")[1].split(" kg·m²")[0].split(", ")]
-    for name in ("FR_foot", "FR_toe_frame"):
+    for name in ("FR_foot", "FR_toe_frame", "FR_toe_pad"):
         assert "MuJoCo fuses it into 'FR_calf' (fixed joint" in got[name].reason
     assert "the root, which no joint moves: MuJoCo fuses it, with 'imu_link', into the world" in got["trunk"].reason
     assert "MuJoCo fuses it, with the root 'trunk', into the world" in got["imu_link"].reason
@@ -65,7 +69,7 @@ def test_read_urdf_fixed_links_fused_by_mujoco_are_noted_with_the_fused_body(tmp
     assert sorted(theirs) == ["FR_calf", "FR_thigh"]  # the rest fused: into the calf, or the world
     m, moments = theirs["FR_calf"]
     # the note gives four digits
-    assert math.isclose(fused_m, m, rel_tol=5e-4) and round(m, 3) == 0.226
+    assert math.isclose(fused_m, m, rel_tol=5e-4) and round(m, 3) == 0.246  # a1's 0.226, and the pad
     assert np.allclose(fused_moments, moments, rtol=5e-4, atol=0)
 
 
@@ -88,4 +92,4 @@ def test_read_urdf_fused_link_with_collision_but_no_inertial_gives_no_numbers(tm
     calf = {b.name: b for b in models.read_model(path).bodies}["FR_calf"].reason
     assert "what MuJoCo infers from the collision geoms of links without <inertial>" in calf
     assert "there m =" not in calf
-    assert mujoco_bodies(path)["FR_calf"][0] > 0.226 + 0.03  # the sphere's inferred mass
+    assert mujoco_bodies(path)["FR_calf"][0] > 0.246 + 0.03  # the sphere's inferred mass

@@ -136,20 +136,26 @@ def _note_fusion(root: Node, raws: list[ReadBody], at: dict[str, int], inferred:
         kind = joint.attrib.get("type", "").strip()
         up[c_name] = (p_name, kind, np.asarray(xyz, dtype=np.float64), rpy(*(turn or [0.0] * 3)))
     # each link fixed to another -> the link at the end of its chain of fixed joints, whose body it
-    # becomes part of, with its frame's pose in that link's frame
+    # becomes part of, with its frame's pose in that link's frame. Each chain is walked once, its
+    # links resolved on the way back, so that a long chain costs time linear in its length.
     into: dict[str, tuple[str, np.ndarray, np.ndarray]] = {}
+    done: set[str] = set()
     for name in at:
-        p, R, link, seen = np.zeros(3), np.eye(3), name, {name}
-        while link in up and up[link][1] == "fixed":
-            above, _, p_pl, R_PL = up[link]  # the link frame in its parent's
-            p, R = p_pl + R_PL @ p, R_PL @ R
-            link = above
-            if link in seen:  # a loop of fixed joints: not a tree, MuJoCo refuses it; no note
-                break
-            seen.add(link)
-        else:
-            if link != name:
-                into[name] = (link, p, R)
+        chain, link, on_chain = [], name, set()
+        while link not in done and link in up and up[link][1] == "fixed" and link not in on_chain:
+            chain.append(link)
+            on_chain.add(link)
+            link = up[link][0]
+        if link in on_chain:  # a loop of fixed joints: not a tree, MuJoCo refuses it; no note
+            done.update(chain)
+            continue
+        # link ends the chain: a moving link or the root (its own host), or a link already placed
+        host, p, R = into[link] if link in into else (link, np.zeros(3), np.eye(3))
+        for fixed in reversed(chain):
+            _, _, p_pl, R_PL = up[fixed]  # its frame in its parent's
+            p, R = p + R @ p_pl, R @ R_PL
+            into[fixed] = (host, p, R)
+        done.update(chain)
     groups: dict[str, list[str]] = {}
     for name, (host, _, _) in into.items():
         groups.setdefault(host, []).append(name)
