@@ -71,7 +71,7 @@ def _header_hint(names: list) -> str:
     spaced = [n for n in names if n != n.strip() and n.strip() in known]
     if spaced:
         return f" (the header has spaces around {', '.join(repr(n) for n in spaced[:3])}; remove them)"
-    if not any(n.strip() in known for n in names):
+    if not any(n.strip() in known or sets.reads_as(n.strip()) for n in names):
         return f" (the first line, {','.join(names)[:50]!r}, names none of hconv's columns: is it a CSV header?)"
     return ""
 

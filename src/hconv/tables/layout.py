@@ -14,6 +14,7 @@ is fixed by :meth:`Layout.resolve` from the first batch, before any batch is con
 
 from __future__ import annotations
 
+import difflib
 import json
 from collections.abc import Callable, Sized
 from dataclasses import dataclass, replace
@@ -25,7 +26,7 @@ import pyarrow.compute as pc
 from hconv.errors import InputError, UsageError, entries, entry, option
 from hconv.solve import forms, units
 from hconv.tables.job import Job
-from hconv.tables.sets import OPTIONAL_SETS, QUANTITY, VECTOR_SETS, all_names
+from hconv.tables.sets import OPTIONAL_SETS, QUANTITY, VECTOR_SETS, all_names, header_name
 
 #: The columns hconv writes after the input's.
 W_COLUMNS = ("wx", "wy", "wz")
@@ -79,7 +80,7 @@ class Layout:
         form = self.form
         for name, g in self.groups.items():
             if g.is_list and g.size is None and data.num_rows:
-                k = _list_size(data.column(g.columns[0]).combine_chunks(), g, self.source, first_row)
+                k = _list_size(column(data, g.columns[0]).combine_chunks(), g, self.source, first_row)
                 if k is not None:
                     groups[name] = replace(g, size=k)
                     if name == "I":
@@ -106,12 +107,12 @@ class Layout:
             if g.is_list:
                 if g.size is None:
                     g = replace(g, size=form.list_size if g.name == "I" else len(VECTOR_SETS[g.name]))
-                col = data.column(g.columns[0]).combine_chunks() if n else None
+                col = column(data, g.columns[0]).combine_chunks() if n else None
                 a = _list_values(col, g, n, self.source, first_row)
             else:
                 a = np.empty((len(g.columns), n))
                 for k, c in enumerate(g.columns):
-                    a[k] = _floats(data.column(c))
+                    a[k] = _floats(column(data, c))
                 if g.name == "I":
                     a = form.values(a)
             if g.factors and any(f != 1.0 for f in g.factors):
@@ -206,6 +207,94 @@ def _plural(items: Sized) -> str:
     return "s" if len(items) > 1 else ""
 
 
+def columns_of(schema: pa.Schema) -> dict[str, pa.Field]:
+    """Every column of ``schema`` hconv may read, by name: the top-level fields, and the fields of
+    structs by their dotted path (``H.x``; a top-level field of that name comes first)."""
+    out: dict[str, pa.Field] = {}
+
+    def add(prefix: str, f: pa.Field) -> None:
+        name = prefix + f.name
+        out.setdefault(name, f)
+        if pa.types.is_struct(f.type):
+            for k in range(f.type.num_fields):
+                add(name + ".", f.type.field(k))
+
+    for f in schema:
+        out[f.name] = f
+    for f in schema:
+        if pa.types.is_struct(f.type):
+            for k in range(f.type.num_fields):
+                add(f.name + ".", f.type.field(k))
+    return out
+
+
+def column(data: pa.Table, name: str) -> pa.ChunkedArray:
+    """Column ``name`` of ``data``: a top-level column, or a struct's field by its dotted path
+    (:func:`columns_of`); a row whose struct is null is null in each of its fields."""
+    if name in data.column_names:
+        return data.column(name)
+    for top in data.column_names:
+        if name.startswith(top + ".") and pa.types.is_struct(data.schema.field(top).type):
+            col, rest = data.column(top), name[len(top) + 1 :]
+            while True:
+                t = col.type
+                k = next((i for i in range(t.num_fields) if rest == t.field(i).name), None)
+                if k is not None:
+                    return col.flatten()[k]
+                k = next(i for i in range(t.num_fields) if rest.startswith(t.field(i).name + "."))
+                col, rest = col.flatten()[k], rest[len(t.field(k).name) + 1 :]
+    raise KeyError(name)
+
+
+def _keys(name: str) -> set:
+    """The hconv names a column of this name can stand for, before case: its name without a unit
+    in its header and, for a struct's field, the struct's name and the field's run together
+    (``H.x``: Hx)."""
+    bare = header_name(name)[0]
+    keys = {bare}
+    if "." in bare:
+        parent, _, child = bare.rpartition(".")
+        keys.add(parent.rpartition(".")[2] + child)
+    return keys
+
+
+def find(columns: list, given: dict, source: str) -> dict:
+    """hconv's names that no column has exactly, each found in the one column that stands for it
+    (:func:`_keys`): first as written, then without regard to case. ``given``: the --map pairs,
+    whose names and columns are not looked for. Two columns for one name: InputError naming both.
+    Case is not looked past for the one-letter names: ``M`` or ``V`` in a file is seldom a mass or
+    a velocity."""
+    free = [c for c in columns if c not in set(given.values())]
+    exact = set(columns)
+    out: dict = {}
+    keyed = [(c, _keys(c)) for c in free]
+    for n in all_names():
+        if n in given or n in exact:
+            continue
+        hits = [c for c, keys in keyed if n in keys]
+        if not hits and len(n) > 1:  # a one-letter name (m, r, v, H) in another case is another quantity's
+            hits = [c for c, keys in keyed if n.lower() in {k.lower() for k in keys}]
+        if len(hits) > 1:
+            raise InputError(
+                f"{source}: columns {hits[0]!r} and {hits[1]!r} could both be {n}; "
+                f"say which with {entry('mapping', n, hits[0])}"
+            )
+        if hits and hits[0] not in out.values():
+            out[n] = hits[0]
+    return out
+
+
+def _map_hint(lack: list, free: list) -> str:
+    """The --map that would read the first lacking name from a column whose name is close to it;
+    without one, the --map to give."""
+    for n in lack:
+        close = difflib.get_close_matches(n.lower(), [c.lower() for c in free], n=1, cutoff=0.6)
+        if close:
+            c = next(c for c in free if c.lower() == close[0])
+            return f"; if column {c!r} holds {n}, give {entry('mapping', n, c)}"
+    return f"; if another column holds {lack[0]}, give {entry('mapping', lack[0], 'COLUMN')}"
+
+
 def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
     """Find the column sets ``job`` needs in ``schema``; InputError or UsageError naming the fix.
 
@@ -218,8 +307,10 @@ def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
             f"{source}: column name{_plural(dupes)} {', '.join(map(repr, dupes))} appear"
             f"{'' if len(dupes) > 1 else 's'} more than once; rename the copies"
         )
-    present = set(names)
-    mapping = _mapping(job.mapping, present, source)
+    fields = columns_of(schema)
+    present = set(fields)
+    given = _mapping(job.mapping, present, source)
+    mapping = {**find(list(fields), given, source), **given}  # --map, then the names found
     used_elsewhere = set(mapping.values())
 
     def src(n: str) -> str:
@@ -227,15 +318,18 @@ def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
         return mapping.get(n, n)
 
     def has(n: str) -> bool:
-        """The input has hconv's name n (a column that --map gave another name does not count)."""
-        return src(n) in present and (n in mapping or n not in used_elsewhere)
+        """The input has hconv's name n (a column that --map gave another name does not count,
+        nor a struct, whose fields are read instead)."""
+        c = src(n)
+        return c in present and (n in mapping or n not in used_elsewhere) and not pa.types.is_struct(fields[c].type)
 
     def taken(lack: list) -> str:
-        """Why a lacking name whose column is there is not read: --map gave the column to another name."""
-        back = {column: n for n, column in mapping.items()}
-        c = next((c for c in lack if c not in mapping and c in present and c in back), None)
+        """Why a lacking name whose column is there is not read: --map gave the column to another
+        name; else the --map that would read it, from a column of a name close to it."""
+        back = {column: n for n, column in given.items()}
+        c = next((c for c in lack if c not in given and c in present and c in back), None)
         if c is None:
-            return ""
+            return _map_hint(lack, [f for f in fields if f not in used_elsewhere and f not in all_names()])
         return (
             f" (column {c!r} is read as {back[c]}: {entry('mapping', back[c], c)}); "
             f"give {c} a column too, e.g. {entry('mapping', c, 'COLUMN')}"
@@ -248,10 +342,10 @@ def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
     for name in VECTOR_SETS:
         if name in optional or name == "H" or name in need:
             why = "H is required" if name == "H" else need.get(name)
-            g = _vector_group(name, schema, has, src, source, why, taken)
+            g = _vector_group(name, fields, has, src, source, why, taken)
             if g is not None:
                 groups[name] = g
-    form, groups["I"] = _inertia_group(schema, has, src, source, taken)
+    form, groups["I"] = _inertia_group(fields, has, src, source, taken)
 
     clash = [] if job.observed else [c for c in RESERVED if c in present]
     if clash:
@@ -261,7 +355,7 @@ def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
         )
     for g in groups.values():
         for c in g.columns:
-            t = schema.field(c).type
+            t = fields[c].type
             if g.is_list:
                 if not (_is_list(t) and _is_numeric(t.value_type)):
                     raise InputError(f"{source}: column {c!r} has type {t}, but must be a list of numbers")
@@ -278,7 +372,7 @@ def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
             f"{option('mapping')} at the columns that hold w, x, y and z"
         )
     stored = stored_units(schema)
-    groups = {k: _with_units(g, stored, job, mapping) for k, g in groups.items()}
+    groups = {k: _with_units(g, stored, job, mapping, source) for k, g in groups.items()}
     _check_unit_keys(job.unit_options, groups, present)
     return Layout(groups, form, source, job.quat_order)
 
@@ -293,7 +387,7 @@ def _mapping(pairs: tuple, present: set, source: str) -> dict:
 
 def _vector_group(
     name: str,
-    schema: pa.Schema,
+    fields: dict[str, pa.Field],
     has: Callable[[str], bool],
     src: Callable[[str], str],
     source: str,
@@ -314,16 +408,16 @@ def _vector_group(
             f"give all of {', '.join(cols)} or none"
         )
     if found:
-        if len(cols) > 1 and has(name) and _is_list(schema.field(src(name)).type):
+        if len(cols) > 1 and has(name) and _is_list(fields[src(name)].type):
             raise InputError(f"{source}: has both {', '.join(cols)} and a list column {src(name)!r}; keep one")
         return Group(name, tuple(src(c) for c in cols), False, len(cols))
-    if len(cols) > 1 and has(name) and not _is_list(schema.field(src(name)).type):
+    if len(cols) > 1 and has(name) and not _is_list(fields[src(name)].type):
         raise InputError(
-            f"{source}: column {src(name)!r} has type {schema.field(src(name)).type}; {name} is read "
+            f"{source}: column {src(name)!r} has type {fields[src(name)].type}; {name} is read "
             f"from {', '.join(cols)} or from a list column of {len(cols)} numbers"
         )
-    if len(cols) > 1 and has(name) and _is_list(schema.field(src(name)).type):
-        t = schema.field(src(name)).type
+    if len(cols) > 1 and has(name) and _is_list(fields[src(name)].type):
+        t = fields[src(name)].type
         size = t.list_size if pa.types.is_fixed_size_list(t) else None
         if size is not None and size != len(cols):
             raise InputError(
@@ -333,11 +427,12 @@ def _vector_group(
     if why:
         what = f"{', '.join(cols)}" + (f" (or a list column {name})" if len(cols) > 1 else "")
         tail = "" if name == "H" else f"; {why}"
-        raise InputError(f"{source}: missing column{_plural(cols)} {what}{tail}{_look_alike(name, schema)}")
+        hint = _look_alike(name, list(fields)) or taken(list(cols))
+        raise InputError(f"{source}: missing column{_plural(cols)} {what}{tail}{hint}")
     return None
 
 
-def _look_alike(name: str, schema: pa.Schema) -> str:
+def _look_alike(name: str, names: list) -> str:
     """A hint for a missing vector set whose components the input may hold under other names: the
     columns ``Px, Py, Pz`` (``Pw`` too for q) that no hconv name reads, for each such prefix P."""
     cols = VECTOR_SETS[name]
@@ -345,7 +440,7 @@ def _look_alike(name: str, schema: pa.Schema) -> str:
         return ""  # m, and w_obs (wx_obs...), whose names are not a prefix and an axis letter
     axes = [c[len(name) :] for c in cols]
     ours = set(all_names()) | set(RESERVED)  # columns hconv reads by their names, or writes
-    free = [f for f in schema.names if f not in ours]
+    free = [f for f in names if f not in ours]
     prefixes = sorted(
         {f[: -len(axes[0])] for f in free if f.endswith(axes[0]) and len(f) > len(axes[0])}
         - {n for n in VECTOR_SETS if n != name}
@@ -360,11 +455,15 @@ def _look_alike(name: str, schema: pa.Schema) -> str:
 
 
 def _inertia_group(
-    schema: pa.Schema, has: Callable[[str], bool], src: Callable[[str], str], source: str, taken: Callable[[list], str]
+    fields: dict[str, pa.Field],
+    has: Callable[[str], bool],
+    src: Callable[[str], str],
+    source: str,
+    taken: Callable[[list], str],
 ) -> tuple[str | None, Group]:
     """The one inertia form the schema holds, asking :mod:`hconv.solve.forms`' registry."""
     found = {}
-    list_column = has("I") and _is_list(schema.field(src("I")).type)
+    list_column = has("I") and _is_list(fields[src("I")].type)
     if list_column:
         found["list"] = ["I"]
     for form in forms.FORMS.values():
@@ -390,10 +489,13 @@ def _inertia_group(
             f"or point {option('mapping')} at the columns to use"
         )
     if not found:
-        raise InputError(f"{source}: missing the inertia; give {forms.forms_text()}, or a list column I")
+        raise InputError(
+            f"{source}: missing the inertia; give {forms.forms_text()}, or a list column I"
+            f"{taken([c for c in forms.column_names() if len(c) > 1])}"
+        )
     ((name, got),) = found.items()
     if name == "list":
-        t = schema.field(src("I")).type
+        t = fields[src("I")].type
         size = t.list_size if pa.types.is_fixed_size_list(t) else None
         g = Group("I", (src("I"),), True, size)
         return (_list_form(size, g, source).name if size else None), g
@@ -428,9 +530,8 @@ def stored_units(schema: pa.Schema) -> dict[str, str]:
     return {c: found[c] for c in schema.names if c in found}
 
 
-def _with_units(g: Group, stored: dict, job: Job, mapping: dict) -> Group:
-    """``g`` with the unit of each of its values: from --unit, else the schema's own (field
-    metadata), else the Job's ``field_units`` (metadata an engine dropped), else SI."""
+def _with_units(g: Group, stored: dict, job: Job, mapping: dict, source: str = "input") -> Group:
+    """``g`` with the unit of each of its values, by the rule of the module docstring."""
     back = {v: k for k, v in mapping.items()}  # column -> hconv name
     given = dict(job.unit_options)
     dropped = dict(job.field_units)
@@ -447,9 +548,23 @@ def _with_units(g: Group, stored: dict, job: Job, mapping: dict) -> Group:
             unit, where = stored[c], f"column {c!r} (its unit metadata)"
         elif unit is None and c in dropped:
             unit, where = dropped[c], entry("field_units", c, dropped[c])
+        elif unit is None and (written := header_name(c)[1]) is not None:
+            us.append(written)
+            fs.append(_header_factor(quantity, c, written, hname, source))
+            continue
         us.append(unit or "")
         fs.append(1.0 if unit is None else units.factor(quantity, unit, where))
     return Group(g.name, g.columns, g.is_list, g.size, tuple(us), tuple(fs))
+
+
+def _header_factor(quantity: str, c: str, unit: str, hname: str, source: str) -> float:
+    """The factor to SI of the unit written in column ``c``'s header; InputError naming the
+    column, and the --unit that reads it otherwise, when pint cannot read it or it is another
+    quantity's."""
+    try:
+        return units.factor(quantity, unit, f"{source}: column {c!r} (the unit in its header)")
+    except UsageError as exc:
+        raise InputError(f"{exc}; or give its unit with {entry('unit_options', hname, 'UNIT')}, which wins") from None
 
 
 def _check_unit_keys(options: tuple, groups: dict, present: set) -> None:

@@ -20,6 +20,8 @@ Kept apart from :mod:`hconv.tables.layout` (which needs pyarrow) so that a Job c
 
 from __future__ import annotations
 
+import re
+
 from hconv.solve import forms
 
 VECTOR_SETS = {
@@ -54,3 +56,26 @@ def quantity_of(name: str) -> str | None:
     if name in forms.column_names():
         return QUANTITY["I"]
     return next((QUANTITY[s] for s, cols in VECTOR_SETS.items() if name in cols), None)
+
+
+#: A unit written after a column's name, in brackets or parentheses: ``Hx [kg*m^2/s]``, ``Ixx (g*cm^2)``.
+_HEADER_UNIT = re.compile(r"^(?P<name>.*?)\s*(?:\[(?P<b>[^\[\]]+)\]|\((?P<p>[^()]+)\))\s*$")
+
+
+def header_name(column: str) -> tuple[str, str | None]:
+    """A column's name without the unit written after it, and that unit (None when none is)."""
+    m = _HEADER_UNIT.match(column)
+    if m is None or not m["name"]:
+        return column, None
+    return m["name"], (m["b"] or m["p"]).strip()
+
+
+def reads_as(column: str) -> str | None:
+    """The hconv name a column of this name stands for, without its header's unit and, for names
+    of more than one letter, without regard to case (the rule of :func:`hconv.tables.layout.find`,
+    which also settles two columns for one name); None for a name hconv does not read."""
+    bare = header_name(column)[0]
+    names = all_names()
+    if bare in names:
+        return bare
+    return next((n for n in names if len(n) > 1 and n.lower() == bare.lower()), None)
