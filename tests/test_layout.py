@@ -398,3 +398,26 @@ def test_read_struct_row_that_is_null_is_invalid_input(rng):
     got = hconv.convert_table(data.set_column(1, "H", masked))
     assert got.column("status").to_pylist() == ["ok", "invalid_input", "ok"]
     assert got.column("H").equals(pa.chunked_array([masked]))
+
+
+def test_plan_input_with_hconv_s_output_names_converts_with_a_prefix(tmp_path, capsys):
+    """An input that has a status and a wx column of its own: refused naming --prefix, and with it
+    converted, the input's columns kept as they were and hconv's prefixed, w_unit too."""
+    src, out = tmp_path / "log.csv", tmp_path / "o.csv"
+    src.write_text("Hx,Hy,Hz,I1,I2,I3,status,wx\n1,2,3,2,4,4,armed,9\n2,2,2,2,2,2,idle,8\n")
+    proc = hconv_inprocess("convert", str(src), str(out), capsys=capsys)
+    err = proc.stderr.decode().strip()
+    assert proc.returncode == 3 and len(err.splitlines()) == 1
+    assert err.endswith("already has output columns wx, status; rename or drop them (is this hconv's own output?), "
+                        "or give the columns hconv appends a prefix with --prefix out_")  # fmt: skip
+    proc = hconv_inprocess("convert", str(src), str(out), "--prefix", "out_", capsys=capsys)
+    assert proc.returncode == 0, proc.stderr.decode()
+    lines = out.read_text().splitlines()
+    assert lines[0] == "Hx,Hy,Hz,I1,I2,I3,status,wx,out_wx,out_wy,out_wz,out_residual,out_cond,out_status,out_w_unit"
+    assert lines[1].startswith("1,2,3,2,4,4,armed,9,0.5,0.5,0.75,") and lines[1].endswith(",ok,rad/s")
+    assert "ok\t2" in proc.stderr.decode()  # the tally counts hconv's status, not the input's
+    # converting the output again needs another prefix, and says so
+    again = hconv_inprocess("convert", str(out), str(tmp_path / "o2.csv"), "--prefix", "out_", capsys=capsys)
+    assert again.returncode == 3 and "or give the columns hconv appends a prefix with another --prefix" in (
+        again.stderr.decode()
+    )

@@ -172,6 +172,16 @@ JOB_OPTIONS = {
             "default: typed as pyarrow would (numbers, booleans, dates), except where that changes a value",
         ),
     ),
+    "prefix": (
+        str,
+        typer.Option(
+            "",
+            "--prefix",
+            metavar="P",
+            help="put P before the name of every column hconv appends (wx → Pwx, status → Pstatus), "
+            "for an input that already has one of them",
+        ),
+    ),
 }
 _CONVENTIONS = ("frame", "omega_frame", "about", "products", "degenerate", "degenerate_rtol")
 SCENE = ("frame", "omega_frame", "about", "products")

@@ -37,6 +37,9 @@ UNIT_COLUMN = "w_unit"
 #: Every name hconv writes: an input that has one is refused, naming it, so that no output holds
 #: a name twice (or one column of the input and another of hconv under one name).
 RESERVED = OUTPUT_COLUMNS + NULL_COLUMNS + (UNIT_COLUMN,)
+#: The schema metadata key of a converted table that records the Job's ``prefix`` (only when one
+#: was given), so that a writer finds hconv's columns by :func:`output_name`.
+PREFIX_KEY = b"hconv.prefix"
 #: The file metadata key under which Spark stores its schema, field metadata included, in the
 #: Parquet files it writes. Spark writes no Arrow schema, so pyarrow reads its fields bare.
 SPARK_SCHEMA_KEY = b"org.apache.spark.sql.parquet.row.metadata"
@@ -121,6 +124,12 @@ class Layout:
                 a = a[[3, 0, 1, 2]]
             out[g.name] = a
         return out, form.name
+
+
+def output_name(column: str, schema: pa.Schema) -> str:
+    """The name hconv's column ``column`` (``wx``, ``status``, ``w_unit``...) has in a converted
+    table of ``schema``: with the Job's prefix, which the schema's metadata records."""
+    return (schema.metadata or {}).get(PREFIX_KEY, b"").decode() + column
 
 
 def _list_size(col: pa.Array, g: Group, source: str, first_row: int = 0) -> int | None:
@@ -347,11 +356,13 @@ def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
                 groups[name] = g
     form, groups["I"] = _inertia_group(fields, has, src, source, taken)
 
-    clash = [] if job.observed else [c for c in RESERVED if c in present]
+    clash = [] if job.observed else [job.prefix + c for c in RESERVED if job.prefix + c in present]
     if clash:
+        again = f"another {option('prefix')}" if job.prefix else option("prefix", "out_")
         raise InputError(
             f"{source}: already has output column{_plural(clash)} {', '.join(clash)}; "
-            f"rename or drop {'them' if len(clash) > 1 else 'it'} (is this hconv's own output?)"
+            f"rename or drop {'them' if len(clash) > 1 else 'it'} (is this hconv's own output?), or give the "
+            f"columns hconv appends a prefix with {again}"
         )
     for g in groups.values():
         for c in g.columns:
