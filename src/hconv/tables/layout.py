@@ -1,6 +1,24 @@
 """Which columns hold what: the input's column sets (:mod:`hconv.tables.sets`), found by name, and
 the form of its inertia.
 
+Each of hconv's names is found (:func:`find`), first to last: by ``--map``; in a column of that
+exact name; in one of that name with its unit written after it (``Hx [kg*m^2/s]``, ``Ixx (g*cm^2)``)
+or in a struct's field, by its struct's name and its own run together (``H.x``: Hx, so that a
+struct ``H`` with fields x, y, z is the set H); then the same without regard to case, for names
+of more than one letter. Two columns for one name at the same step are an error naming both and
+``--map``. A struct's fields are columns by their dotted path (``--map Hx=L.a``); the struct
+itself is never read as a number, and passes through as it was.
+
+A value's unit, first to last: ``--unit`` (by column, by hconv's name, by set); the column's
+field metadata ``unit`` (:func:`stored_units`, Spark's schema too); the Job's ``field_units``
+(metadata an engine dropped); the unit written in its header; else SI. A header's unit that pint
+cannot read, or of another quantity, is an InputError naming the column and the ``--unit`` that
+wins over it.
+
+The columns hconv appends (:data:`RESERVED`) carry the Job's ``prefix`` (``--prefix``) before
+their names, which a converted table's schema records (:func:`output_name`); an input that has
+one of those names already is refused, naming ``--prefix``.
+
 The inertia forms and their columns are :mod:`hconv.solve.forms`' registry. A file uses one form,
 chosen by its columns, for every row; two forms at once (``I1`` and ``Ixx``, say) is an error, as
 is a set with some of its columns missing. With q present the tensor
