@@ -421,3 +421,12 @@ def test_plan_input_with_hconv_s_output_names_converts_with_a_prefix(tmp_path, c
     assert again.returncode == 3 and "or give the columns hconv appends a prefix with another --prefix" in (
         again.stderr.decode()
     )
+
+
+def test_plan_reads_the_unit_a_struct_field_stores_as_its_metadata():
+    unit = {b"unit": b"g*cm**2/s"}
+    h = pa.struct([pa.field(a, pa.float64(), metadata=unit) for a in "xyz"])
+    schema = pa.schema([("H", h), ("I1", pa.float64()), ("I2", pa.float64()), ("I3", pa.float64())])
+    assert layout.stored_units(schema) == {"H.x": "g*cm**2/s", "H.y": "g*cm**2/s", "H.z": "g*cm**2/s"}
+    plan = layout.plan(schema, Job(), "s.parquet")
+    assert plan.groups["H"].columns == ("H.x", "H.y", "H.z") and plan.groups["H"].factors == pytest.approx([1e-7] * 3)

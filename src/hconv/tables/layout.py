@@ -542,7 +542,8 @@ def _inertia_group(
 def stored_units(schema: pa.Schema) -> dict[str, str]:
     """Each column's unit as ``schema`` stores it, in the schema's column order: its field
     metadata ``unit``, else the unit Spark's schema (file metadata :data:`SPARK_SCHEMA_KEY`) gives
-    it. Columns without one are left out."""
+    it; a struct's fields by their dotted path (:func:`columns_of`), after the top-level columns.
+    Columns without one are left out."""
     found = {}
     try:
         spark = json.loads((schema.metadata or {}).get(SPARK_SCHEMA_KEY, b"{}"))
@@ -552,11 +553,12 @@ def stored_units(schema: pa.Schema) -> dict[str, str]:
                 found[f["name"]] = unit
     except (ValueError, AttributeError, TypeError, KeyError):  # not the schema Spark writes: no units from it
         pass
-    for f in schema:
+    fields = columns_of(schema)
+    for name, f in fields.items():
         meta = f.metadata or {}
         if meta.get(b"unit"):
-            found[f.name] = meta[b"unit"].decode(errors="replace")
-    return {c: found[c] for c in schema.names if c in found}
+            found[name] = meta[b"unit"].decode(errors="replace")
+    return {c: found[c] for c in fields if c in found}
 
 
 def _with_units(g: Group, stored: dict, job: Job, mapping: dict, source: str = "input") -> Group:
