@@ -1,7 +1,7 @@
 """Which columns hold what: the input's column sets (:mod:`hconv.tables.sets`), found by name, and
 the form of its inertia.
 
-Each of hconv's names is found (:func:`find`), first to last: by ``--map``; in a column of that
+Each of hconv's names is found (:func:`hconv.tables.columns.find`), first to last: by ``--map``; in a column of that
 exact name; in one of that name with its unit written after it (``Hx [kg*m^2/s]``, ``Ixx (g*cm^2)``)
 or in a struct's field, by its struct's name and its own run together (``H.x``: Hx, so that a
 struct ``H`` with fields x, y, z is the set H); then the same without regard to case, for names
@@ -32,7 +32,6 @@ is fixed by :meth:`Layout.resolve` from the first batch, before any batch is con
 
 from __future__ import annotations
 
-import difflib
 import json
 from collections.abc import Callable, Sized
 from dataclasses import dataclass, replace
@@ -41,8 +40,9 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 
-from hconv.errors import InputError, UsageError, entries, entry, option
+from hconv.errors import InputError, UsageError, entry, option
 from hconv.solve import forms, units
+from hconv.tables import columns
 from hconv.tables.job import Job
 from hconv.tables.sets import OPTIONAL_SETS, QUANTITY, VECTOR_SETS, all_names, header_name
 
@@ -101,7 +101,7 @@ class Layout:
         form = self.form
         for name, g in self.groups.items():
             if g.is_list and g.size is None and data.num_rows:
-                k = _list_size(column(data, g.columns[0]).combine_chunks(), g, self.source, first_row)
+                k = _list_size(columns.column(data, g.columns[0]).combine_chunks(), g, self.source, first_row)
                 if k is not None:
                     groups[name] = replace(g, size=k)
                     if name == "I":
@@ -128,12 +128,12 @@ class Layout:
             if g.is_list:
                 if g.size is None:
                     g = replace(g, size=form.list_size if g.name == "I" else len(VECTOR_SETS[g.name]))
-                col = column(data, g.columns[0]).combine_chunks() if n else None
+                col = columns.column(data, g.columns[0]).combine_chunks() if n else None
                 a = _list_values(col, g, n, self.source, first_row)
             else:
                 a = np.empty((len(g.columns), n))
                 for k, c in enumerate(g.columns):
-                    a[k] = _floats(column(data, c))
+                    a[k] = _floats(columns.column(data, c))
                 if g.name == "I":
                     a = form.values(a)
             if g.factors and any(f != 1.0 for f in g.factors):
@@ -234,94 +234,6 @@ def _plural(items: Sized) -> str:
     return "s" if len(items) > 1 else ""
 
 
-def columns_of(schema: pa.Schema) -> dict[str, pa.Field]:
-    """Every column of ``schema`` hconv may read, by name: the top-level fields, and the fields of
-    structs by their dotted path (``H.x``; a top-level field of that name comes first)."""
-    out: dict[str, pa.Field] = {}
-
-    def add(prefix: str, f: pa.Field) -> None:
-        name = prefix + f.name
-        out.setdefault(name, f)
-        if pa.types.is_struct(f.type):
-            for k in range(f.type.num_fields):
-                add(name + ".", f.type.field(k))
-
-    for f in schema:
-        out[f.name] = f
-    for f in schema:
-        if pa.types.is_struct(f.type):
-            for k in range(f.type.num_fields):
-                add(f.name + ".", f.type.field(k))
-    return out
-
-
-def column(data: pa.Table, name: str) -> pa.ChunkedArray:
-    """Column ``name`` of ``data``: a top-level column, or a struct's field by its dotted path
-    (:func:`columns_of`); a row whose struct is null is null in each of its fields."""
-    if name in data.column_names:
-        return data.column(name)
-    for top in data.column_names:
-        if name.startswith(top + ".") and pa.types.is_struct(data.schema.field(top).type):
-            col, rest = data.column(top), name[len(top) + 1 :]
-            while True:
-                t = col.type
-                k = next((i for i in range(t.num_fields) if rest == t.field(i).name), None)
-                if k is not None:
-                    return col.flatten()[k]
-                k = next(i for i in range(t.num_fields) if rest.startswith(t.field(i).name + "."))
-                col, rest = col.flatten()[k], rest[len(t.field(k).name) + 1 :]
-    raise KeyError(name)
-
-
-def _keys(name: str) -> set:
-    """The hconv names a column of this name can stand for, before case: its name without a unit
-    in its header and, for a struct's field, the struct's name and the field's run together
-    (``H.x``: Hx)."""
-    bare = header_name(name)[0]
-    keys = {bare}
-    if "." in bare:
-        parent, _, child = bare.rpartition(".")
-        keys.add(parent.rpartition(".")[2] + child)
-    return keys
-
-
-def find(columns: list, given: dict, source: str) -> dict:
-    """hconv's names that no column has exactly, each found in the one column that stands for it
-    (:func:`_keys`): first as written, then without regard to case. ``given``: the --map pairs,
-    whose names and columns are not looked for. Two columns for one name: InputError naming both.
-    Case is not looked past for the one-letter names: ``M`` or ``V`` in a file is seldom a mass or
-    a velocity."""
-    free = [c for c in columns if c not in set(given.values())]
-    exact = set(columns)
-    out: dict = {}
-    keyed = [(c, _keys(c)) for c in free]
-    for n in all_names():
-        if n in given or n in exact:
-            continue
-        hits = [c for c, keys in keyed if n in keys]
-        if not hits and len(n) > 1:  # a one-letter name (m, r, v, H) in another case is another quantity's
-            hits = [c for c, keys in keyed if n.lower() in {k.lower() for k in keys}]
-        if len(hits) > 1:
-            raise InputError(
-                f"{source}: columns {hits[0]!r} and {hits[1]!r} could both be {n}; "
-                f"say which with {entry('mapping', n, hits[0])}"
-            )
-        if hits and hits[0] not in out.values():
-            out[n] = hits[0]
-    return out
-
-
-def _map_hint(lack: list, free: list) -> str:
-    """The --map that would read the first lacking name from a column whose name is close to it;
-    without one, the --map to give."""
-    for n in lack:
-        close = difflib.get_close_matches(n.lower(), [c.lower() for c in free], n=1, cutoff=0.6)
-        if close:
-            c = next(c for c in free if c.lower() == close[0])
-            return f"; if column {c!r} holds {n}, give {entry('mapping', n, c)}"
-    return f"; if another column holds {lack[0]}, give {entry('mapping', lack[0], 'COLUMN')}"
-
-
 def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
     """Find the column sets ``job`` needs in ``schema``; InputError or UsageError naming the fix.
 
@@ -334,10 +246,10 @@ def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
             f"{source}: column name{_plural(dupes)} {', '.join(map(repr, dupes))} appear"
             f"{'' if len(dupes) > 1 else 's'} more than once; rename the copies"
         )
-    fields = columns_of(schema)
+    fields = columns.columns_of(schema)
     present = set(fields)
     given = _mapping(job.mapping, present, source)
-    mapping = {**find(list(fields), given, source), **given}  # --map, then the names found
+    mapping = {**columns.find(list(fields), given, source), **given}  # --map, then the names found
     used_elsewhere = set(mapping.values())
 
     def src(n: str) -> str:
@@ -356,7 +268,7 @@ def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
         back = {column: n for n, column in given.items()}
         c = next((c for c in lack if c not in given and c in present and c in back), None)
         if c is None:
-            return _map_hint(lack, [f for f in fields if f not in used_elsewhere and f not in all_names()])
+            return columns.map_hint(lack, [f for f in fields if f not in used_elsewhere and f not in all_names()])
         return (
             f" (column {c!r} is read as {back[c]}: {entry('mapping', back[c], c)}); "
             f"give {c} a column too, e.g. {entry('mapping', c, 'COLUMN')}"
@@ -456,31 +368,9 @@ def _vector_group(
     if why:
         what = f"{', '.join(cols)}" + (f" (or a list column {name})" if len(cols) > 1 else "")
         tail = "" if name == "H" else f"; {why}"
-        hint = _look_alike(name, list(fields)) or taken(list(cols))
+        hint = columns.look_alike(name, list(fields), RESERVED) or taken(list(cols))
         raise InputError(f"{source}: missing column{_plural(cols)} {what}{tail}{hint}")
     return None
-
-
-def _look_alike(name: str, names: list) -> str:
-    """A hint for a missing vector set whose components the input may hold under other names: the
-    columns ``Px, Py, Pz`` (``Pw`` too for q) that no hconv name reads, for each such prefix P."""
-    cols = VECTOR_SETS[name]
-    if len(cols) == 1 or any(not c.startswith(name) for c in cols):
-        return ""  # m, and w_obs (wx_obs...), whose names are not a prefix and an axis letter
-    axes = [c[len(name) :] for c in cols]
-    ours = set(all_names()) | set(RESERVED)  # columns hconv reads by their names, or writes
-    free = [f for f in names if f not in ours]
-    prefixes = sorted(
-        {f[: -len(axes[0])] for f in free if f.endswith(axes[0]) and len(f) > len(axes[0])}
-        - {n for n in VECTOR_SETS if n != name}
-        - {"w"}  # wx, wy, wz: hconv's own output
-    )
-    found = [p for p in prefixes if all(p + a in free for a in axes)]
-    if not found:
-        return ""
-    maps = " or ".join(entries("mapping", {c: p + a for c, a in zip(cols, axes)}) for p in found[:2])
-    held = " or ".join(", ".join(p + a for a in axes) for p in found[:2])
-    return f"; if {held} hold {name}, give {maps}"
 
 
 def _inertia_group(
@@ -542,7 +432,7 @@ def _inertia_group(
 def stored_units(schema: pa.Schema) -> dict[str, str]:
     """Each column's unit as ``schema`` stores it, in the schema's column order: its field
     metadata ``unit``, else the unit Spark's schema (file metadata :data:`SPARK_SCHEMA_KEY`) gives
-    it; a struct's fields by their dotted path (:func:`columns_of`), after the top-level columns.
+    it; a struct's fields by their dotted path (:func:`hconv.tables.columns.columns_of`), after the top-level columns.
     Columns without one are left out."""
     found = {}
     try:
@@ -553,7 +443,7 @@ def stored_units(schema: pa.Schema) -> dict[str, str]:
                 found[f["name"]] = unit
     except (ValueError, AttributeError, TypeError, KeyError):  # not the schema Spark writes: no units from it
         pass
-    fields = columns_of(schema)
+    fields = columns.columns_of(schema)
     for name, f in fields.items():
         meta = f.metadata or {}
         if meta.get(b"unit"):

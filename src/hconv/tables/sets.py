@@ -72,7 +72,7 @@ def header_name(column: str) -> tuple[str, str | None]:
 
 def reads_as(column: str) -> str | None:
     """The hconv name a column of this name stands for, without its header's unit and, for names
-    of more than one letter, without regard to case (the rule of :func:`hconv.tables.layout.find`,
+    of more than one letter, without regard to case (the rule of :func:`hconv.tables.columns.find`,
     which also settles two columns for one name); None for a name hconv does not read."""
     bare = header_name(column)[0]
     names = all_names()
