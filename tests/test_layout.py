@@ -430,3 +430,11 @@ def test_plan_reads_the_unit_a_struct_field_stores_as_its_metadata():
     assert layout.stored_units(schema) == {"H.x": "g*cm**2/s", "H.y": "g*cm**2/s", "H.z": "g*cm**2/s"}
     plan = layout.plan(schema, Job(), "s.parquet")
     assert plan.groups["H"].columns == ("H.x", "H.y", "H.z") and plan.groups["H"].factors == pytest.approx([1e-7] * 3)
+
+
+def test_plan_reads_an_observed_omega_struct_for_diagnose(rng):
+    """w_obs {x, y, z}, whose columns (wx_obs...) are not the struct's name and a field's."""
+    data, H, six = _struct_table(4, rng)
+    w = pa.StructArray.from_arrays([pa.array(rng.normal(size=4)) for _ in range(3)], names=["x", "y", "z"])
+    plan = layout.plan(data.append_column("w_obs", w).schema, Job(observed=True), "log.parquet")
+    assert plan.groups["w_obs"].columns == ("w_obs.x", "w_obs.y", "w_obs.z")

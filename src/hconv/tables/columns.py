@@ -11,7 +11,7 @@ import difflib
 import pyarrow as pa
 
 from hconv.errors import InputError, entries, entry
-from hconv.tables.sets import VECTOR_SETS, all_names, header_name
+from hconv.tables.sets import STRUCT_FIELDS, VECTOR_SETS, all_names, header_name
 
 
 def columns_of(schema: pa.Schema) -> dict[str, pa.Field]:
@@ -56,12 +56,16 @@ def column(data: pa.Table, name: str) -> pa.ChunkedArray:
 def stands_for(name: str) -> set:
     """The hconv names a column of this name can stand for, before case: its name without a unit
     in its header and, for a struct's field, the struct's name and the field's run together
-    (``H.x``: Hx)."""
+    (``H.x``: Hx, ``I.xx``: Ixx), or the set's column for that field (``w_obs.x``: wx_obs)."""
     bare = header_name(name)[0]
     keys = {bare}
     if "." in bare:
         parent, _, child = bare.rpartition(".")
-        keys.add(parent.rpartition(".")[2] + child)
+        struct = parent.rpartition(".")[2]
+        keys.add(struct + child)
+        axes = STRUCT_FIELDS.get(struct, "")
+        if child in axes:
+            keys.add(VECTOR_SETS[struct][axes.index(child)])
     return keys
 
 

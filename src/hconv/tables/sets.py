@@ -32,6 +32,9 @@ VECTOR_SETS = {
     "v": ("vx", "vy", "vz"),
     "w_obs": ("wx_obs", "wy_obs", "wz_obs"),
 }
+#: The fields of a struct named like a vector set, one per column in its order: a struct ``H``
+#: with fields x, y, z is Hx, Hy, Hz, and ``w_obs`` {x, y, z} is wx_obs, wy_obs, wz_obs.
+STRUCT_FIELDS = {"H": "xyz", "q": "wxyz", "r": "xyz", "v": "xyz", "w_obs": "xyz"}
 #: The unit quantity (a key of hconv.solve.units.SI) of each set.
 QUANTITY = {"H": "H", "I": "I", "q": "q", "r": "r", "m": "m", "v": "v", "w_obs": "w"}
 #: Sets read whenever present (they change the answer or its status); v and w_obs only when needed
