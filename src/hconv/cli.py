@@ -214,7 +214,7 @@ def _fill(text: str, stream: Any, indent: str = "  ", first: str = "") -> str:
 
 @app.command("convert")
 @friendly
-@job_options("method", "precision", "engine", *SCENE, *DEGENERATE, *COLUMNS, "omega_unit", "keep_text")
+@job_options("method", "precision", "engine", *SCENE, *DEGENERATE, *COLUMNS, "omega_unit", "keep_text", "prefix")
 def convert_cmd(
     src: str = typer.Argument(
         ...,
