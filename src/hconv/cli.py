@@ -6,29 +6,37 @@ Errors print one line, ``hconv: error: ...``, and exit with the codes in :mod:`h
 
 from __future__ import annotations
 
-import copy
 import functools
-import inspect
 import json
 import math
 import os
 import signal
 import sys
-from collections.abc import Callable, Iterable
 from enum import Enum
 from typing import TYPE_CHECKING, Any
 
 import typer
 from typer.core import TyperCommand
 
-from hconv import errors, interrupts, streams
-from hconv.errors import INTERRUPTED, HconvError, StrictError, UsageError
+from hconv import interrupts, streams
+from hconv.commandline import (
+    COLUMNS,
+    DEGENERATE,
+    JOB,
+    SCENE,
+    Fmt,
+    body_forms,
+    completes,
+    friendly,
+    job_options,
+    json_number,
+    numbers,
+    value_of,
+)
+from hconv.errors import INTERRUPTED, StrictError, UsageError
 from hconv.kernels import allocator
 from hconv.solve import forms, options
-from hconv.solve.engines import ENGINES
-from hconv.solve.methods import METHODS
 from hconv.tables.body import UNIT_SETS
-from hconv.tables.formats import FORMATS
 from hconv.tools.scene import SCENES
 
 if TYPE_CHECKING:
@@ -107,283 +115,6 @@ def _root(
     """Angular momentum H (kg·m²/s) to angular velocity ω (rad/s), with the residual against I⁻¹H for every row."""
 
 
-def _choices(name: str, values: Iterable[object]) -> Any:
-    """A typer choice type whose values are the library's own tuple. Its members are ``str``
-    subclasses; :func:`_value` gives the plain string."""
-    return Enum(name, {str(v): str(v) for v in values}, type=str)
-
-
-def _completes(values: Callable[[], Iterable[object]]) -> Callable[[str], list[str]]:
-    """Shell completion for an option that is not a choice type (an int, or a choice checked by
-    the library): the library's own values, taken only when a shell asks."""
-    return lambda incomplete: [str(v) for v in values() if str(v).startswith(incomplete)]
-
-
-def _body_forms() -> Iterable[str]:
-    from hconv.tools.models import OUTPUT_FORMS  # not at start-up: hconv one does not need it
-
-    return OUTPUT_FORMS
-
-
-def _value(choice: str | None) -> str | None:
-    return choice.value if isinstance(choice, Enum) else choice
-
-
-if TYPE_CHECKING:  # for type checkers the choices are strings; typer needs the Enum at run time
-    MethodName = str
-    Fmt = str
-    Frame = str
-    About = str
-    Products = str
-    Degenerate = str
-    QuatOrder = str
-    Engine = str
-else:
-    MethodName = _choices("MethodName", METHODS)
-    Fmt = _choices("Fmt", FORMATS)
-    Frame = _choices("Frame", options.FRAMES)
-    About = _choices("About", options.ABOUT)
-    Products = _choices("Products", options.PRODUCTS)
-    Degenerate = _choices("Degenerate", options.DEGENERATE_MODES)
-    QuatOrder = _choices("QuatOrder", options.QUAT_ORDERS)
-    Engine = _choices("Engine", ENGINES)
-
-#: Every option of the run configuration (hconv.tables.job.Job), as the command line spells it:
-#: Job field (or Conventions field) -> (type, typer option). Commands take theirs through
-#: :func:`job_options`, which builds the Job in one place.
-JOB_OPTIONS = {
-    # The long choice lists get a metavar and are listed in the help text, where they wrap between
-    # names; as the metavar they were split mid-name at 80 columns.
-    "method": (
-        MethodName,
-        typer.Option("exact", "--method", metavar="METHOD", help=f"{', '.join(METHODS)} (see hconv methods)"),
-    ),
-    "precision": (
-        int,
-        typer.Option(
-            64,
-            "--precision",
-            help="64 or 32: the dtype the method computes in",
-            autocompletion=_completes(lambda: options.PRECISIONS),
-        ),
-    ),
-    "frame": (
-        Frame,
-        typer.Option("world", "--frame", help="the frame of H (and r, v): world, or body (the frame of q's body)"),
-    ),
-    "omega_frame": (
-        Frame | None,
-        typer.Option(None, "--omega-frame", help="the frame of ω; default: the frame of H (another needs q)"),
-    ),
-    "about": (
-        About,
-        typer.Option(
-            "same",
-            "--about",
-            help="same: I and H about one point; pivot: I about the centre of "
-            "mass, H about a fixed pivot (needs m, r); free: H about an origin (needs m, r, v)",
-        ),
-    ),
-    "products": (
-        Products,
-        typer.Option(
-            "tensor",
-            "--products",
-            help="tensor: Ixy = -∫xy dm (hconv, URDF, engines); positive: Pxy = +∫xy dm (CAD reports)",
-        ),
-    ),
-    "degenerate": (
-        Degenerate,
-        typer.Option(
-            "error",
-            "--degenerate",
-            help="zero principal moments (rods, point masses): "
-            "error (status singular), pinv or lock (no rotation about the dropped axis)",
-        ),
-    ),
-    "degenerate_rtol": (
-        float | None,
-        typer.Option(
-            None,
-            "--degenerate-rtol",
-            help="a principal moment <= this × the "
-            "trace counts as zero; default: singular in the working precision "
-            "(about 1e-15 in float64)",
-        ),
-    ),
-    "mapping": (
-        list[str] | None,
-        typer.Option(None, "--map", help="NAME=COLUMN: read hconv's NAME from COLUMN (repeatable, or comma-separated)"),
-    ),
-    "unit_options": (
-        list[str] | None,
-        typer.Option(
-            None,
-            "--unit",
-            help="COLUMN=UNIT or SET=UNIT (H, I, r, m, v, w_obs), e.g. I=g*cm**2 (repeatable)",
-        ),
-    ),
-    "omega_unit": (str, typer.Option("rad/s", "--omega-unit", help="unit of ω: rad/s, deg/s, rpm, ...")),
-    "engine": (
-        Engine,
-        typer.Option(
-            "auto",
-            "--engine",
-            metavar="ENGINE",
-            help="auto (for files: numpy; see hconv engines), compiled or numpy (the reference)",
-        ),
-    ),
-    "quat_order": (
-        QuatOrder,
-        typer.Option("wxyz", "--quat-order", help="order of a 4-value list column q (named columns need none)"),
-    ),
-    "keep_text": (
-        bool,
-        typer.Option(
-            False,
-            "--keep-text",
-            help="CSV to Parquet: keep the columns hconv does not use as text; "
-            "default: typed as pyarrow would (numbers, booleans, dates), except where that changes a value",
-        ),
-    ),
-}
-_CONVENTIONS = ("frame", "omega_frame", "about", "products", "degenerate", "degenerate_rtol")
-SCENE = ("frame", "omega_frame", "about", "products")
-DEGENERATE = ("degenerate", "degenerate_rtol")
-COLUMNS = ("mapping", "unit_options", "quat_order")
-
-
-#: The default of a command's ``job`` parameter, which :func:`job_options` always fills in.
-JOB: Any = None
-
-
-def job_options(*names: str, help: dict | None = None, **fixed: Any) -> Callable[[Callable], Callable]:
-    """Give a command the Job options ``names``, shown in that order where its ``job`` parameter
-    stands, and call it with the :class:`~hconv.tables.job.Job` they make as ``job``. ``help``
-    rewords an option for this command; ``fixed`` sets Job fields the command does not offer.
-    The Job checks itself when made, so every command's options are checked once, in one place."""
-
-    def option(n: str) -> inspect.Parameter:
-        info = JOB_OPTIONS[n][1]
-        if help and n in help:
-            info = copy.copy(info)
-            info.help = help[n]
-        return inspect.Parameter(n, inspect.Parameter.KEYWORD_ONLY, default=info, annotation=JOB_OPTIONS[n][0])
-
-    def deco(fn: Callable) -> Callable:
-        sig = inspect.signature(fn)
-        params = list(sig.parameters.values())
-        at = [p.name for p in params].index("job")
-        params = params[:at] + [option(n) for n in names] + params[at + 1 :]
-        kinds = [p.replace(kind=inspect.Parameter.KEYWORD_ONLY) if k > at else p for k, p in enumerate(params)]
-
-        @functools.wraps(fn)
-        def wrapper(*args: Any, **kwargs: Any) -> Any:
-            given = {n: kwargs.pop(n) for n in names}
-            return fn(*args, job=_make_job(given, fixed), **kwargs)
-
-        wrapper.__signature__ = sig.replace(parameters=kinds)  # type: ignore[attr-defined]
-        wrapper.__annotations__ = {p.name: p.annotation for p in kinds}
-        return wrapper
-
-    return deco
-
-
-def _make_job(given: dict, fixed: dict) -> Job:
-    from hconv.tables.job import Job
-
-    values: dict[str, Any] = {n: _value(v) for n, v in given.items()}
-    if "mapping" in values:
-        values["mapping"] = _pairs("--map", values["mapping"])
-    if "unit_options" in values:
-        values["unit_options"] = _pairs("--unit", values["unit_options"])
-    conv = options.Conventions(**{n: values.pop(n) for n in _CONVENTIONS if n in values})
-    return Job(conventions=conv, **values, **fixed)
-
-
-def _fail(msg: str, code: int) -> None:
-    interrupts.settle()  # the run is failing: an interrupt now would not change what it leaves
-    print(f"hconv: error: {msg}", file=sys.stderr)
-    raise typer.Exit(code)
-
-
-def friendly(fn: Callable) -> Callable:
-    """Turn hconv's errors, interrupts and surprises into one line and an exit code, never a traceback."""
-
-    @functools.wraps(fn)
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
-        try:
-            interrupts.hand_over()  # from here an interrupt is caught below, and cleans up
-            with errors.command_line():
-                rv = fn(*args, **kwargs)
-                sys.stdout.flush()  # here, where a full stdout is the command's failure, named
-            interrupts.settle()  # done: a late interrupt changes nothing (hconv.interrupts)
-            interrupts.point("returned")
-            return rv
-        except HconvError as exc:
-            _fail(str(exc), exc.exit_code)
-        except KeyboardInterrupt as exc:  # a dataset run says what it kept (hconv.tables.dataset)
-            _fail(str(exc) or INTERRUPTED, 130)
-        except BrokenPipeError:  # the reader stopped early (`| head`): its choice, not a failure
-            interrupts.settle()
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-            raise typer.Exit(0) from None
-        except OSError as exc:
-            _fail(f"{exc.filename or 'output'}: {exc.strerror or exc}; nothing was written", 4)
-        except (typer.Exit, typer.Abort):
-            interrupts.settle()
-            raise
-        except Exception as exc:  # noqa: BLE001 - the promise is: no traceback
-            if os.environ.get("HCONV_DEBUG"):
-                raise
-            _fail(
-                f"internal error: {type(exc).__name__}: {exc} "
-                "(set HCONV_DEBUG=1 for the traceback, and please report it)",
-                1,
-            )
-
-    @functools.wraps(fn)
-    def guarded(*args: Any, **kwargs: Any) -> Any:
-        try:
-            return wrapper(*args, **kwargs)
-        except KeyboardInterrupt:  # one that landed while an error was being reported: it wrote nothing
-            _fail(INTERRUPTED, 130)
-
-    return guarded
-
-
-def _numbers(option: str, text: str, allowed: tuple[int, ...]) -> list[float]:
-    parts = [p.strip() for p in text.split(",")]  # "0 1" is an error, never the number 01
-    if "" in parts:
-        raise UsageError(f"{option} has an empty value in {text!r}; give comma-separated numbers, like 1,2,3")
-    try:
-        values = [float(v) for v in parts]
-    except ValueError:
-        raise UsageError(f"{option} takes comma-separated numbers, got {text!r}") from None
-    if len(values) not in allowed:
-        counts = ", ".join(str(k) for k in allowed[:-1]) + (" or " if len(allowed) > 1 else "") + str(allowed[-1])
-        raise UsageError(f"{option} takes {counts} comma-separated numbers, got {len(values)} in {text!r}")
-    return values
-
-
-def _json_number(x: float) -> float | None:
-    """``x``, or None where it is NaN or infinite: standard JSON has neither."""
-    return x if math.isfinite(x) else None
-
-
-def _pairs(option: str, items: list[str] | None) -> tuple:
-    """``NAME=VALUE`` items (repeatable, each possibly comma-separated) as a tuple of pairs."""
-    pairs = []
-    for item in items or ():
-        for part in item.split(",") if option == "--map" else [item]:
-            name, eq, value = part.partition("=")
-            if not eq or not name.strip() or not value.strip():
-                form = "NAME=COLUMN" if option == "--map" else "COLUMN=UNIT or SET=UNIT"
-                raise UsageError(f"{option} takes {form}, got {part!r}")
-            pairs.append((name.strip(), value.strip()))
-    return tuple(pairs)
-
-
 @app.command()
 @friendly
 @job_options(
@@ -415,11 +146,11 @@ def one(
     from hconv.solve import methods
     from hconv.tables import body
 
-    i = _numbers("--I", I, tuple(sorted({f.count for f in forms.FORMS.values()})))
-    given = {"H": _numbers("--H", H, (3,))}
+    i = numbers("--I", I, tuple(sorted({f.count for f in forms.FORMS.values()})))
+    given = {"H": numbers("--H", H, (3,))}
     for name, text, k in (("r", r, 3), ("q", q, 4), ("v", v, 3)):
         if text is not None:
-            given[name] = _numbers(f"--{name}", text, (k,))
+            given[name] = numbers(f"--{name}", text, (k,))
     values: dict[str, Any] = dict(r=given.get("r"), q=given.get("q"), m=mass, v=given.get("v"), job=job)
     res = body.convert_body(given["H"], i, **values)
     w = [float(x) for x in res.w]
@@ -433,7 +164,7 @@ def one(
         print(body.invalid_hint(causes, texts, job.precision), file=sys.stderr)
     axis = None if res.null_axis is None or not np.isfinite(res.null_axis).all() else [float(x) for x in res.null_axis]
     if as_json:
-        clean = _json_number
+        clean = json_number
         out: dict[str, Any] = {
             "w": [clean(x) for x in w],
             "unit": res.unit,
@@ -483,7 +214,7 @@ def _fill(text: str, stream: Any, indent: str = "  ", first: str = "") -> str:
 
 @app.command("convert")
 @friendly
-@job_options("method", "precision", "engine", *SCENE, *DEGENERATE, *COLUMNS, "omega_unit", "keep_text")
+@job_options("method", "precision", "engine", *SCENE, *DEGENERATE, *COLUMNS, "omega_unit", "keep_text", "prefix")
 def convert_cmd(
     src: str = typer.Argument(
         ...,
@@ -564,8 +295,8 @@ def convert_cmd(
         src,
         dst,
         job=job,
-        src_format=_value(from_),
-        dst_format=_value(to),
+        src_format=value_of(from_),
+        dst_format=value_of(to),
         force=force,
         strict=strict,
         threads=threads,
@@ -618,7 +349,7 @@ def diagnose_cmd(
     The scene options say what you believe the file holds; every hypothesis is one mistake away."""
     from hconv.tools import diagnose
 
-    d = diagnose.diagnose_file(src, src_format=_value(from_), tol=tol, job=job)
+    d = diagnose.diagnose_file(src, src_format=value_of(from_), tol=tol, job=job)
     if as_json:
         print(json.dumps(d.to_json(), indent=1))
         return
@@ -645,7 +376,7 @@ def compare_cmd(
     from hconv.tools import compare
 
     interrupts.commit_settles()  # OUT in place ends the run (hconv.interrupts)
-    c = compare.compare_file(src, dst, src_format=_value(from_), dst_format=_value(to), force=force, job=job)
+    c = compare.compare_file(src, dst, src_format=value_of(from_), dst_format=value_of(to), force=force, job=job)
     from rich.console import Console
 
     report.comparison_tables(c, Console(stderr=True) if dst == "-" else None)
@@ -661,7 +392,7 @@ def bodies_cmd(
     form: str | None = typer.Option(
         None,
         "--form",
-        autocompletion=_completes(_body_forms),
+        autocompletion=completes(body_forms),
         help="the inertia in OUT: sym6 (Ixx, Iyy, Izz, Ixy, Ixz, Iyz in the body frame; the default) or "
         "principal (I1, I2, I3 and qw, qx, qy, qz: principal axes to body frame)",
     ),
@@ -669,6 +400,9 @@ def bodies_cmd(
     force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
     strict: bool = typer.Option(False, "--strict", help="exit 5 when a body is not ok"),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no summary on stderr when writing OUT"),
+    root: str | None = typer.Option(
+        None, "--root", metavar="DIR", help="a folder holding the model's, within which MJCF includes may go"
+    ),
 ) -> None:
     """Check the inertia of every body of a URDF, SDF or MJCF model; list them, or write them for hconv convert."""
     from hconv import modelview
@@ -686,7 +420,7 @@ def bodies_cmd(
                 f"{' and '.join(given)} {'is' if len(given) == 1 else 'are'} for OUT, which is not given; "
                 "give OUT (- for stdout), or drop " + ("it" if len(given) == 1 else "them") + " to list the bodies"
             )
-    m = models.read_model(model)
+    m = models.read_model(model, root=root)
     bad = [b for b in m.bodies if b.status != "ok"]
     if strict and not m.bodies:  # a model with nothing to check passes no check
         raise StrictError(
@@ -697,7 +431,7 @@ def bodies_cmd(
         modelview.show(m)
     elif not (strict and bad):  # as convert --strict: no output when a row is not ok
         interrupts.commit_settles()  # OUT in place ends the run (hconv.interrupts)
-        models.write_bodies(m, dst, form=form or "sym6", dst_format=_value(to), force=force)
+        models.write_bodies(m, dst, form=form or "sym6", dst_format=value_of(to), force=force)
         if not quiet:
             print(f"hconv bodies: {model} ({m.format}) to {dst}: {modelview.summary_line(m)}", file=sys.stderr)
             for note in m.notes:
@@ -718,7 +452,7 @@ def generate_cmd(
     dst: str = typer.Argument(..., metavar="OUT", help="output .csv or .parquet, or - for stdout"),
     rows: int = typer.Option(..., "--rows", "-n", help="number of bodies"),
     scene: str = typer.Option(
-        "mix", "--scene", help=f"{', '.join(SCENES[:-1])} or {SCENES[-1]}", autocompletion=_completes(lambda: SCENES)
+        "mix", "--scene", help=f"{', '.join(SCENES[:-1])} or {SCENES[-1]}", autocompletion=completes(lambda: SCENES)
     ),
     cond_max: float = typer.Option(
         1e3, "--cond-max", help="cond(I) is log-uniform from 1 to this (as the body kind allows)"
@@ -732,7 +466,7 @@ def generate_cmd(
 
     interrupts.commit_settles()  # OUT in place ends the run (hconv.interrupts)
     seconds = generate.generate_file(
-        dst, rows, scene=scene, cond_max=cond_max, seed=seed, dst_format=_value(to), force=force
+        dst, rows, scene=scene, cond_max=cond_max, seed=seed, dst_format=value_of(to), force=force
     )
     rate = f", {rows / seconds:,.0f} rows/s" if seconds > 0 and rows else ""
     where = "stdout" if dst == "-" else dst

@@ -4,7 +4,7 @@ which makes them wait while a few steps that must not be cut finish.
 
 The command spends its first few tenths of a second importing numpy, typer and the rest. A
 KeyboardInterrupt raised in there printed a traceback, or, inside numpy's import, an ImportError
-and exit 1. Until a command's own code runs (``cli.friendly``) nothing has been written and
+and exit 1. Until a command's own code runs (``commandline.friendly``) nothing has been written and
 nothing needs cleaning up, so the process can simply end; from then on the signals raise
 KeyboardInterrupt again, so that a conversion removes its temporary file on the way out.
 
