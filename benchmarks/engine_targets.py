@@ -3,8 +3,9 @@
     python benchmarks/engine_targets.py [repeats]
 
 Every ratio is numpy.linalg.solve's time on an (N, 3, 3) stack over ``hconv.convert``'s on the
-same rows (above 1: hconv is faster), each the median of ``repeats`` interleaved rounds (every
-call once per round, so that a drift of a shared machine falls on both sides); beside it the same
+same rows (above 1: hconv is faster), each from the fastest of ``repeats`` interleaved rounds
+(every call once per round, so that a drift of a shared machine falls on both sides, and the
+fastest: the round least disturbed by other jobs); beside it the same
 ratio with hconv held to one core, which other jobs on a shared machine disturb less (the
 compiled engine uses every core for large calls, ``numpy.linalg.solve`` one). The first call of a
 new process is timed in fresh interpreters, against the same call once warm.
@@ -59,14 +60,14 @@ def stacks(n: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def timed(jobs: dict, repeats: int) -> dict:
-    """Median seconds of each job over interleaved rounds."""
+    """The fewest seconds of each job over interleaved rounds."""
     got: dict = {k: [] for k in jobs}
     for _ in range(repeats):
         for k, job in jobs.items():
             t = time.perf_counter()
             job()
             got[k].append(time.perf_counter() - t)
-    return {k: statistics.median(v) for k, v in got.items()}
+    return {k: min(v) for k, v in got.items()}
 
 
 def ratio_of(n: int, solve_job, hconv_job, repeats: int) -> tuple[float, float]:
