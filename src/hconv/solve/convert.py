@@ -31,7 +31,6 @@ engine.
 
 from __future__ import annotations
 
-import os
 from dataclasses import MISSING, dataclass, fields, replace
 
 import numpy as np
@@ -211,7 +210,7 @@ def _plain_call(
         or not (method is None or (type(method) is str and method in _PLAIN_METHODS))
     ):
         return None
-    forced = os.environ.get("HCONV_ENGINE")  # any other value: the general path (and its message)
+    forced = engines.forced()  # any other value: the general path (and its message)
     if engine != "compiled" and forced and forced not in ("auto", "compiled"):
         return None
     m = methods.METHODS[_PLAIN_METHODS[method]]

@@ -72,9 +72,21 @@ def check_engine(engine: str) -> None:
     check_choice("engine", engine, ENGINES)
 
 
+_KEY = os.environ.encodekey("HCONV_ENGINE")
+
+
+def forced() -> str | None:
+    """HCONV_ENGINE's value, None when it is not set. Looked up in os.environ's own mapping first:
+    ``os.environ.get`` of a name that is not set raises and catches a KeyError inside, which cost
+    a third of a one-body ``hconv.convert`` (1.5 µs of 5)."""
+    if _KEY not in os.environ._data:  # type: ignore[attr-defined]  # os._Environ's mapping
+        return None
+    return os.environ.get("HCONV_ENGINE")
+
+
 def _from_environment() -> str:
     """What ``auto`` means here: HCONV_ENGINE's engine when it is set, else ``auto``."""
-    value = os.environ.get("HCONV_ENGINE")
+    value = forced()
     if not value:
         return "auto"
     if value in GONE:  # scripts and CI configurations written for the engines hconv had
