@@ -216,6 +216,7 @@ def convert_dataset(
                             break
                     if progress is not None:
                         progress(k + 1, len(plan.todo))
+                commit.close()  # the last group; inside the try, so that an interrupt in it is handled below
             except KeyboardInterrupt:
                 # the files under way finish (or stop) and the committed ones join the group,
                 # which is made durable and kept before the manifest below lists them
@@ -236,15 +237,15 @@ def convert_dataset(
             finally:
                 if hasattr(outcomes, "close"):  # stopped early: no further file starts
                     outcomes.close()
-            commit.close()
+            commit.close()  # a run stopped by a full disk: the files committed meanwhile
             if ran_on is not None:
                 ran_on = session.describe_end()
                 split_files, split_parts = session.split_files, session.parts
         if plan.todo or plan.refused or manifest_stale(plan, records, failed):
             # The last manifest settles the run: from here an interrupt cannot make it exit 130
             # with OUT complete (hconv.interrupts.settle), which a caller would retry and fail.
-            interrupts.point("manifest")
-            with interrupts.held():
+            with interrupts.held():  # an interrupt from the last group's commit on acts after the settle
+                interrupts.point("manifest")
                 write_manifest(plan, records, failed, written, t0)
                 interrupts.settle()
                 interrupts.point("settled")

@@ -60,6 +60,16 @@ class FileRecord:
     def to_json(self) -> dict:
         return dataclasses.asdict(self)
 
+    def encoded(self) -> str:
+        """The record as the manifest writes it (``json.dumps(..., indent=1)`` at its depth in the
+        manifest's ``files`` list), worked out once: a run rewrites the manifest with every record
+        many times, and encoding thousands each time cost more than converting small files."""
+        text = self.__dict__.get("_encoded")
+        if text is None:
+            text = json.dumps(self.to_json(), indent=1).replace("\n", "\n  ")
+            self.__dict__["_encoded"] = text
+        return text
+
     @classmethod
     def from_json(cls, d: dict) -> FileRecord:
         return cls(**{f.name: d[f.name] for f in dataclasses.fields(cls)})
@@ -121,7 +131,7 @@ def _manifest(plan: Plan, records: dict[str, FileRecord], failed: dict[str, Hcon
         "worst_residual": None
         if worst is None
         else {"value": tally.worst_residual, "file": worst.output, "input": worst.input, "row": tally.worst_row},
-        "files": [r.to_json() for r in files],
+        "files": files,  # FileRecords: manifest_text encodes them (manifest_stale compares them as JSON)
         "failed": [{"input": rel, "error": str(exc)} for rel, exc in failed.items()],
         "pending": [f.rel for f in plan.inputs if f.rel not in records and f.rel not in failed],
         # every path hconv has written, or begun to write, into OUT, listed in files or not: the
@@ -136,6 +146,7 @@ def manifest_stale(plan: Plan, records: dict, failed: dict) -> bool:
     if before is None:
         return True
     now = _manifest(plan, records, failed, written_before(plan))
+    now["files"] = [r.to_json() for r in now["files"]]
     keys = ("complete", "source", "job", "files", "failed", "pending", "version")
     return any(before.get(k) != now[k] for k in keys)
 
@@ -150,7 +161,28 @@ def write_manifest(
         m["parts_run"] = parts_run
     m["written_at"] = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
     m["seconds"] = round(time.perf_counter() - t0, 3)
-    storage.write_bytes(plan.dst, MANIFEST, (json.dumps(m, indent=1) + "\n").encode())
+    storage.write_bytes(plan.dst, MANIFEST, (manifest_text(m, files_of(plan, records)) + "\n").encode())
+
+
+def files_of(plan: Plan, records: dict[str, FileRecord]) -> list[FileRecord]:
+    return [records[f.rel] for f in plan.inputs if f.rel in records]
+
+
+def manifest_text(m: dict, files: list[FileRecord]) -> str:
+    """``json.dumps(m, indent=1)``, its ``files`` (the records ``files``) spliced in from each
+    record's :meth:`FileRecord.encoded` text rather than encoded again."""
+    listed = m["files"]
+    m["files"] = []
+    try:
+        text = json.dumps(m, indent=1)
+    finally:
+        m["files"] = listed
+    if not files:
+        return text
+    body = "[\n  " + ",\n  ".join(r.encoded() for r in files) + "\n ]"
+    marker = '\n "files": [],'
+    at = text.index(marker) + len(marker) - 3  # at the "[]"
+    return text[:at] + body + text[at + 2 :]
 
 
 def tally_of(job: Job, files: list[FileRecord]) -> tuple[Tally, FileRecord | None]:
