@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import os
 import re
 import shutil
@@ -178,7 +179,7 @@ def small_files(work: Path, scale: float, profile: bool) -> None:
     t0 = time.perf_counter()
     one = work / "one.parquet"
     pq.write_table(pa.table(make_scene(rows, seed=1, cond_max=1e6)), one)
-    for name, files in shapes.items():
+    for files in shapes.values():
         if files > 1:
             write_dataset(work / f"s{files}", rows, files)
     print(f"small files: {rows:,} rows; datasets written in {time.perf_counter() - t0:.1f} s; one run each, wall time")
@@ -198,6 +199,48 @@ def small_files(work: Path, scale: float, profile: bool) -> None:
         print(f"  {what} / {against}: {ratio:.2f}x (target <= {target}x: {'met' if ratio <= target else 'NOT met'})")
     if profile:
         profile_small(work / f"s{files}", work / "out-profile")
+    model(work / f"s{files}", one)
+
+
+def model(small: Path, one: Path) -> None:
+    """The scaling model's inputs (docs/scaling.md): the driver's cost per file (listing and
+    planning; the manifest's rewrite), a worker's rows per second on one thread, and Dask's own
+    cost per task on a local cluster of 2 workers."""
+    import distributed
+
+    from hconv.tables import manifest, pipeline, planning
+    from hconv.tables.job import Job
+
+    t0 = time.perf_counter()
+    plan = planning.plan_dataset(str(small), str(small) + "-model-out", job=Job())
+    listing = time.perf_counter() - t0
+    n = len(plan.inputs)
+    record = manifest.FileRecord(
+        "a/b.parquet", "a/b.parquet", 1, 1, None, 1, 500, {"ok": 500}, 1e-12, 3, {"numpy": 500}, 0.1
+    )
+    records = {f.rel: dataclasses.replace(record, input=f.rel, output=f.rel) for f in plan.inputs}
+    t0 = time.perf_counter()
+    manifest.write_manifest(plan, records, {}, set(records), t0)
+    rewrite = time.perf_counter() - t0
+    shutil.rmtree(str(small) + "-model-out", ignore_errors=True)
+    part = one.parent / "model-400k.parquet"
+    pq.write_table(pq.read_table(one).slice(0, 400_000), part)
+    t0 = time.perf_counter()
+    pipeline.convert_file(str(part), str(one.parent / "model-out.parquet"), threads=1, force=True)
+    rate = 400_000 / (time.perf_counter() - t0)
+    lc = distributed.LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None, silence_logs=40)
+    with lc, distributed.Client(lc) as client:
+        client.gather(client.map(abs, range(200), pure=False))
+        t0 = time.perf_counter()
+        client.gather(client.map(abs, range(2000), pure=False))
+        per_task = (time.perf_counter() - t0) / 2000
+    print("scaling model inputs:")
+    print(f"  driver: listing and planning {n} files {listing:.2f} s ({listing / n * 1e3:.2f} ms a file)")
+    print(
+        f"  driver: the manifest rewritten with {n} records {rewrite * 1e3:.0f} ms ({rewrite / n * 1e6:.0f} µs a record)"
+    )
+    print(f"  worker: {rate:,.0f} rows/s on one thread (400k rows, exact)")
+    print(f"  Dask: {per_task * 1e3:.2f} ms a no-op task (2,000 tasks, local cluster of 2 workers)")
 
 
 def profile_small(src: Path, dst: Path) -> None:
