@@ -236,9 +236,8 @@ def model(small: Path, one: Path) -> None:
         per_task = (time.perf_counter() - t0) / 2000
     print("scaling model inputs:")
     print(f"  driver: listing and planning {n} files {listing:.2f} s ({listing / n * 1e3:.2f} ms a file)")
-    print(
-        f"  driver: the manifest rewritten with {n} records {rewrite * 1e3:.0f} ms ({rewrite / n * 1e6:.0f} µs a record)"
-    )
+    each = rewrite / n * 1e6
+    print(f"  driver: the manifest rewritten with {n} records {rewrite * 1e3:.0f} ms ({each:.0f} µs a record)")
     print(f"  worker: {rate:,.0f} rows/s on one thread (400k rows, exact)")
     print(f"  Dask: {per_task * 1e3:.2f} ms a no-op task (2,000 tasks, local cluster of 2 workers)")
 
