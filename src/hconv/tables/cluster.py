@@ -474,7 +474,8 @@ def _convert_on_worker(
                 return exc
             except _StopRequestedError:
                 return None
-        return _convert_files(tasks, src, dst, job, strict, threads, run_id, check)
+        with temporaries.sweeping_once():
+            return _convert_files(tasks, src, dst, job, strict, threads, run_id, check)
 
 
 def _convert_files(
