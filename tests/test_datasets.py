@@ -735,3 +735,26 @@ def test_convert_dataset_lists_outputs_only_once_flushed_a_group_at_a_time(tmp_p
     monkeypatch.setattr(onefile, "flushed", lambda *a: flushed_one_by_one.append(a))
     run = hconv.convert_dataset(str(data), str(tmp_path / "out"))
     assert run.complete and durable == {f"part-{k}.parquet" for k in range(6)} and flushed_one_by_one == []
+
+
+def test_convert_dataset_lists_the_small_files_before_a_large_one_starts(tmp_path, monkeypatch):
+    """A large file converts for long: the group of small files before it is committed (flushed
+    and listed in the manifest) before it starts, not after."""
+    from hconv.tables import runners
+
+    data = tmp_path / "data"
+    for k in range(4):
+        _write(data / f"a-{k}.parquet", 30, seed=k)
+    _write(data / "z-big.parquet", 400, seed=9)
+    monkeypatch.setattr(runners, "SMALL_FILE_BYTES", (data / "z-big.parquet").stat().st_size)
+    listed_at_start = []
+    real = runners.convert_one
+
+    def convert_one(task, *args, **kw):
+        if task.input.rel == "z-big.parquet":
+            listed_at_start.extend(f["output"] for f in _manifest(tmp_path / "out")["files"])
+        return real(task, *args, **kw)
+
+    monkeypatch.setattr(runners, "convert_one", convert_one)
+    assert hconv.convert_dataset(str(data), str(tmp_path / "out")).complete
+    assert sorted(listed_at_start) == [f"a-{k}.parquet" for k in range(4)]

@@ -66,6 +66,7 @@ def in_process(
                     continue
                 while window:
                     yield settle()
+                commit.close()  # a large file takes long: the files before it are listed first
                 try:
                     convert_one(
                         task,
