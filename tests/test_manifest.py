@@ -28,6 +28,12 @@ def test_job_identity_keeps_the_released_key_order():
     assert json.loads(json.dumps(record)) == record  # what the file holds is what the next run compares
 
 
+def test_job_identity_records_a_prefix_only_when_given():
+    assert "prefix" not in job_identity(hconv.Job(), None, None)
+    record = job_identity(hconv.Job(prefix="out_"), None, None)
+    assert list(record) == RELEASED_KEYS[:-2] + ["prefix"] + RELEASED_KEYS[-2:] and record["prefix"] == "out_"
+
+
 def _record(k: int, worst: float | None = 1.5e-12) -> FileRecord:
     return FileRecord(
         input=f"day={k % 2}/part-{k}.parquet",
