@@ -33,6 +33,7 @@ import sys
 import tempfile
 import time
 import urllib.request
+import warnings
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -231,7 +232,9 @@ def model(small: Path, one: Path) -> None:
     t0 = time.perf_counter()
     pipeline.convert_file(str(part), str(one.parent / "model-out.parquet"), threads=1, force=True)
     rate = sliced.num_rows / (time.perf_counter() - t0)
-    lc = distributed.LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None, silence_logs=40)
+    with warnings.catch_warnings():  # "Port 8787 is already in use": no dashboard is wanted
+        warnings.simplefilter("ignore", UserWarning)
+        lc = distributed.LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None, silence_logs=40)
     with lc, distributed.Client(lc) as client:
         client.gather(client.map(abs, range(200), pure=False))
         t0 = time.perf_counter()
