@@ -41,15 +41,18 @@ from hconv.errors import HconvError, UsageError, option
 from hconv.solve import options
 from hconv.tables import output, runners, storage, temporaries
 from hconv.tables.job import Job
-from hconv.tables.manifest import MANIFEST, FileRecord, manifest_stale, tally_of, write_manifest, written_before
+from hconv.tables.manifest import (
+    MANIFEST,
+    FileRecord,
+    GroupCommit,
+    manifest_stale,
+    tally_of,
+    write_manifest,
+    written_before,
+)
 from hconv.tables.parts import TASK_ROWS, check_task_rows, remove_orphan_parts
 from hconv.tables.pipeline import Tally, check_callback, check_threads
 from hconv.tables.planning import Plan, plan_dataset
-
-#: While files convert, the manifest is rewritten at most this often, so that a run killed
-#: outright (kill -9, a lost machine) loses the record of this much work at most: the next run
-#: converts those files again (the manifest claimed their paths before the run wrote them).
-CHECKPOINT_SECONDS = 10.0
 
 
 def is_dataset(src: str, dst: str) -> bool:
@@ -177,8 +180,12 @@ def convert_dataset(
     parts_run = None  #: while parts may exist: this run's tag and driver, in every manifest written
 
     def keep(rec: FileRecord) -> None:
+        if rec.input not in records:  # a todo file is not among the kept ones
+            converted.append(rec.input)
         records[rec.input] = rec
-        converted.append(rec.input)
+
+    # outputs are listed once durable, a group at a time, the manifest rewritten once per group
+    commit = GroupCommit(keep, lambda: write_manifest(plan, records, failed, written, t0, parts_run))
 
     ran_on = None
     split_files = split_parts = 0
@@ -189,19 +196,19 @@ def convert_dataset(
     created = plan.dst.local and not os.path.lexists(plan.dst.root)
     try:
         with contextlib.ExitStack() as stack:
+            stack.enter_context(temporaries.sweeping_once())
             if cluster is not None and plan.todo:
                 # connected (and the workers' hconv checked) before anything is written
                 session = stack.enter_context(runners.on_cluster(cluster, workers, cluster_timeout, threads))
                 ran_on = session.describe()
                 say(f"running on {ran_on}")
-                outcomes = session.run(plan, keep, strict=strict, task_rows=rows)
+                outcomes = session.run(plan, commit, strict=strict, task_rows=rows)
                 if rows:
                     parts_run = {"id": session.run_id, "driver": temporaries.maker()}
             else:
-                outcomes = runners.in_process(plan, keep, strict=strict, threads=threads)
+                outcomes = runners.in_process(plan, commit, strict=strict, threads=threads)
             if plan.todo:
                 write_manifest(plan, records, failed, written, t0, parts_run)
-            last = time.monotonic()
             try:
                 for k, (task, error) in enumerate(outcomes):
                     if error is not None:
@@ -212,10 +219,14 @@ def convert_dataset(
                             break
                     if progress is not None:
                         progress(k + 1, len(plan.todo))
-                    if time.monotonic() - last > CHECKPOINT_SECONDS:
-                        write_manifest(plan, records, failed, written, t0, parts_run)
-                        last = time.monotonic()
+                commit.close()  # the last group; inside the try, so that an interrupt in it is handled below
             except KeyboardInterrupt:
+                # the files under way finish (or stop) and the committed ones join the group,
+                # which is made durable and kept before the manifest below lists them
+                if hasattr(outcomes, "close"):
+                    outcomes.close()
+                with contextlib.suppress(HconvError):  # not flushed: not listed, converted again next run
+                    commit.close()
                 if any(t.input.rel not in records and t.input.rel not in failed for t in plan.todo):
                     if created and not converted:
                         raise  # nothing to keep: OUT is removed below
@@ -229,14 +240,15 @@ def convert_dataset(
             finally:
                 if hasattr(outcomes, "close"):  # stopped early: no further file starts
                     outcomes.close()
+            commit.close()  # a run stopped by a full disk: the files committed meanwhile
             if ran_on is not None:
                 ran_on = session.describe_end()
                 split_files, split_parts = session.split_files, session.parts
         if plan.todo or plan.refused or manifest_stale(plan, records, failed):
             # The last manifest settles the run: from here an interrupt cannot make it exit 130
             # with OUT complete (hconv.interrupts.settle), which a caller would retry and fail.
-            interrupts.point("manifest")
-            with interrupts.held():
+            with interrupts.held():  # an interrupt from the last group's commit on acts after the settle
+                interrupts.point("manifest")
                 write_manifest(plan, records, failed, written, t0)
                 interrupts.settle()
                 interrupts.point("settled")

@@ -218,6 +218,7 @@ def convert_file(
     rows: tuple[int, int] | None = None,
     dst_name: str | None = None,
     prefix: str | None = None,
+    whole: bool = False,
 ) -> Tally:
     """Convert the table in ``src`` into ``dst`` ("-" for stdin/stdout); returns the tally.
 
@@ -235,6 +236,9 @@ def convert_file(
     ``rows``: (start, stop), convert only those rows of a Parquet ``src`` (a part of a file
     converted by one task of a cluster run: :func:`hconv.tables.parts.convert_part`); messages
     name the file's rows, the tally's ``worst_row`` counts from ``start``.
+    ``whole``: a small file, read, converted and written on the calling thread, with no threads
+    of its own (starting and joining them cost more than such a file's conversion; a dataset's
+    pool converts several such files side by side: :mod:`hconv.tables.runners`).
     Raises :class:`hconv.errors.HconvError` subclasses with one-line messages.
     """
     check_threads(threads)
@@ -254,7 +258,9 @@ def convert_file(
             csvio.check_csv_columns(inp.schema, inp.name)  # before converting anything
         # CSV's text columns get types in Parquet, the first block's (csvtypes); CSV keeps them as they were
         typed = fout != "csv" and bool(inp.text) and not job.keep_text
-        run = functools.partial(_convert, job=job, strict=strict, threads=threads, progress=progress)
+        run = functools.partial(
+            _convert, job=job, strict=strict, threads=1 if whole else threads, progress=progress, whole=whole
+        )
         try:
             tally = run(inp, out, types=None if typed else {})
         except csvtypes.Retype:  # a later block does not fit them: type from every block, then again
@@ -277,6 +283,7 @@ def _convert(
     strict: bool,
     threads: int,
     progress: Callable[[int, int | None], None] | None,
+    whole: bool = False,
 ) -> Tally:
     """One pass of :func:`convert_file`: every batch of ``inp`` into ``out``. ``types``: the
     types of ``inp``'s text columns (None: the first batch's; :class:`~hconv.tables.csvtypes.Retype`
@@ -299,17 +306,39 @@ def _convert(
     # full), stops the compute threads now rather than when the suspended generator is collected,
     # so that none is still converting while a dataset run goes on to its next file or manifest.
     results = ordered_map(one, _numbered(batches, inp.first_row), threads)
-    with out, BackgroundWriter(out) as writer, contextlib.closing(results):
-        for table, engine in results:
-            if strict:
-                _check_strict(table, inp.first_row + tally.rows, inp.name)
-            writer.write(table)
-            tally.add(table, engine)
-            if progress is not None:
-                progress(inp.position(), inp.total)
-        if tally.rows == 0:  # a header and no rows is a valid empty table
-            writer.write(convert_batch(inp.schema.empty_table(), job, inp.plan, inp.name)[0])
+    writing = contextlib.nullcontext(_Direct(out)) if whole else BackgroundWriter(out)
+    with out, writing as writer, contextlib.closing(results):
+        _write_all(inp, results, writer, tally, job=job, strict=strict, progress=progress)
     return tally
+
+
+class _Direct:
+    """A :class:`BackgroundWriter`'s ``write`` on the calling thread (a small file: ``whole``)."""
+
+    def __init__(self, out: Output):
+        self.write = out.write
+
+
+def _write_all(
+    inp: Input,
+    results: Iterator[tuple[pa.Table, str]],
+    writer: BackgroundWriter | _Direct,
+    tally: Tally,
+    *,
+    job: Job,
+    strict: bool,
+    progress: Callable[[int, int | None], None] | None,
+) -> None:
+    """Each converted table of ``inp`` written and tallied, in order."""
+    for table, engine in results:
+        if strict:
+            _check_strict(table, inp.first_row + tally.rows, inp.name)
+        writer.write(table)
+        tally.add(table, engine)
+        if progress is not None:
+            progress(inp.position(), inp.total)
+    if tally.rows == 0:  # a header and no rows is a valid empty table
+        writer.write(convert_batch(inp.schema.empty_table(), job, inp.plan, inp.name)[0])
 
 
 def _numbered(batches: Iterable[pa.RecordBatch], first: int = 0) -> Iterator[tuple[int, pa.RecordBatch]]:
