@@ -145,8 +145,8 @@ def test_output_removes_the_temporary_file_of_a_killed_run_and_says_so(left, tmp
         proc.stdin.write(SCENE_CSV.read_bytes())  # type: ignore[union-attr]
         proc.stdin.flush()  # type: ignore[union-attr]
         where = spools
-    else:  # done, and writing to a stdout that nobody reads
-        proc = _hconv("convert", str(SCENE_CSV), "-", "--to", "csv", tmpdir=spools)
+    else:  # done, and writing to a stdout that nobody reads (--strict: all or nothing, so spooled)
+        proc = _hconv("convert", str(SCENE_CSV), "-", "--to", "csv", "--strict", tmpdir=spools)
         where = spools
     temporaries = lambda: [p for p in where.iterdir() if p.name.endswith(".hconv-tmp")]  # noqa: E731
     _wait_for(temporaries, "temporary file", proc)

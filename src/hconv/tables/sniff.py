@@ -41,9 +41,10 @@ def format_of(path: str, given: str | None, flag: str) -> str:
             )
         return given
     if path == "-":
+        fmts = FORMATS if flag == "src_format" else WRITES
         raise UsageError(
-            f"'-' has no extension to tell the format; pass {option(flag, 'csv')} or {option(flag, 'parquet')}"
-            + (" (or arrow, jsonl)" if flag == "src_format" else " (or arrow)")
+            f"'-' has no extension to tell the format (one of {choices(fmts)}); "
+            f"pass {option(flag, 'csv')} or {option(flag, 'parquet')}"
         )
     suffix = Path(path).suffix.lower()
     fmt = _named_format(path)
