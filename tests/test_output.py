@@ -217,8 +217,7 @@ def test_output_into_a_pipe_streams_every_row(tmp_path):
     """A reader that stays gets every row, in order, as from a file."""
     proc = subprocess.run(
         [sys.executable, "-m", "hconv", "convert", str(SCENE_CSV), "-", "--to", "csv", "-q"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
+        capture_output=True,
         timeout=300,
     )
     assert proc.returncode == 0, proc.stderr
