@@ -13,11 +13,11 @@ import pyarrow.feather as feather
 import pyarrow.ipc as ipc
 import pyarrow.parquet as pq
 import pytest
+from helpers import hconv_inprocess, need, w_of
 
 from hconv.errors import InputError
 from hconv.tables import ipcio
 from hconv.tables.pipeline import convert_file
-from tests.helpers import hconv_inprocess, need, w_of
 
 SCENE = Path(__file__).resolve().parents[1] / "examples" / "data" / "scene.parquet"
 

@@ -10,11 +10,11 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
+from helpers import hconv_inprocess, need, w_of
 
 import hconv
 from hconv.tables import jsonio
 from hconv.tables.pipeline import convert_file
-from tests.helpers import hconv_inprocess, need, w_of
 
 SCENE = Path(__file__).resolve().parents[1] / "examples" / "data" / "scene.parquet"
 

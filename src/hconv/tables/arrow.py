@@ -119,8 +119,8 @@ def _as_table(data: object) -> pa.Table:
             ) from None
     lazy = " (call .collect() first)" if hasattr(data, "collect") else ""
     raise UsageError(
-        f"convert_table takes a table that speaks Arrow (a pyarrow Table or RecordBatch, a pandas >= 2.2 or "
-        f"polars DataFrame, a DuckDB relation), got {kind}{lazy}"
+        f"convert_table takes a pyarrow Table or RecordBatch, got {type(data).__name__}{lazy}; or any table that "
+        "speaks Arrow: a pandas (2.2 or later) or polars DataFrame, a DuckDB relation"
     )
 
 
