@@ -85,7 +85,7 @@ def open_jsonl(path: str, name: str, job: Job) -> Input:
     what = what_it_is(head, path, name, "jsonl")
     if what:
         raise InputError(f"{name}: {what}")
-    if head.lstrip().startswith(b"["):
+    if head.lstrip().startswith(b"[") and head.lstrip()[1:].lstrip().startswith(b"{"):  # an array of objects
         raise InputError(
             f"{name}: is one JSON array, not JSON lines (one object per line); write a line per object "
             f"first: jq -c '.[]' {name} > {os.path.splitext(name)[0]}-lines.jsonl"
