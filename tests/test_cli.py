@@ -416,6 +416,27 @@ def test_one_nine_values_row_major_and_asymmetry(capsys):
     assert bad["status"] == "not_symmetric" and bad["w"] == [None, None, None]
 
 
+def test_one_numbers_in_brackets_as_python_or_json_prints_them(capsys):
+    """A paste from Python or JSON: [1,2,3], (1., 2., 3.), and --I as a matrix's rows."""
+    plain = hconv_inprocess(
+        "one", "--H", "1,2,3", "--I", "2,0.5,0,0.5,3,0,0,0,4", "--r", "0.1,0,0", "--json", capsys=capsys
+    ).stdout
+    pasted = hconv_inprocess(
+        "one",
+        "--H",
+        "[1, 2, 3]",
+        "--I",
+        "[[2, 0.5, 0], [0.5, 3, 0], [0, 0, 4]]",
+        "--r",
+        "(0.1, 0., 0.)",
+        "--json",
+        capsys=capsys,
+    ).stdout
+    assert json.loads(pasted) == json.loads(plain)
+    w = json.loads(pasted)["w"]
+    np.testing.assert_allclose(w, np.linalg.solve([[2, 0.5, 0], [0.5, 3, 0], [0, 0, 4]], [1, 2, 3]), rtol=1e-15)
+
+
 def test_one_singular_json_has_null_w_and_inf_cond(capsys):
     obj = json.loads(hconv_inprocess("one", "--H", "1,2,3", "--I", "0,2,2", "--json", capsys=capsys).stdout)
     assert obj["status"] == "singular" and obj["w"] == [None, None, None]
@@ -429,6 +450,11 @@ def test_one_singular_json_has_null_w_and_inf_cond(capsys):
         (["--H", "1,2,x", "--I", "1,1,1"], "comma-separated numbers"),
         (["--H", "1,2,3", "--I", "1,1,1,1"], "--I takes 1, 3, 6 or 9"),
         (["--H", "1,2,3", "--I", "1,1,1", "--method", "document"], "--r rx,ry,rz"),
+        (["--H", "[1,2,3", "--I", "1,1,1"], "--H: the brackets in '[1,2,3' do not pair"),
+        (["--H", "[1,2,3]", "--I", "[[1,0],[0,1]]"], "--I takes nested brackets only for an inertia matrix"),
+        (["--H", "[[1,2,3]]", "--I", "1,1,1"], "--H takes nested brackets only for an inertia matrix"),
+        (["--H", "[1,2,3]", "--I", "[[1,0,0][0,1,0],[0,0,1]]"], "needs a comma between the rows"),
+        (["--H", "[1 2 3]", "--I", "1,1,1"], "--H takes comma-separated numbers"),
     ],
 )
 def test_one_bad_arguments_one_line_exit_2(args, needle, capsys):
@@ -577,11 +603,11 @@ def test_one_value_a_run_reads_is_accepted(capsys, given):
     assert code == 0 and out.startswith("w        = [") and err == "", err
 
 
-def test_one_does_not_import_pyarrow_rich_pint_or_numba():
+def test_one_does_not_import_pyarrow_rich_pint_or_a_jit():
     code = (
         "import sys; sys.argv = ['hconv', 'one', '--H', '1,2,3', '--I', '1,2,2.5'];"
         "from hconv.cli import main\ntry: main()\nexcept SystemExit: pass\n"
-        "print(sorted(m for m in ('pyarrow', 'rich', 'pint', 'numba') if m in sys.modules))"
+        "print(sorted(m for m in ('pyarrow', 'rich', 'pint', 'numba', 'llvmlite') if m in sys.modules))"
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=60)
     assert proc.stdout.decode().splitlines()[-1] == "[]"
@@ -595,26 +621,16 @@ def test_methods_json_lists_every_method_with_unit(capsys):
     assert all(m["fails"] and m["cost"] for m in listed)
 
 
-def test_engines_lists_each_engine_within_80_columns(capsys, monkeypatch, tmp_path):
-    from hconv.solve import engines
-
-    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))  # no marker: not compiled here
-    monkeypatch.setattr(engines, "_ready", None)
-    monkeypatch.setattr(engines, "numba_installed", lambda: True)
+def test_engines_lists_each_engine_within_80_columns(capsys, monkeypatch):
+    monkeypatch.delenv("HCONV_ENGINE", raising=False)
     code, out, _ = run_inprocess("engines", capsys=capsys)
     assert code == 0 and [ln.split()[0] for ln in out.splitlines() if not ln.startswith(" ")] == [
+        "compiled",
         "numpy",
-        "numba",
-        "python",
         "auto",
     ]
-    assert "installed, not compiled: run hconv engines --compile" in out
+    assert "built in" in out and "numba" not in out
     assert max(len(ln) for ln in out.splitlines()) <= 80
-    monkeypatch.setattr(engines, "numba_installed", lambda: False)
-    code, out, _ = run_inprocess("engines", capsys=capsys)
-    assert "not installed: pip install 'hconv[fast]'" in out
-    code, _, err = run_inprocess("engines", "--compile", capsys=capsys)
-    assert code == 2 and err.strip() == "hconv: error: --compile needs numba: pip install 'hconv[fast]'"
 
 
 def test_convert_engine_option_rejects_others_in_one_line(tmp_path, capsys):

@@ -215,7 +215,7 @@ def _fill(text: str, stream: Any, indent: str = "  ", first: str = "") -> str:
 
 @app.command("convert")
 @friendly
-@job_options("method", "precision", "engine", *SCENE, *DEGENERATE, *COLUMNS, "omega_unit", "keep_text")
+@job_options("method", "precision", "engine", *SCENE, *DEGENERATE, *COLUMNS, "omega_unit", "keep_text", "prefix")
 def convert_cmd(
     src: str = typer.Argument(
         ...,
@@ -401,6 +401,9 @@ def bodies_cmd(
     force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
     strict: bool = typer.Option(False, "--strict", help="exit 5 when a body is not ok"),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no summary on stderr when writing OUT"),
+    root: str | None = typer.Option(
+        None, "--root", metavar="DIR", help="a folder holding the model's, within which MJCF includes may go"
+    ),
 ) -> None:
     """Check the inertia of every body of a URDF, SDF or MJCF model; list them, or write them for hconv convert."""
     from hconv import modelview
@@ -418,7 +421,7 @@ def bodies_cmd(
                 f"{' and '.join(given)} {'is' if len(given) == 1 else 'are'} for OUT, which is not given; "
                 "give OUT (- for stdout), or drop " + ("it" if len(given) == 1 else "them") + " to list the bodies"
             )
-    m = models.read_model(model)
+    m = models.read_model(model, root=root)
     bad = [b for b in m.bodies if b.status != "ok"]
     if strict and not m.bodies:  # a model with nothing to check passes no check
         raise StrictError(
@@ -511,21 +514,13 @@ def bench_cmd(
 @app.command("engines")
 @friendly
 def engines_cmd(
-    compile_now: bool = typer.Option(
-        False, "--compile", help="compile the numba engine now (once per machine), so that auto can use it"
-    ),
+    compile_now: bool = typer.Option(False, "--compile", hidden=True, help="nothing to do: kept for old instructions"),
 ) -> None:
-    """List the engines that convert rows, and whether the compiled one is installed and compiled."""
+    """List the engines that convert rows, and what auto picks."""
     from hconv.solve import engines
 
-    if compile_now:
-        if not engines.numba_installed():
-            raise UsageError(f"--compile needs numba: {engines.NUMBA_FIX}")
-        from hconv.solve import compiled
-
-        seconds, compiled_now = compiled.warm()
-        done = "compiled the numba engine" if compiled_now else "loaded the numba engine from numba's cache"
-        print(f"{done} in {seconds:.1f} s")
+    if compile_now:  # the compiled engine is built when hconv is installed
+        print("nothing to compile: the compiled engine is built when hconv is installed")
     _listing(engines.listing())
 
 
@@ -533,10 +528,11 @@ def _listing(entries: list[tuple[str, ...]]) -> None:
     """Print ``(name, paragraph, ...)`` entries as a name column beside paragraphs wrapped at
     spaces to 80 columns, or to a narrower terminal, so that no line is cut or runs over. A
     no-break space keeps a number with its unit."""
+    width = max(len(name) for name, *_ in entries) + 2
     for name, *paragraphs in entries:
         for k, text in enumerate(paragraphs):
-            first = f"{name:<8}" if k == 0 else " " * 8
-            print(_fill(text, sys.stdout, " " * 8, first))
+            first = f"{name:<{width}}" if k == 0 else " " * width
+            print(_fill(text, sys.stdout, " " * width, first))
 
 
 @app.command("methods")

@@ -65,7 +65,7 @@ def output_fields(job: Job) -> list[pa.Field]:
                 )
             )
         fields.append(pa.field("null_dim", pa.int8(), metadata={"description": "principal moments dropped"}))
-    return fields
+    return [f.with_name(job.prefix + f.name) for f in fields] if job.prefix else fields
 
 
 def convert_table(
@@ -77,6 +77,7 @@ def convert_table(
     source: str = "table",
     job: Job | None = None,
     plan: layout.Layout | None = None,
+    prefix: str | None = None,
 ) -> Any:
     """Convert every row of a table; returns the same kind of table.
 
@@ -92,11 +93,14 @@ def convert_table(
     :func:`hconv.tables.layout.plan`, for a caller converting many batches of one file. Raises
     :class:`hconv.errors.InputError` or
     ``UsageError`` for a schema or options that cannot be used; per-row problems become statuses.
-    ``source`` names the data in error messages.
+    ``source`` names the data in error messages. ``prefix`` goes before the name of every column
+    hconv appends (:class:`~hconv.tables.job.Job`'s ``prefix``).
     """
     given = data
     table = _as_table(data)
-    job = options.configure(Job, "convert_table", job, method=method, precision=precision, diagnostics=diagnostics)
+    job = options.configure(
+        Job, "convert_table", job, method=method, precision=precision, diagnostics=diagnostics, prefix=prefix
+    )
     return _as_given(convert_batch(table, job, plan, source)[0], given)
 
 
@@ -147,6 +151,7 @@ def output_schema(
     *,
     source: str = "schema",
     job: Job | None = None,
+    prefix: str | None = None,
 ) -> pa.Schema:
     """The schema :func:`convert_table` returns for a table of ``input_schema``, converting nothing.
 
@@ -163,7 +168,9 @@ def output_schema(
     if not isinstance(input_schema, pa.Schema):
         hint = "; pass its .schema" if hasattr(input_schema, "schema") else ""
         raise UsageError(f"output_schema takes a pyarrow Schema, got {type(input_schema).__name__}{hint}")
-    job = options.configure(Job, "output_schema", job, method=method, precision=precision, diagnostics=diagnostics)
+    job = options.configure(
+        Job, "output_schema", job, method=method, precision=precision, diagnostics=diagnostics, prefix=prefix
+    )
     return result_schema(input_schema, job, layout.plan(input_schema, job, source))
 
 
@@ -212,6 +219,9 @@ def result_schema(schema: pa.Schema, job: Job, plan: layout.Layout) -> pa.Schema
     it, for :func:`output_schema` and for every converted batch."""
     meta = dict(schema.metadata or {})
     meta.update({b"hconv.method": methods.get(job.method).name.encode(), b"hconv.version": __version__.encode()})
+    meta.pop(layout.PREFIX_KEY, None)  # an input hconv wrote with a prefix: this run's is its own
+    if job.prefix:
+        meta[layout.PREFIX_KEY] = job.prefix.encode()
     return pa.schema(_with_input_units(schema, plan) + output_fields(job), metadata=meta)
 
 
@@ -219,7 +229,7 @@ def convert_batch(
     data: pa.Table, job: Job, plan: layout.Layout | None = None, source: str = "table", first_row: int = 0
 ) -> tuple[pa.Table, str]:
     """:func:`convert_table` on a checked Table and Job, and the engine that converted it
-    (``numpy``, ``numba`` or ``python``), which the file pipeline reports. ``first_row``: where
+    (``numpy`` or ``compiled``), which the file pipeline reports. ``first_row``: where
     ``data`` starts in its file, so that an error names the file's row."""
     if plan is None:
         plan = layout.plan(data.schema, job, source)

@@ -71,7 +71,7 @@ def _header_hint(names: list) -> str:
     spaced = [n for n in names if n != n.strip() and n.strip() in known]
     if spaced:
         return f" (the header has spaces around {', '.join(repr(n) for n in spaced[:3])}; remove them)"
-    if not any(n.strip() in known for n in names):
+    if not any(n.strip() in known or sets.reads_as(n.strip()) for n in names):
         return f" (the first line, {','.join(names)[:50]!r}, names none of hconv's columns: is it a CSV header?)"
     return ""
 
@@ -342,9 +342,10 @@ class CsvWriter:
 
     def __init__(self, path: str, schema: pa.Schema):
         self._f = open(path, "wb")  # noqa: SIM115 - written batch by batch; close() closes it
-        meta = schema.field("wx").metadata or {} if "wx" in schema.names else {}
+        wx, self._unit_column = layout.output_name("wx", schema), layout.output_name(UNIT_COLUMN, schema)
+        meta = schema.field(wx).metadata or {} if wx in schema.names else {}
         self._unit = meta[b"unit"].decode() if b"unit" in meta else None  # only tables with ω have one
-        names = schema.names + ([UNIT_COLUMN] if self._unit else [])
+        names = schema.names + ([self._unit_column] if self._unit else [])
         buf = io.StringIO()
         csv.writer(buf, lineterminator="\n").writerow(names)
         self._f.write(buf.getvalue().encode())
@@ -363,7 +364,7 @@ class CsvWriter:
         names = table.schema.names
         if self._unit:
             cols.append(pa.repeat(self._unit, table.num_rows))
-            names = names + [UNIT_COLUMN]
+            names = names + [self._unit_column]
         t = pa.Table.from_arrays(cols, names=names)
         if any(_empty_beside_null(c) for c in t.columns):
             self._f.write(_csv_rows(t))

@@ -55,13 +55,16 @@ class FileRecord:
 #: The order a manifest writes the job's fields in, fixed so that its bytes do not follow the
 #: classes' field order (``engine`` is :class:`hconv.Options`' since ``Job`` extends it).
 JOB_KEYS = ("method", "precision", "diagnostics", "conventions", "mapping", "unit_options", "quat_order",
-            "omega_unit", "observed", "engine", "keep_text", "field_units")  # fmt: skip
+            "omega_unit", "observed", "engine", "keep_text", "field_units", "prefix")  # fmt: skip
 
 
 def job_identity(job: Job, src_format: str | None, dst_format: str | None) -> dict:
     """The job as the manifest records it: every Job field, in :data:`JOB_KEYS`' order, and the
-    formats asked for."""
+    formats asked for. ``prefix`` only when one is given: a manifest written before it existed
+    still records the same job."""
     fields = dataclasses.asdict(job)
+    if not job.prefix:
+        del fields["prefix"]
     d = {k: fields.pop(k) for k in JOB_KEYS if k in fields} | fields  # a field added later goes last
     d["src_format"], d["dst_format"] = src_format, dst_format
     return json.loads(json.dumps(d))  # tuples as lists, as they come back from the file
