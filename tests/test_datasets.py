@@ -772,3 +772,45 @@ def test_convert_dataset_lists_the_small_files_before_a_large_one_starts(tmp_pat
     monkeypatch.setattr(runners, "convert_one", convert_one)
     assert hconv.convert_dataset(str(data), str(tmp_path / "out")).complete
     assert sorted(listed_at_start) == [f"a-{k}.parquet" for k in range(4)]
+
+
+def test_convert_dataset_of_arrow_and_json_lines_files(tmp_path):
+    """Before: a directory of .feather and .jsonl files 'holds no file with a .csv, .parquet or .pq name'."""
+    import pyarrow.feather as feather
+
+    src = tmp_path / "in"
+    t = pa.table(make_scene(50, seed=3))
+    (src / "a").mkdir(parents=True)
+    feather.write_feather(t, src / "a" / "one.feather")
+    (src / "two.jsonl").write_text("".join(json.dumps(r) + "\n" for r in t.to_pylist()))
+    with pytest.raises(
+        hconv.errors.UsageError, match=r"two.jsonl: is JSON lines, which hconv reads but does not write"
+    ):
+        hconv.convert_dataset(src, tmp_path / "out")
+    res = hconv.convert_dataset(src, tmp_path / "out", dst_format="arrow")
+    assert res.complete and sorted(res.converted) == ["a/one.feather", "two.jsonl"]
+    assert _files(tmp_path / "out") == {"a/one.feather", "two.arrow", MANIFEST}  # Feather is Arrow: its name kept
+    ref = hconv.convert_table(t)
+    for rel in ("a/one.feather", "two.arrow"):
+        got = pa.ipc.open_file(str(tmp_path / "out" / rel)).read_all()
+        assert got.column("wx").to_pylist() == ref.column("wx").to_pylist()
+
+
+def test_convert_dataset_takes_a_pyarrow_dataset_of_files(tmp_path):
+    """Before: convert_dataset(pyarrow.dataset.dataset(...)) raised a raw TypeError from os.fspath."""
+    import pyarrow.dataset as pads
+
+    src = _dataset(tmp_path / "in")
+    parquet = pads.dataset(src, format="parquet", exclude_invalid_files=True, partitioning="hive")
+    whole = pads.dataset(str(tmp_path / "in" / "date=2026-01-01"), format="parquet")
+    res = hconv.convert_dataset(whole, tmp_path / "out")
+    assert res.complete and res.total == len(whole.files)
+    assert res.rows_converted == whole.count_rows()
+    with pytest.raises(hconv.errors.UsageError, match=r"^convert_dataset: the pyarrow dataset holds \d+ of the files"):
+        hconv.convert_dataset(parquet, tmp_path / "out2")  # not the CSV beside them
+    with pytest.raises(
+        hconv.errors.UsageError, match=r"in memory has no files; .*convert_table\(dataset.to_table\(\)\)"
+    ):
+        hconv.convert_dataset(pads.dataset(pa.table({"Hx": [1.0]})), tmp_path / "out3")
+    with pytest.raises(hconv.errors.UsageError, match=r"^convert_dataset takes a directory, .* got dict"):
+        hconv.convert_dataset({"Hx": [1.0]}, tmp_path / "out4")

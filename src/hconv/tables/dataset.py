@@ -103,8 +103,57 @@ class DatasetError(HconvError):
         self.result = result
 
 
+def _spec_of(src: object, src_format: str | None) -> tuple[str, str | None]:
+    """The dataset ``src`` as a path spec, and its format: a path (str or PathLike) as it is; a
+    pyarrow ``FileSystemDataset`` of local files as their directory, if they are all the files
+    hconv would read there (its format, unless ``src_format`` says it); UsageError for anything else."""
+    if isinstance(src, (str, os.PathLike)):
+        return os.fspath(src), src_format
+    import pyarrow.dataset as pads
+    import pyarrow.fs as pafs
+
+    pass_path = "pass the directory, a glob or the URI as a str, as hconv convert takes it"
+    if isinstance(src, pads.FileSystemDataset):
+        files = [os.path.abspath(f) for f in src.files]
+        if not isinstance(src.filesystem, pafs.LocalFileSystem):
+            raise UsageError(f"convert_dataset: a pyarrow dataset on {src.filesystem.type_name}: {pass_path}")
+        if not files:
+            raise UsageError(f"convert_dataset: the pyarrow dataset has no files; {pass_path}")
+        fmt = src_format or next(
+            (name for kind, name in _PYARROW_FORMATS if isinstance(src.format, getattr(pads, kind, ()))), None
+        )
+        root = os.path.commonpath(files) if len(files) > 1 else os.path.dirname(files[0])
+        if os.path.isfile(root):
+            root = os.path.dirname(root)
+        listed = {os.path.join(root, f.rel) for f in storage.source(root).files(fmt)}
+        if listed != set(files):
+            raise UsageError(
+                f"convert_dataset: the pyarrow dataset holds {len(files)} of the files in {root} that hconv would "
+                f"read ({len(listed)}); {pass_path}, such as a glob that matches those files"
+            )
+        return root, fmt
+    if isinstance(src, pads.Dataset):
+        raise UsageError(
+            "convert_dataset: a pyarrow dataset in memory has no files; convert it with "
+            "hconv.convert_table(dataset.to_table())"
+        )
+    raise UsageError(
+        f"convert_dataset takes a directory, a glob or a URI (a str or path), or a pyarrow dataset of files, "
+        f"got {type(src).__name__}; for a table in memory, use hconv.convert_table"
+    )
+
+
+#: pyarrow.dataset's file formats, and hconv's name for each (first match wins: Feather is IPC).
+_PYARROW_FORMATS = (
+    ("ParquetFileFormat", "parquet"),
+    ("CsvFileFormat", "csv"),
+    ("IpcFileFormat", "arrow"),
+    ("JsonFileFormat", "jsonl"),
+)
+
+
 def convert_dataset(
-    src: str | os.PathLike[str],
+    src: object,
     dst: str | os.PathLike[str],
     *,
     method: str | None = None,
@@ -125,8 +174,9 @@ def convert_dataset(
     task_rows: int | None = None,
     prefix: str | None = None,
 ) -> DatasetResult:
-    """Convert every file of the dataset ``src`` (a directory, a glob or a URI) into ``dst`` (a
-    directory or prefix), each at its relative path, and write the manifest last; see the module.
+    """Convert every file of the dataset ``src`` (a directory, a glob or a URI, or a pyarrow
+    ``FileSystemDataset`` of all the files of a local directory) into ``dst`` (a directory or
+    prefix), each at its relative path, and write the manifest last; see the module.
 
     The keywords are :func:`~hconv.tables.pipeline.convert_file`'s (``prefix`` among them), plus:
     ``force``: convert every file again, and overwrite outputs the manifest does not list (nothing
@@ -153,7 +203,12 @@ def convert_dataset(
     if task_rows is not None and cluster is None:
         raise UsageError(f"{option('task_rows')} sets how {option('cluster')} splits large files; add that")
     runners.check_cluster(cluster, workers, cluster_timeout)
-    src_path, dst_path = os.fspath(src), os.fspath(dst)
+    src_path, src_format = _spec_of(src, src_format)
+    if not isinstance(dst, (str, os.PathLike)):
+        raise UsageError(
+            f"convert_dataset writes into a directory, a prefix or a URI (a str), got {type(dst).__name__}"
+        )
+    dst_path = os.fspath(dst)
     say = log or (lambda line: None)
     plan = plan_dataset(
         src_path,

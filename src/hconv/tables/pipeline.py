@@ -29,7 +29,7 @@ from hconv.tables import csvio, csvtypes, layout
 from hconv.tables.arrow import convert_batch
 from hconv.tables.inputs import Input
 from hconv.tables.job import Job
-from hconv.tables.output import Output
+from hconv.tables.output import Output, into_directory
 from hconv.tables.sniff import format_of
 from hconv.tables.tableio import open_input
 
@@ -249,9 +249,13 @@ def convert_file(
     )
     if engines.for_files(job.engine) != job.engine:
         job = dataclasses.replace(job, engine=engines.for_files(job.engine))
+    dst = into_directory(src, dst, src_format, dst_format)  # an existing directory: the file in it, as cp
     fin = format_of(src, src_format, "src_format")
     fout = format_of(dst, dst_format, "dst_format")
-    out = Output(dst, fout, force=force, input_path=src, shown=dst_name)  # refuses early, before reading
+    # Straight into a pipe's reader where one pass writes it all: CSV keeps its text, and only
+    # CSV's text columns can make a second pass (csvtypes.Retype); --strict promises nothing written.
+    stream = not strict and (fout == "csv" or fin != "csv")
+    out = Output(dst, fout, force=force, input_path=src, shown=dst_name, stream=stream)  # refuses early
     t0 = time.perf_counter()
     with open_input(src, fin, job, name, rows) as inp:
         if fout == "csv":
