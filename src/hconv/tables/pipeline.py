@@ -6,7 +6,6 @@ The CLI's ``convert`` is a thin wrapper over :func:`convert_file`.
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import functools
 import itertools
 import queue
@@ -247,8 +246,6 @@ def convert_file(
     job = options.configure(
         Job, "convert_file", job, method=method, precision=precision, diagnostics=diagnostics, prefix=prefix
     )
-    if engines.for_files(job.engine) != job.engine:
-        job = dataclasses.replace(job, engine=engines.for_files(job.engine))
     dst = into_directory(src, dst, src_format, dst_format)  # an existing directory: the file in it, as cp
     fin = format_of(src, src_format, "src_format")
     fout = format_of(dst, dst_format, "dst_format")
