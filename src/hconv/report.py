@@ -37,6 +37,8 @@ def summary(tally: Tally, console: Console | None = None, asked: str = "auto") -
     engines = " + ".join(tally.engines) or "-"
     head = Text.assemble(("hconv convert", "bold"), f" · method {tally.method} · ω in {tally.unit} · engine {engines}")
     _status_table(console, tally, head)
+    if tally.read_as:
+        note(console, tally.read_as)
     if tally.worst_row is not None:
         note(console, f"worst residual {tally.worst_residual:.3g} (data row {tally.worst_row}), relative to I⁻¹H")
     _engine_note(console, tally, asked)

@@ -9,6 +9,7 @@ pyarrow is given native files only (see :func:`open_csv`)."""
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import re
 from collections.abc import Iterator
@@ -17,52 +18,121 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 
-from hconv.errors import InputError, first_line
-from hconv.solve import forms
+from hconv.errors import InputError, UsageError, first_line
+from hconv.solve import forms, units
 from hconv.tables import csvtypes, layout, sets
-from hconv.tables.inputs import FileStat, Input, changed_while_read, unreadable
-from hconv.tables.job import Job
-from hconv.tables.sniff import rename_or_pass, what_it_is
+from hconv.tables.inputs import FileStat, Input, ReadMarks, changed_while_read, unreadable
+from hconv.tables.job import DELIMITERS, Job
+from hconv.tables.sets import QUANTITY
+from hconv.tables.sniff import (
+    Dialect,
+    comment_lines,
+    delimiter_by_name,
+    rename_or_pass,
+    sniff_decimal,
+    sniff_delimiter,
+    what_it_is,
+)
 
 CSV_BLOCK_BYTES = 4 << 20
 UNIT_COLUMN = layout.UNIT_COLUMN
 
 
-def _sniff_csv(path: str, name: str) -> None:
-    """Refuse, with the reason, a file that is not comma-separated UTF-8 text (first 64 KiB)."""
+def _sniff_csv(path: str, name: str) -> str:
+    """The first 64 KiB of a file as text, whole lines only (a byte-order mark dropped); InputError,
+    with the reason, for a file that is not UTF-8 text."""
     try:
         with open(path, "rb") as f:
             head = f.read(1 << 16)
     except OSError as exc:
         raise unreadable(name, exc) from None
     if not head:
-        return  # the empty file has its own message
+        return ""  # the empty file has its own message
     what = what_it_is(head, path, name, "csv")
     if what:
         raise InputError(f"{name}: {what}")
     if b"\x00" in head or head.startswith(b"\x89PNG") or head.startswith(b"PAR1"):
         parquet = f" (it looks like Parquet: {rename_or_pass(name, 'parquet')})"
         raise InputError(f"{name}: is not a text file, so not CSV" + (parquet if head.startswith(b"PAR1") else ""))
-    head = head[3:] if head.startswith(b"\xef\xbb\xbf") else head
     cut = head.rfind(b"\n") + 1 if len(head) == 1 << 16 else len(head)
+    head = head[: cut or len(head)]
+    head = head[3:] if head.startswith(b"\xef\xbb\xbf") else head
     try:
-        head[: cut or len(head)].decode("utf-8")
+        return head.decode("utf-8")
     except UnicodeDecodeError as exc:
         line = head[: exc.start].count(b"\n") + 1
         raise InputError(
             f"{name}: line {line} is not UTF-8 text; convert the file to UTF-8 first "
             "(for example: iconv -f latin1 -t utf-8)"
         ) from None
-    first = head.split(b"\n", 1)[0].decode("utf-8").strip("\r")
-    if not first.strip():
+
+
+#: Rows of the first block the dialect is sniffed from (DuckDB samples more; a block is enough here).
+SNIFF_ROWS = 100
+
+
+def _dialect(head: str, name: str, job: Job) -> tuple[Dialect, list[str]]:
+    """The delimiter and comment lines of a CSV whose first lines are ``head`` (the decimal mark
+    and a units row are told later, from hconv's columns), and its header and first rows as
+    lines. InputError for a blank header line."""
+    lines = [ln.rstrip("\r") for ln in head.split("\n")]
+    comments = comment_lines(lines)
+    if head and comments and not any(ln.strip() for ln in lines[comments:]):
+        raise InputError(
+            f"{name}: holds only comment lines (starting with #) in its first {comments} lines; "
+            "a CSV needs a header line naming the columns"
+        )
+    body = lines[comments : comments + SNIFF_ROWS + 1]
+    if head and not (body[0].strip() if body else ""):
         raise InputError(f"{name}: the first line is blank; a CSV needs a header line naming the columns")
-    if "," not in first:
-        for sep, word in ((";", "semicolons"), ("\t", "tabs"), ("|", "bars")):
-            if sep in first:
-                raise InputError(
-                    f"{name}: the header is separated by {word}, but hconv reads comma-separated CSV; "
-                    f"convert the delimiter to commas first"
+    given = job.delimiter or delimiter_by_name(name)
+    delimiter = given or sniff_delimiter(body, name, frozenset(sets.all_names()))
+    return Dialect(delimiter=delimiter, decimal=job.decimal or ".", comment_lines=comments), body
+
+
+def _looks_numeric(text: str) -> bool:
+    """Whether a field reads as a number (or starts as one: ``1 kg``), with either decimal mark."""
+    t = text.strip()
+    try:
+        float(t.replace(",", ".", 1))
+    except ValueError:
+        return bool(re.match(r"[+-]?\.?\d", t))
+    return True
+
+
+def _units_row(row: list[str], names: list, plan: layout.Layout, name: str) -> tuple:
+    """The units a row under the header gives hconv's columns, as (column, unit) pairs: a row in
+    which every hconv column holds text that is no number (or nothing) is a row of units, not a
+    data row. () for a row that is data; InputError naming the column whose text is no unit of
+    its quantity."""
+    if len(row) != len(names):
+        return ()
+    quantity = {c: QUANTITY[g.name] for g in plan.groups.values() for c in g.columns}
+    values = {c: row[names.index(c)].strip() for c in plan.numeric}
+    if not any(values.values()) or any(_looks_numeric(v) for v in values.values() if v):
+        return ()
+    for c, v in values.items():
+        if v:
+            try:
+                units.factor(
+                    quantity[c],
+                    v,
+                    f"{name}: the row under the header has no number in hconv's columns, so it is read as their "
+                    f"units, but column {c!r}",
                 )
+            except UsageError as exc:
+                raise InputError(f"{exc}; or remove that row if it is no row of units") from None
+    return tuple((c, v) for c, v in values.items() if v)
+
+
+def _read_options(d: Dialect) -> pacsv.ReadOptions:
+    return pacsv.ReadOptions(
+        block_size=CSV_BLOCK_BYTES, skip_rows=d.comment_lines, skip_rows_after_names=1 if d.units_row else 0
+    )
+
+
+def _parse_options(d: Dialect) -> pacsv.ParseOptions:
+    return pacsv.ParseOptions(delimiter=d.delimiter)
 
 
 def _header_hint(names: list) -> str:
@@ -101,9 +171,10 @@ def _one_line(path: str, name: str) -> bytes | None:
 
 
 def open_csv(path: str, name: str, job: Job) -> Input:
-    _sniff_csv(path, name)
+    head = _sniff_csv(path, name)
+    dialect, lines = _dialect(head, name, job)
     one_line = _one_line(path, name)
-    ropts = pacsv.ReadOptions(block_size=CSV_BLOCK_BYTES)
+    ropts, popts = _read_options(dialect), _parse_options(dialect)
 
     def source() -> pa.NativeFile:
         """The file as pyarrow reads it: a native file, never a Python file object. pyarrow reads
@@ -117,7 +188,7 @@ def open_csv(path: str, name: str, job: Job) -> Input:
         return pa.OSFile(path)
 
     try:
-        with pacsv.open_csv(source(), read_options=ropts) as probe:
+        with pacsv.open_csv(source(), read_options=ropts, parse_options=popts) as probe:
             names = probe.schema.names
     except pa.ArrowInvalid as exc:
         if "Empty CSV file" in str(exc):
@@ -126,18 +197,34 @@ def open_csv(path: str, name: str, job: Job) -> Input:
                 f"{', '.join(sets.VECTOR_SETS['H'])} and the inertia "
                 f"({'; or '.join(', '.join(f.columns) for f in forms.FORMS.values() if not f.extends)})"
             ) from None
-        raise _csv_parse_error(path, name, exc) from None
+        raise _csv_parse_error(path, name, exc, dialect) from None
     except OSError as exc:
         raise unreadable(name, exc) from None
     try:
         plan = layout.plan(pa.schema([(n, pa.float64()) for n in names]), job, name)
     except InputError as exc:
         raise InputError(f"{exc}{_header_hint(names)}") from None
+    rows = [r for r in csv.reader(lines[1:], delimiter=dialect.delimiter) if r]
+    found = _units_row(rows[0], names, plan, name) if rows else ()
+    if rows and found:
+        rows = rows[1:]
+        plan = layout.plan(pa.schema([_with_unit(n, dict(found)) for n in names]), job, name)
+        dialect = dataclasses.replace(dialect, units=found, units_row=True)
+        ropts = _read_options(dialect)
+    if job.decimal is None and dialect.delimiter != ",":
+        at = {c: names.index(c) for c in plan.numeric}
+        values = {c: [r[k] for r in rows if len(r) > k] for c, k in at.items()}
+        dialect = dataclasses.replace(dialect, decimal=sniff_decimal(values, name))
     nums = set(plan.numeric)
     types = {n: (pa.float64() if n in nums else pa.string()) for n in names}
     # NaN is a float value, not a missing one: pyarrow's default null markers include its
     # spellings, which turned a file's NaN into a null (an empty field in CSV output).
-    copts = pacsv.ConvertOptions(column_types=types, strings_can_be_null=False, null_values=csvtypes.NULLS.to_pylist())
+    copts = pacsv.ConvertOptions(
+        column_types=types,
+        strings_can_be_null=False,
+        null_values=csvtypes.NULLS.to_pylist(),
+        decimal_point=dialect.decimal,
+    )
     try:
         f = source()
         fd = None if one_line is not None else f.fileno()
@@ -145,10 +232,12 @@ def open_csv(path: str, name: str, job: Job) -> Input:
     except OSError as exc:
         raise unreadable(name, exc) from None
     try:  # the reader parses its first block here already, so bad values can show up now
-        reader = pacsv.open_csv(f, read_options=ropts, convert_options=copts)
+        reader = pacsv.open_csv(f, read_options=ropts, parse_options=popts, convert_options=copts)
     except pa.ArrowInvalid as exc:  # f is left to pyarrow, whose read-ahead may still be using it
-        raise changed_while_read(name, fd, at_open) or _csv_value_error(path, name, names, ropts, exc) from None
+        raise changed_while_read(name, fd, at_open) or _csv_value_error(path, name, names, dialect, exc) from None
     total = f.size()
+    schema = pa.schema([_with_unit(fl, dict(dialect.units)) for fl in reader.schema])
+    read = ReadMarks(total, CSV_BLOCK_BYTES)
 
     def batches() -> Iterator[pa.RecordBatch]:
         while True:
@@ -157,18 +246,29 @@ def open_csv(path: str, name: str, job: Job) -> Input:
             except StopIteration:
                 break
             except pa.ArrowInvalid as exc:
-                raise changed_while_read(name, fd, at_open) or _csv_value_error(path, name, names, ropts, exc) from None
+                raise changed_while_read(name, fd, at_open) or _csv_value_error(
+                    path, name, names, dialect, exc
+                ) from None
             except (OSError, pa.ArrowException, MemoryError) as exc:  # all the reader raises is the input's
                 raise changed_while_read(name, fd, at_open) or InputError(
                     f"{name}: cannot be read ({first_line(exc)}); check the file"
                 ) from None
-            yield batch
+            read.add(batch.num_rows)
+            yield batch if not dialect.units else pa.RecordBatch.from_arrays(batch.columns, schema=schema)
         changed = changed_while_read(name, fd, at_open)
         if changed:
             raise changed
+        read.done()
 
     text = tuple(n for n in names if n not in nums)
-    return Input(name, reader.schema, batches(), total, f.tell, plan, [], text, path)
+    return Input(name, schema, batches(), total, read.position, plan, [], text, path, dialect=dialect, marks=read)
+
+
+def _with_unit(field: str | pa.Field, found: dict) -> pa.Field:
+    """A column as a float field (``field``: a name) or as it is, with the unit a units row gave
+    it as its metadata, where hconv reads a column's unit from (hconv.tables.layout)."""
+    f = pa.field(field, pa.float64()) if isinstance(field, str) else field
+    return f.with_metadata({"unit": found[f.name]}) if f.name in found else f
 
 
 def reopen(inp: Input, job: Job) -> Input:
@@ -180,12 +280,14 @@ def reopen(inp: Input, job: Job) -> Input:
 def text_batches(inp: Input) -> Iterator[pa.RecordBatch]:
     """A CSV input's text columns (:attr:`Input.text`) from its first row, block by block, as
     text; stops early where the file stops being readable (reading ``inp`` says why)."""
-    ropts = pacsv.ReadOptions(block_size=CSV_BLOCK_BYTES)
+    dialect = inp.dialect or Dialect()
     copts = pacsv.ConvertOptions(
         column_types=dict.fromkeys(inp.text, pa.string()), include_columns=list(inp.text), strings_can_be_null=False
     )
     try:
-        with pacsv.open_csv(inp.path, read_options=ropts, convert_options=copts) as reader:
+        with pacsv.open_csv(
+            inp.path, read_options=_read_options(dialect), parse_options=_parse_options(dialect), convert_options=copts
+        ) as reader:
             yield from reader
     except (OSError, pa.ArrowException):  # not the output's: reading inp again says what it is
         return
@@ -198,7 +300,7 @@ _CSV_RAGGED = re.compile(r"Expected (\d+) columns, got (\d+)")
 _CSV_UTF8 = re.compile(r"In CSV column #(\d+): CSV conversion error to string: invalid UTF8")
 
 
-def _csv_parse_error(path: str, name: str, exc: Exception) -> InputError:
+def _csv_parse_error(path: str, name: str, exc: Exception, dialect: Dialect) -> InputError:
     """A row with the wrong number of values, or too long for a block, named by its data row;
     else pyarrow's first line."""
     m = _CSV_RAGGED.search(str(exc))
@@ -209,10 +311,14 @@ def _csv_parse_error(path: str, name: str, exc: Exception) -> InputError:
     row, k = "", 0
     try:  # the error path only: find the row with Python's csv module
         with open(path, newline="", encoding="utf-8-sig") as f:
-            for k, fields in enumerate(csv.reader(f)):  # noqa: B007 - k is the last row read, below
+            for _ in range(dialect.comment_lines):
+                f.readline()
+            under = 1 + dialect.units_row  # the header, and a units row under it: no data rows
+            for k, fields in enumerate(csv.reader(f, delimiter=dialect.delimiter)):  # noqa: B007 - k: below
                 if k == 0:
                     expected = expected or len(fields)
-                elif fields and len(fields) != expected:
+                elif fields and len(fields) != expected and k >= under:
+                    k -= under - 1
                     row = f"data row {k}"
                     if any("\n" in v for v in fields):  # a quote that ran on, often to the end of the file
                         return InputError(
@@ -234,11 +340,11 @@ def _csv_parse_error(path: str, name: str, exc: Exception) -> InputError:
         )
     return InputError(
         f"{name}: {row or 'a row'} has {m.group(2)} values, but the header names {expected} columns; "
-        "every row needs one value per column (quote a value that holds a comma)"
+        f"every row needs one value per column (quote a value that holds a {DELIMITERS[dialect.delimiter]})"
     )
 
 
-def _csv_value_error(path: str, name: str, names: list, ropts: pacsv.ReadOptions, exc: Exception) -> InputError:
+def _csv_value_error(path: str, name: str, names: list, dialect: Dialect, exc: Exception) -> InputError:
     """Turn pyarrow's conversion error into one naming the column, the value and its row."""
     u = _CSV_UTF8.search(str(exc))
     if u:
@@ -248,18 +354,19 @@ def _csv_value_error(path: str, name: str, names: list, ropts: pacsv.ReadOptions
         )
     m = _CSV_COLUMN.search(str(exc))
     if not m:
-        return _csv_parse_error(path, name, exc)
+        return _csv_parse_error(path, name, exc, dialect)
     col, value = names[int(m.group(1))], m.group(2)
     where = ""
     try:  # a second pass, on the error path only, to find the row
         copts = pacsv.ConvertOptions(column_types={col: pa.string()}, include_columns=[col], strings_can_be_null=False)
         nulls = set(copts.null_values)
         seen = 0
-        for batch in pacsv.open_csv(path, read_options=ropts, convert_options=copts):
+        ropts, popts = _read_options(dialect), _parse_options(dialect)
+        for batch in pacsv.open_csv(path, read_options=ropts, parse_options=popts, convert_options=copts):
             for k, v in enumerate(batch.column(0).to_pylist()):
                 if v not in nulls:
                     try:
-                        float(v)
+                        float(v.replace(",", ".") if dialect.decimal == "," and "." not in v else v)
                     except ValueError:
                         where = f" in data row {seen + k + 1}"
                         raise StopIteration from None
@@ -307,7 +414,9 @@ def _list_as_text(col: pa.ChunkedArray) -> pa.ChunkedArray | pa.Array:
     )
 
 
-_NEEDS_QUOTES = r'[,"\r\n]'
+def _needs_quotes(delimiter: str) -> str:
+    """The characters that make a value need quotes: the delimiter, a quote, a line break."""
+    return "[" + re.escape(delimiter) + '"\\r\\n]'
 
 
 def _empty_beside_null(col: pa.ChunkedArray) -> bool:
@@ -319,7 +428,7 @@ def _empty_beside_null(col: pa.ChunkedArray) -> bool:
     )
 
 
-def _csv_rows(t: pa.Table) -> bytes:
+def _csv_rows(t: pa.Table, delimiter: str = ",") -> bytes:
     """``t`` as CSV rows, each value quoted only if it must be: one holding a comma, quote or line
     break, and, in a column that also holds nulls, the empty string (``""``; a null is empty).
     pyarrow's own quoting (``needed``) quotes every text value, so that ``1`` became ``"1"``; the
@@ -329,26 +438,28 @@ def _csv_rows(t: pa.Table) -> bytes:
     for col in t.columns:
         text = pc.cast(col, pa.string())
         quoted = pc.binary_join_element_wise('"', pc.replace_substring(text, '"', '""'), '"', "")
-        text = pc.if_else(pc.match_substring_regex(text, _NEEDS_QUOTES), quoted, text)
+        text = pc.if_else(pc.match_substring_regex(text, _needs_quotes(delimiter)), quoted, text)
         if col.null_count:
             text = pc.if_else(pc.equal(text, ""), '""', text)
         cols.append(pc.fill_null(text, ""))
-    lines = pc.binary_join_element_wise(*cols, ",") if cols else pa.array([""] * t.num_rows)
+    lines = pc.binary_join_element_wise(*cols, delimiter) if cols else pa.array([""] * t.num_rows)
     return "".join(line + "\n" for line in lines.to_pylist()).encode()
 
 
 class CsvWriter:
-    """CSV with a minimal-quoting header, ``status`` as text and ω's unit in a ``w_unit`` column."""
+    """CSV with a minimal-quoting header, ``status`` as text and ω's unit in a ``w_unit`` column;
+    ``delimiter``: a comma, or a tab for ``.tsv``."""
 
-    def __init__(self, path: str, schema: pa.Schema):
+    def __init__(self, path: str, schema: pa.Schema, delimiter: str = ","):
+        self._delimiter = delimiter
         self._f = open(path, "wb")  # noqa: SIM115 - written batch by batch; close() closes it
         meta = schema.field("wx").metadata or {} if "wx" in schema.names else {}
         self._unit = meta[b"unit"].decode() if b"unit" in meta else None  # only tables with ω have one
         names = schema.names + ([UNIT_COLUMN] if self._unit else [])
         buf = io.StringIO()
-        csv.writer(buf, lineterminator="\n").writerow(names)
+        csv.writer(buf, lineterminator="\n", delimiter=delimiter).writerow(names)
         self._f.write(buf.getvalue().encode())
-        self._plain = pacsv.WriteOptions(include_header=False, quoting_style="none")
+        self._plain = pacsv.WriteOptions(include_header=False, quoting_style="none", delimiter=delimiter)
 
     def write(self, table: pa.Table) -> None:
         check_csv_columns(table.schema, "")  # the callers check the input first, naming it
@@ -366,13 +477,13 @@ class CsvWriter:
             names = names + [UNIT_COLUMN]
         t = pa.Table.from_arrays(cols, names=names)
         if any(_empty_beside_null(c) for c in t.columns):
-            self._f.write(_csv_rows(t))
+            self._f.write(_csv_rows(t, self._delimiter))
             return
         buf = pa.BufferOutputStream()
         try:
             pacsv.write_csv(t, buf, self._plain)
         except pa.ArrowInvalid:  # a value holds a comma, quote or newline: quote those values only
-            self._f.write(_csv_rows(t))
+            self._f.write(_csv_rows(t, self._delimiter))
             return
         self._f.write(buf.getvalue())
 

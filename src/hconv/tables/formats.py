@@ -7,5 +7,6 @@ which need pyarrow) so that the CLI can offer the choices without importing pyar
 from __future__ import annotations
 
 #: Format name -> the extensions that imply it (lower case).
-EXTENSIONS = {"csv": (".csv",), "parquet": (".parquet", ".pq")}
+#: ``.tsv`` and ``.tab`` are CSV with a tab delimiter (hconv.tables.sniff.TAB_EXTENSIONS).
+EXTENSIONS = {"csv": (".csv", ".tsv", ".tab"), "parquet": (".parquet", ".pq")}
 FORMATS = tuple(EXTENSIONS)

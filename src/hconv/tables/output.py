@@ -18,6 +18,7 @@ from hconv import interrupts
 from hconv.errors import OutputError, UsageError, first_line, option
 from hconv.tables.csvio import CsvWriter
 from hconv.tables.parquetio import ParquetWriter
+from hconv.tables.sniff import delimiter_by_name
 from hconv.tables.temporaries import temporary_file
 
 
@@ -98,7 +99,10 @@ class Output:
             raise ValueError("write to an Output inside its with block")
         try:
             if self._writer is None:
-                self._writer = (CsvWriter if self.fmt == "csv" else ParquetWriter)(self._tmp, table.schema)
+                if self.fmt == "csv":  # out.tsv gets tabs
+                    self._writer = CsvWriter(self._tmp, table.schema, delimiter_by_name(self.shown) or ",")
+                else:
+                    self._writer = ParquetWriter(self._tmp, table.schema)
             self._writer.write(table)
         except OSError as exc:  # a full disk, a quota: the output named, not the temporary file
             raise write_failure(self.shown, exc) from None
