@@ -18,7 +18,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 
-from hconv.errors import InputError, UsageError, first_line
+from hconv.errors import InputError, UsageError, first_line, option
 from hconv.solve import forms, units
 from hconv.tables import csvtypes, layout, sets
 from hconv.tables.inputs import FileStat, Input, ReadMarks, changed_while_read, unreadable
@@ -135,9 +135,21 @@ def _parse_options(d: Dialect) -> pacsv.ParseOptions:
     return pacsv.ParseOptions(delimiter=d.delimiter)
 
 
-def _header_hint(names: list) -> str:
-    """Why a header may not have matched: spaces around names, or a first line that is no header."""
+def _header_hint(names: list, lines: list[str], dialect: Dialect, name: str) -> str:
+    """Why a header may not have matched: spaces around names, a delimiter given that the header
+    does not have, or a first line that is no header."""
     known = sets.all_names()
+    if not any(n.strip() in known for n in names):
+        try:
+            sniffed = sniff_delimiter(lines, name, frozenset(known))
+        except UsageError:
+            sniffed = dialect.delimiter
+        if sniffed != dialect.delimiter:
+            words = DELIMITERS[sniffed], DELIMITERS[dialect.delimiter]
+            return (
+                f" (the header is separated by {words[0]}s, not {words[1]}s: "
+                f"pass {option('delimiter', words[0])}, or name the file .csv)"
+            )
     spaced = [n for n in names if n != n.strip() and n.strip() in known]
     if spaced:
         return f" (the header has spaces around {', '.join(repr(n) for n in spaced[:3])}; remove them)"
@@ -203,7 +215,7 @@ def open_csv(path: str, name: str, job: Job) -> Input:
     try:
         plan = layout.plan(pa.schema([(n, pa.float64()) for n in names]), job, name)
     except InputError as exc:
-        raise InputError(f"{exc}{_header_hint(names)}") from None
+        raise InputError(f"{exc}{_header_hint(names, lines, dialect, name)}") from None
     rows = [r for r in csv.reader(lines[1:], delimiter=dialect.delimiter) if r]
     found = _units_row(rows[0], names, plan, name) if rows else ()
     if rows and found:
