@@ -753,7 +753,9 @@ def test_convert_commented_csv_skips_comment_lines(tmp_path, capsys):
 def test_convert_units_row_csv_takes_the_units(tmp_path, capsys):
     """Before: the row of units was data ("column 'Hx' must be numeric but holds 'kg*m^2/s'")."""
     src = tmp_path / "cad.csv"
-    src.write_text("part,Hx,Hy,Hz,I1,I2,I3\n-,kg*m^2/s,kg*m^2/s,kg*m^2/s,g*cm^2,g*cm^2,kg*mm^2\nwheel,1,2,3,2e7,4e7,5e6\n")
+    src.write_text(
+        "part,Hx,Hy,Hz,I1,I2,I3\n-,kg*m^2/s,kg*m^2/s,kg*m^2/s,g*cm^2,g*cm^2,kg*mm^2\nwheel,1,2,3,2e7,4e7,5e6\n"
+    )
     proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.csv"), capsys=capsys)
     assert proc.returncode == 0, proc.stderr
     assert "units from the row under the header" in proc.stderr.decode()
@@ -792,7 +794,10 @@ def test_convert_ambiguous_decimal_mark_names_the_option(tmp_path, capsys):
 @pytest.mark.parametrize(
     "args, needle",
     [
-        (["--delimiter", "x"], "--delimiter takes one of ',', ';', '\\t', '|' (or comma, semicolon, tab, bar), got 'x'"),
+        (
+            ["--delimiter", "x"],
+            "--delimiter takes one of ',', ';', '\\t', '|' (or comma, semicolon, tab, bar), got 'x'",
+        ),
         (["--decimal", ";"], "--decimal takes '.' or ',', got ';'"),
         (["--decimal", ",", "--delimiter", ","], "--decimal , needs another delimiter than the comma"),
     ],

@@ -18,7 +18,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 
-from hconv.errors import InputError, UsageError, first_line, option
+from hconv.errors import HconvError, InputError, UsageError, first_line, option
 from hconv.solve import forms, units
 from hconv.tables import csvtypes, layout, sets
 from hconv.tables.inputs import FileStat, Input, ReadMarks, changed_while_read, unreadable
@@ -209,7 +209,7 @@ def open_csv(path: str, name: str, job: Job) -> Input:
                 f"{', '.join(sets.VECTOR_SETS['H'])} and the inertia "
                 f"({'; or '.join(', '.join(f.columns) for f in forms.FORMS.values() if not f.extends)})"
             ) from None
-        raise _csv_parse_error(path, name, exc, dialect) from None
+        raise _csv_parse_error(path, name, exc, _for_errors(dialect, lines, job, name)) from None
     except OSError as exc:
         raise unreadable(name, exc) from None
     try:
@@ -274,6 +274,17 @@ def open_csv(path: str, name: str, job: Job) -> Input:
 
     text = tuple(n for n in names if n not in nums)
     return Input(name, schema, batches(), total, read.position, plan, [], text, path, dialect=dialect, marks=read)
+
+
+def _for_errors(dialect: Dialect, lines: list[str], job: Job, name: str) -> Dialect:
+    """``dialect`` with its units row, for naming a bad row in a first block that pyarrow could
+    not read (the data rows are counted from under a units row); as it is if that is not known."""
+    try:
+        rows = [r for r in csv.reader(lines, delimiter=dialect.delimiter) if r]
+        plan = layout.plan(pa.schema([(n, pa.float64()) for n in rows[0]]), job, name)
+        return dataclasses.replace(dialect, units_row=len(rows) > 1 and bool(_units_row(rows[1], rows[0], plan, name)))
+    except (HconvError, IndexError, csv.Error):
+        return dialect
 
 
 def _with_unit(field: str | pa.Field, found: dict) -> pa.Field:

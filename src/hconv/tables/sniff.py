@@ -272,31 +272,33 @@ def comment_lines(lines: list[str]) -> int:
 
 def sniff_delimiter(lines: list[str], name: str, known: frozenset = frozenset()) -> str:
     """The delimiter of the CSV whose header and first rows are ``lines``: the candidate that splits
-    the header into the most columns with every row as long (DuckDB's rule). A tie between two
-    candidates is settled by the header naming hconv's columns (``known``) under one of them only;
-    else UsageError naming ``--delimiter``. Comma when none splits the header."""
-    rows_by: dict[str, list[list[str]]] = {}
+    the header into the most columns with most rows as long (a row of the wrong length is named
+    later, by its number); of two alike, the one with more rows as long. A tie is settled by the
+    header naming hconv's columns (``known``) under one of them only; else UsageError naming
+    ``--delimiter``. Comma when none splits the header."""
+    score: dict[str, tuple[int, int]] = {}  # delimiter -> (columns, rows as long as the header)
+    headers: dict[str, list[str]] = {}
     for d in DELIMITERS:
         try:
-            rows_by[d] = [r for r in csv.reader(lines, delimiter=d) if r]
+            rows = [r for r in csv.reader(lines, delimiter=d) if r]
         except csv.Error:  # a value longer than the csv module's limit: not this delimiter's table
             continue
-    fits = {
-        d: len(rows[0])
-        for d, rows in rows_by.items()
-        if rows and len(rows[0]) > 1 and all(len(r) == len(rows[0]) for r in rows[1:])
-    }
-    if not fits:
+        if not rows or len(rows[0]) < 2:
+            continue
+        agree = sum(len(r) == len(rows[0]) for r in rows[1:])
+        if 2 * agree >= len(rows) - 1:
+            score[d], headers[d] = (len(rows[0]), agree), rows[0]
+    if not score:
         return ","
-    most = max(fits.values())
-    best = [d for d in DELIMITERS if fits.get(d) == most]
+    top = max(score.values())
+    best = [d for d in DELIMITERS if score.get(d) == top]
     if len(best) > 1:
-        naming = [d for d in best if known & {c.strip() for c in rows_by[d][0]}]
+        naming = [d for d in best if known & {c.strip() for c in headers[d]}]
         if len(naming) == 1:
             return naming[0]
         shown = [repr("tab" if d == "\t" else d) for d in best]
         raise UsageError(
-            f"{name}: cannot tell the delimiter: {' and '.join(shown)} both split every line into {most} columns; "
+            f"{name}: cannot tell the delimiter: {' and '.join(shown)} both split every line into {top[0]} columns; "
             f"pass {' or '.join(option('delimiter', s) for s in shown)}"
         )
     return best[0]
