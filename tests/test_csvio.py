@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import csv
+import io
+
 
 def test_csv_writer_csv_to_csv_text_columns_come_out_byte_for_byte(tmp_path):
     """Before: one value needing quotes made every text value of its batch quoted (1 -> "1",
@@ -93,3 +96,34 @@ def test_convert_file_progress_counts_bytes_of_the_rows_converted(tmp_path, monk
     assert len(calls) == 1 + -(-size // block)  # the size, then one call per block of the file
     # the k-th batch is the k-th block: it reports k blocks in, never the reader's read-ahead
     assert done[1:-1] == [block * k for k in range(1, len(calls) - 1)]
+
+
+def test_csv_writer_threads_write_the_bytes_of_one_thread(tmp_path, monkeypatch):
+    """The writer formats a table in slices on several threads: the bytes are those of the whole
+    table formatted at once (a column's nulls beside empty strings are decided on the whole table,
+    though a slice may hold only one of them), and a value needing quotes only in one slice."""
+    import numpy as np
+    import pyarrow as pa
+
+    from hconv.solve import engines
+    from hconv.tables import csvio
+
+    n = 3 * csvio._SLICE_ROWS
+    rng = np.random.default_rng(1)
+    words = np.array(["", "a", "b,c", 'say "hi"', "x\ny", "007"], dtype=object)
+    text = words[rng.integers(0, len(words), n)]
+    text[: n // 2][text[: n // 2] == ""] = None  # nulls in the first half only, empty strings in the second
+    t = pa.table(
+        {"t": pa.array(text, pa.string()), "x": rng.normal(size=n), "d": pa.array(["only,here"] + ["p"] * (n - 1))}
+    )
+    written = {}
+    for threads in (1, 4):
+        monkeypatch.setattr(engines, "available_cores", lambda threads=threads: threads)
+        w = csvio.CsvWriter(str(tmp_path / f"{threads}.csv"), t.schema)
+        w.write(t)
+        w.close()
+        written[threads] = (tmp_path / f"{threads}.csv").read_bytes()
+    assert written[1] == written[4]
+    rows = list(csv.reader(io.StringIO(written[1].decode(), newline="")))
+    assert [r[0] for r in rows[1:]] == ["" if v is None else v for v in text]  # every value back as it was
+    assert b'\n"",' in written[1] and b"\n," in written[1]  # "" an empty string, nothing a null

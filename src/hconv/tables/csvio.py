@@ -13,13 +13,15 @@ import dataclasses
 import io
 import re
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 
+import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 
 from hconv.errors import HconvError, InputError, UsageError, first_line, option
-from hconv.solve import forms, units
+from hconv.solve import engines, forms, units
 from hconv.tables import csvtypes, layout, sets
 from hconv.tables.inputs import FileStat, Input, ReadMarks, changed_while_read, unreadable
 from hconv.tables.job import DELIMITERS, Job
@@ -451,27 +453,58 @@ def _empty_beside_null(col: pa.ChunkedArray) -> bool:
     )
 
 
-def _csv_rows(t: pa.Table, delimiter: str = ",") -> bytes:
-    """``t`` as CSV rows, each value quoted only if it must be: one holding a comma, quote or line
-    break, and, in a column that also holds nulls, the empty string (``""``; a null is empty).
-    pyarrow's own quoting (``needed``) quotes every text value, so that ``1`` became ``"1"``; the
-    values are formatted by the same cast pyarrow's writer uses, so the bytes match its unquoted
-    output otherwise."""
+def _is_number(t: pa.DataType) -> bool:
+    """A type whose text never holds a delimiter, a quote or a line break."""
+    return pa.types.is_integer(t) or pa.types.is_floating(t) or pa.types.is_boolean(t)
+
+
+def _csv_rows(t: pa.Table, delimiter: str, with_nulls: frozenset) -> pa.Buffer:
+    """``t`` as CSV rows, each value quoted only if it must be: one holding the delimiter, a
+    quote or a line break, and, in a column that also holds nulls (``with_nulls``: their
+    indices, in the whole table written), the empty string (``""``; a null is empty). pyarrow's
+    own quoting (``needed``) quotes every text value, so that ``1`` became ``"1"``; the values are
+    formatted by the same cast pyarrow's writer uses, so the bytes match its unquoted output
+    otherwise. The rows are joined by pyarrow, not Python: the last column gets the line end,
+    then each row's values are joined into one text whose data buffer is the rows' bytes."""
+
+    def text_of(v: str) -> pa.Scalar:
+        return pa.scalar(v, pa.large_string())
+
     cols = []
-    for col in t.columns:
-        text = pc.cast(col, pa.string())
-        quoted = pc.binary_join_element_wise('"', pc.replace_substring(text, '"', '""'), '"', "")
-        text = pc.if_else(pc.match_substring_regex(text, _needs_quotes(delimiter)), quoted, text)
-        if col.null_count:
-            text = pc.if_else(pc.equal(text, ""), '""', text)
-        cols.append(pc.fill_null(text, ""))
-    lines = pc.binary_join_element_wise(*cols, delimiter) if cols else pa.array([""] * t.num_rows)
-    return "".join(line + "\n" for line in lines.to_pylist()).encode()
+    for k, col in enumerate(t.columns):
+        text = pc.cast(col, pa.large_string())  # 64-bit offsets: a block's text may pass 2 GiB
+        if not _is_number(col.type):
+            needs = pc.match_substring_regex(text, _needs_quotes(delimiter))
+            if pc.any(needs).as_py():
+                quoted = pc.binary_join_element_wise(
+                    text_of('"'), pc.replace_substring(text, '"', '""'), text_of('"'), text_of("")
+                )
+                text = pc.if_else(needs, quoted, text)
+        if k in with_nulls:
+            text = pc.if_else(pc.equal(text, ""), text_of('""'), text)
+        cols.append(pc.fill_null(text, text_of("")))
+    if not cols:
+        return pa.py_buffer(b"\n" * t.num_rows)
+    cols[-1] = pc.binary_join_element_wise(cols[-1], text_of("\n"), text_of(""))
+    lines = pc.binary_join_element_wise(*cols, text_of(delimiter)) if len(cols) > 1 else cols[0]
+    lines = lines.combine_chunks() if isinstance(lines, pa.ChunkedArray) else lines
+    if len(lines) == 0:
+        return pa.py_buffer(b"")
+    offsets = np.frombuffer(lines.buffers()[1], dtype=np.int64)
+    return lines.buffers()[2][int(offsets[lines.offset]) : int(offsets[lines.offset + len(lines)])]
+
+
+#: Rows below which a table is formatted on the writing thread alone.
+_SLICE_ROWS = 16_384
 
 
 class CsvWriter:
     """CSV with a minimal-quoting header, ``status`` as text and ω's unit in a ``w_unit`` column;
-    ``delimiter``: a comma, or a tab for ``.tsv``."""
+    ``delimiter``: a comma, or a tab for ``.tsv``.
+
+    A table is formatted in slices of rows on several threads (pyarrow formats without the GIL;
+    formatting numbers is most of a CSV write's time), and the slices written in order: the bytes
+    are those of one slice, whatever the number of threads."""
 
     def __init__(self, path: str, schema: pa.Schema, delimiter: str = ","):
         self._delimiter = delimiter
@@ -483,6 +516,8 @@ class CsvWriter:
         csv.writer(buf, lineterminator="\n", delimiter=delimiter).writerow(names)
         self._f.write(buf.getvalue().encode())
         self._plain = pacsv.WriteOptions(include_header=False, quoting_style="none", delimiter=delimiter)
+        self._threads = min(4, engines.available_cores())
+        self._pool = ThreadPoolExecutor(self._threads, thread_name_prefix="hconv-csv") if self._threads > 1 else None
 
     def write(self, table: pa.Table) -> None:
         check_csv_columns(table.schema, "")  # the callers check the input first, naming it
@@ -499,16 +534,30 @@ class CsvWriter:
             cols.append(pa.repeat(self._unit, table.num_rows))
             names = names + [UNIT_COLUMN]
         t = pa.Table.from_arrays(cols, names=names)
-        if any(_empty_beside_null(c) for c in t.columns):
-            self._f.write(_csv_rows(t, self._delimiter))
-            return
+        # decided on the whole table, so that its slices are written alike
+        quote_empty = any(_empty_beside_null(c) for c in t.columns)
+        with_nulls = frozenset(k for k, c in enumerate(t.columns) if c.null_count) if quote_empty else frozenset()
+        n = -(-t.num_rows // self._threads)
+        if self._pool is None or t.num_rows < _SLICE_ROWS:
+            parts = [self._format(t, quote_empty, with_nulls)]
+        else:
+            slices = [t.slice(k, n) for k in range(0, t.num_rows, n)]
+            parts = list(self._pool.map(lambda s: self._format(s, quote_empty, with_nulls), slices))
+        for part in parts:
+            self._f.write(part)
+
+    def _format(self, t: pa.Table, quote_empty: bool, with_nulls: frozenset) -> pa.Buffer:
+        """Rows of ``t`` as CSV: pyarrow's writer where no value needs quotes, else :func:`_csv_rows`."""
+        if quote_empty:
+            return _csv_rows(t, self._delimiter, with_nulls)
         buf = pa.BufferOutputStream()
         try:
             pacsv.write_csv(t, buf, self._plain)
-        except pa.ArrowInvalid:  # a value holds a comma, quote or newline: quote those values only
-            self._f.write(_csv_rows(t, self._delimiter))
-            return
-        self._f.write(buf.getvalue())
+        except pa.ArrowInvalid:  # a value holds the delimiter, a quote or a line break: quote those only
+            return _csv_rows(t, self._delimiter, with_nulls)
+        return buf.getvalue()
 
     def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown()
         self._f.close()
