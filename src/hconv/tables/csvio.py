@@ -537,14 +537,13 @@ class CsvWriter:
         # decided on the whole table, so that its slices are written alike
         quote_empty = any(_empty_beside_null(c) for c in t.columns)
         with_nulls = frozenset(k for k, c in enumerate(t.columns) if c.null_count) if quote_empty else frozenset()
-        n = -(-t.num_rows // self._threads)
         if self._pool is None or t.num_rows < _SLICE_ROWS:
-            parts = [self._format(t, quote_empty, with_nulls)]
-        else:
-            slices = [t.slice(k, n) for k in range(0, t.num_rows, n)]
-            parts = list(self._pool.map(lambda s: self._format(s, quote_empty, with_nulls), slices))
-        for part in parts:
-            self._f.write(part)
+            self._f.write(self._format(t, quote_empty, with_nulls))
+            return
+        n = -(-t.num_rows // self._threads)
+        slices = [t.slice(k, n) for k in range(0, t.num_rows, n)]
+        for part in self._pool.map(lambda s: self._format(s, quote_empty, with_nulls), slices):
+            self._f.write(part)  # in order, while the later slices are still being formatted
 
     def _format(self, t: pa.Table, quote_empty: bool, with_nulls: frozenset) -> pa.Buffer:
         """Rows of ``t`` as CSV: pyarrow's writer where no value needs quotes, else :func:`_csv_rows`."""
