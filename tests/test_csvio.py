@@ -98,32 +98,48 @@ def test_convert_file_progress_counts_bytes_of_the_rows_converted(tmp_path, monk
     assert done[1:-1] == [block * k for k in range(1, len(calls) - 1)]
 
 
-def test_csv_writer_threads_write_the_bytes_of_one_thread(tmp_path, monkeypatch):
-    """The writer formats a table in slices on several threads: the bytes are those of the whole
-    table formatted at once (a column's nulls beside empty strings are decided on the whole table,
-    though a slice may hold only one of them), and a value needing quotes only in one slice."""
+def test_csv_writer_slices_write_the_bytes_of_the_whole_table(tmp_path, monkeypatch):
+    """Values that need quotes are joined a slice of rows at a time: the bytes are those of the
+    whole table joined at once (a column's nulls beside empty strings are decided on the whole
+    table, though a slice may hold only one of them), and every value comes back as it was."""
     import numpy as np
     import pyarrow as pa
 
-    from hconv.solve import engines
     from hconv.tables import csvio
 
-    n = 3 * csvio._SLICE_ROWS
+    n = 3 * csvio._QUOTED_ROWS
     rng = np.random.default_rng(1)
     words = np.array(["", "a", "b,c", 'say "hi"', "x\ny", "007"], dtype=object)
     text = words[rng.integers(0, len(words), n)]
     text[: n // 2][text[: n // 2] == ""] = None  # nulls in the first half only, empty strings in the second
-    t = pa.table(
-        {"t": pa.array(text, pa.string()), "x": rng.normal(size=n), "d": pa.array(["only,here"] + ["p"] * (n - 1))}
-    )
+    t = pa.table({"t": pa.array(text, pa.string()), "x": rng.normal(size=n), "d": pa.array(["p"] * n)})
     written = {}
-    for threads in (1, 4):
-        monkeypatch.setattr(engines, "available_cores", lambda threads=threads: threads)
-        w = csvio.CsvWriter(str(tmp_path / f"{threads}.csv"), t.schema)
+    for rows in (csvio._QUOTED_ROWS, 10 * n):
+        monkeypatch.setattr(csvio, "_QUOTED_ROWS", rows)
+        w = csvio.CsvWriter(str(tmp_path / f"{rows}.csv"), t.schema)
         w.write(t)
         w.close()
-        written[threads] = (tmp_path / f"{threads}.csv").read_bytes()
-    assert written[1] == written[4]
-    rows = list(csv.reader(io.StringIO(written[1].decode(), newline="")))
+        written[rows] = (tmp_path / f"{rows}.csv").read_bytes()
+    assert written[10 * n] == written[csvio._QUOTED_ROWS]
+    rows = list(csv.reader(io.StringIO(written[10 * n].decode(), newline="")))
     assert [r[0] for r in rows[1:]] == ["" if v is None else v for v in text]  # every value back as it was
-    assert b'\n"",' in written[1] and b"\n," in written[1]  # "" an empty string, nothing a null
+    assert b'\n"",' in written[10 * n] and b"\n," in written[10 * n]  # "" an empty string, nothing a null
+
+
+def test_csv_writer_a_value_pyarrow_refuses_unquoted_takes_its_rows_back(tmp_path, monkeypatch):
+    """pyarrow's writer writes a table's rows straight into the file, 1024 at a time, and refuses
+    a value that needs quotes only when it gets there: the rows it wrote are taken back, and the
+    table written with quotes, as if it had been seen first."""
+    import pyarrow as pa
+
+    from hconv.tables import csvio
+
+    t = pa.table({"t": ["a"] * 5000 + ["b,c"], "x": [0.5] * 5001})
+    expected = "t,x\n" + "a,0.5\n" * 5000 + '"b,c",0.5\n'
+    for seen in (True, False):
+        monkeypatch.setattr(csvio, "_needs_quoting", lambda t, d, seen=seen: seen)
+        w = csvio.CsvWriter(str(tmp_path / "out.csv"), t.schema)
+        w.write(t.slice(0, 10))
+        w.write(t)
+        w.close()
+        assert (tmp_path / "out.csv").read_text() == "t,x\n" + "a,0.5\n" * 10 + expected[4:]

@@ -11,9 +11,9 @@ from __future__ import annotations
 import csv
 import dataclasses
 import io
+import os
 import re
 from collections.abc import Iterator
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pyarrow as pa
@@ -21,7 +21,7 @@ import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 
 from hconv.errors import HconvError, InputError, UsageError, first_line, option
-from hconv.solve import engines, forms, units
+from hconv.solve import forms, units
 from hconv.tables import csvtypes, layout, sets
 from hconv.tables.inputs import FileStat, Input, ReadMarks, changed_while_read, unreadable
 from hconv.tables.job import DELIMITERS, Job
@@ -494,21 +494,40 @@ def _csv_rows(t: pa.Table, delimiter: str, with_nulls: frozenset) -> pa.Buffer:
     return lines.buffers()[2][int(offsets[lines.offset]) : int(offsets[lines.offset + len(lines)])]
 
 
-#: Rows below which a table is formatted on the writing thread alone.
-_SLICE_ROWS = 16_384
+#: Rows formatted at once where values need quotes: a slice's text stays in the CPU's cache, as
+#: pyarrow's writer formats 1024 rows at a time (a whole 4 MB block's text did not, and cost more).
+_QUOTED_ROWS = 8192
+
+
+def _needs_quoting(t: pa.Table, delimiter: str) -> bool:
+    """Whether a value of ``t`` may hold the delimiter, a quote or a line break: looked for in the
+    bytes of each text column's values at once (a slice's buffer may hold more values than the
+    slice: a value outside it can only send the table to the quoted path, which writes the same
+    bytes for values that need no quotes)."""
+    marks = (delimiter.encode(), b'"', b"\n", b"\r")
+    for col in t.columns:
+        if _is_number(col.type):
+            continue
+        text = col if pa.types.is_string(col.type) or pa.types.is_large_string(col.type) else pc.cast(col, pa.string())
+        for chunk in text.chunks if isinstance(text, pa.ChunkedArray) else [text]:
+            data = chunk.buffers()[2]
+            raw = data.to_pybytes() if data is not None else b""  # a copy, then memchr: 1 ms a MB
+            if any(m in raw for m in marks):
+                return True
+    return False
 
 
 class CsvWriter:
     """CSV with a minimal-quoting header, ``status`` as text and ω's unit in a ``w_unit`` column;
     ``delimiter``: a comma, or a tab for ``.tsv``.
 
-    A table is formatted in slices of rows on several threads (pyarrow formats without the GIL;
-    formatting numbers is most of a CSV write's time), and the slices written in order: the bytes
-    are those of one slice, whatever the number of threads."""
+    Where no value needs quotes, pyarrow's own writer writes the rows straight into the file (it
+    formats 1024 rows at a time, in the CPU's cache): pyarrow's speed. Where one does, the rows
+    are joined by pyarrow in slices (:func:`_csv_rows`)."""
 
     def __init__(self, path: str, schema: pa.Schema, delimiter: str = ","):
-        self._delimiter = delimiter
-        self._f = open(path, "wb")  # noqa: SIM115 - written batch by batch; close() closes it
+        self._delimiter, self._path = delimiter, path
+        self._f = pa.OSFile(path, "wb")  # a native file: pyarrow's writer writes into it without Python
         meta = schema.field("wx").metadata or {} if "wx" in schema.names else {}
         self._unit = meta[b"unit"].decode() if b"unit" in meta else None  # only tables with ω have one
         names = schema.names + ([UNIT_COLUMN] if self._unit else [])
@@ -516,8 +535,6 @@ class CsvWriter:
         csv.writer(buf, lineterminator="\n", delimiter=delimiter).writerow(names)
         self._f.write(buf.getvalue().encode())
         self._plain = pacsv.WriteOptions(include_header=False, quoting_style="none", delimiter=delimiter)
-        self._threads = min(4, engines.available_cores())
-        self._pool = ThreadPoolExecutor(self._threads, thread_name_prefix="hconv-csv") if self._threads > 1 else None
 
     def write(self, table: pa.Table) -> None:
         check_csv_columns(table.schema, "")  # the callers check the input first, naming it
@@ -535,28 +552,22 @@ class CsvWriter:
             names = names + [UNIT_COLUMN]
         t = pa.Table.from_arrays(cols, names=names)
         # decided on the whole table, so that its slices are written alike
-        quote_empty = any(_empty_beside_null(c) for c in t.columns)
-        with_nulls = frozenset(k for k, c in enumerate(t.columns) if c.null_count) if quote_empty else frozenset()
-        if self._pool is None or t.num_rows < _SLICE_ROWS:
-            self._f.write(self._format(t, quote_empty, with_nulls))
+        if any(_empty_beside_null(c) for c in t.columns) or _needs_quoting(t, self._delimiter):
+            self._quoted(t)
             return
-        n = -(-t.num_rows // self._threads)
-        slices = [t.slice(k, n) for k in range(0, t.num_rows, n)]
-        for part in self._pool.map(lambda s: self._format(s, quote_empty, with_nulls), slices):
-            self._f.write(part)  # in order, while the later slices are still being formatted
-
-    def _format(self, t: pa.Table, quote_empty: bool, with_nulls: frozenset) -> pa.Buffer:
-        """Rows of ``t`` as CSV: pyarrow's writer where no value needs quotes, else :func:`_csv_rows`."""
-        if quote_empty:
-            return _csv_rows(t, self._delimiter, with_nulls)
-        buf = pa.BufferOutputStream()
+        at = self._f.tell()
         try:
-            pacsv.write_csv(t, buf, self._plain)
-        except pa.ArrowInvalid:  # a value holds the delimiter, a quote or a line break: quote those only
-            return _csv_rows(t, self._delimiter, with_nulls)
-        return buf.getvalue()
+            pacsv.write_csv(t, self._f, self._plain)
+        except pa.ArrowInvalid:  # a value pyarrow would quote after all: take back its rows, quote those values
+            self._f.close()
+            os.truncate(self._path, at)
+            self._f = pa.OSFile(self._path, "ab")
+            self._quoted(t)
+
+    def _quoted(self, t: pa.Table) -> None:
+        with_nulls = frozenset(k for k, c in enumerate(t.columns) if c.null_count)
+        for k in range(0, t.num_rows, _QUOTED_ROWS):
+            self._f.write(_csv_rows(t.slice(k, _QUOTED_ROWS), self._delimiter, with_nulls))
 
     def close(self) -> None:
-        if self._pool is not None:
-            self._pool.shutdown()
         self._f.close()
