@@ -302,3 +302,40 @@ def test_convert_table_with_units_of_gives_what_the_dropped_metadata_gave(tmp_pa
     job = hconv.Job(field_units=hconv.units_of(tmp_path))
     assert hconv.convert_table(bare, job=job).equals(hconv.convert_table(stored))
     assert not hconv.convert_table(bare).equals(hconv.convert_table(stored))
+
+
+def test_convert_table_prefix_names_every_appended_column_and_output_schema_agrees(rng):
+    H, I = rng.normal(size=(4, 3)), np.abs(rng.normal(size=(4, 3))) + 1
+    data = pa.table({"Hx": H[:, 0], "Hy": H[:, 1], "Hz": H[:, 2], "I1": I[:, 0], "I2": I[:, 1], "I3": I[:, 2],
+                     "status": ["a", "b", "c", "d"], "wx": np.zeros(4)})  # fmt: skip
+    with pytest.raises(InputError, match=r"or give the columns hconv appends a prefix with prefix='out_'$"):
+        hconv.convert_table(data)
+    got = hconv.convert_table(data, prefix="o.")
+    appended = ["o.wx", "o.wy", "o.wz", "o.residual", "o.cond", "o.status"]
+    assert got.column_names == data.column_names + appended
+    assert got.column("status").equals(data.column("status")) and got.column("wx").equals(data.column("wx"))
+    np.testing.assert_array_equal(np.stack([got.column(c).to_numpy() for c in appended[:3]], 1), H / I)
+    assert got.schema == hconv.output_schema(data.schema, prefix="o.")
+    assert got.schema.metadata[b"hconv.prefix"] == b"o."
+    assert hconv.convert_table(data, job=hconv.Job(prefix="o.")).equals(got)
+    # a table hconv wrote with a prefix, converted again with another: the record is the new run's
+    again = hconv.convert_table(got, prefix="p_")
+    assert again.schema.metadata[b"hconv.prefix"] == b"p_"
+    assert b"hconv.prefix" not in hconv.convert_table(got.drop_columns(["status", "wx"] + appended)).schema.metadata
+
+
+def test_convert_table_reads_struct_columns_and_output_schema_agrees(rng):
+    H = rng.normal(size=(6, 3))
+    six = np.array([2.0, 3.0, 4.0, 0.1, -0.2, 0.3])
+    h = pa.StructArray.from_arrays([pa.array(H[:, k]) for k in range(3)], names=["x", "y", "z"])
+    inertia = pa.StructArray.from_arrays(
+        [pa.array(np.full(6, v)) for v in six], names=["xx", "yy", "zz", "xy", "xz", "yz"]
+    )
+    data = pa.table({"H": h, "I": inertia})
+    got = hconv.convert_table(data)
+    assert got.schema == hconv.output_schema(data.schema)
+    assert got.column_names[:2] == ["H", "I"] and got.column("H").equals(data.column("H"))
+    xx, yy, zz, xy, xz, yz = six
+    M = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+    w = np.stack([got.column(c).to_numpy() for c in ("wx", "wy", "wz")], 1)
+    np.testing.assert_allclose(w, np.linalg.solve(M, H.T).T, rtol=1e-14)

@@ -415,6 +415,27 @@ def test_one_nine_values_row_major_and_asymmetry(capsys):
     assert bad["status"] == "not_symmetric" and bad["w"] == [None, None, None]
 
 
+def test_one_numbers_in_brackets_as_python_or_json_prints_them(capsys):
+    """A paste from Python or JSON: [1,2,3], (1., 2., 3.), and --I as a matrix's rows."""
+    plain = hconv_inprocess(
+        "one", "--H", "1,2,3", "--I", "2,0.5,0,0.5,3,0,0,0,4", "--r", "0.1,0,0", "--json", capsys=capsys
+    ).stdout
+    pasted = hconv_inprocess(
+        "one",
+        "--H",
+        "[1, 2, 3]",
+        "--I",
+        "[[2, 0.5, 0], [0.5, 3, 0], [0, 0, 4]]",
+        "--r",
+        "(0.1, 0., 0.)",
+        "--json",
+        capsys=capsys,
+    ).stdout
+    assert json.loads(pasted) == json.loads(plain)
+    w = json.loads(pasted)["w"]
+    np.testing.assert_allclose(w, np.linalg.solve([[2, 0.5, 0], [0.5, 3, 0], [0, 0, 4]], [1, 2, 3]), rtol=1e-15)
+
+
 def test_one_singular_json_has_null_w_and_inf_cond(capsys):
     obj = json.loads(hconv_inprocess("one", "--H", "1,2,3", "--I", "0,2,2", "--json", capsys=capsys).stdout)
     assert obj["status"] == "singular" and obj["w"] == [None, None, None]
@@ -428,6 +449,11 @@ def test_one_singular_json_has_null_w_and_inf_cond(capsys):
         (["--H", "1,2,x", "--I", "1,1,1"], "comma-separated numbers"),
         (["--H", "1,2,3", "--I", "1,1,1,1"], "--I takes 1, 3, 6 or 9"),
         (["--H", "1,2,3", "--I", "1,1,1", "--method", "document"], "--r rx,ry,rz"),
+        (["--H", "[1,2,3", "--I", "1,1,1"], "--H: the brackets in '[1,2,3' do not pair"),
+        (["--H", "[1,2,3]", "--I", "[[1,0],[0,1]]"], "--I takes nested brackets only for an inertia matrix"),
+        (["--H", "[[1,2,3]]", "--I", "1,1,1"], "--H takes nested brackets only for an inertia matrix"),
+        (["--H", "[1,2,3]", "--I", "[[1,0,0][0,1,0],[0,0,1]]"], "needs a comma between the rows"),
+        (["--H", "[1 2 3]", "--I", "1,1,1"], "--H takes comma-separated numbers"),
     ],
 )
 def test_one_bad_arguments_one_line_exit_2(args, needle, capsys):

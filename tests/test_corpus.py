@@ -48,7 +48,8 @@ ERRORS = {  # file: (exit code, words the one-line message must hold)
     "csv_named_parquet.parquet": (3, "not a readable Parquet file"),
     "list_wrong_length.parquet": (3, "'I' holds 4 values per row"),
     "list_ragged.parquet": (3, "'H' holds 2 values in row 2, but H needs 3 (Hx, Hy, Hz)"),
-    "struct_column.parquet": (3, "column 'H' has type struct"),
+    # H a struct {x, y, z} is read as Hx, Hy, Hz (issue 26), but a CSV cannot hold the struct itself
+    "struct_column.parquet": (3, "column 'H' is struct<x: double, y: double, z: double>, which CSV cannot hold"),
     "list_of_lists.parquet": (3, "must be a list of numbers"),
     "string_column.parquet": (3, "column 'Hx' has type string"),
     "bool_column.parquet": (3, "column 'Hx' has type bool"),

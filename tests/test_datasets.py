@@ -182,6 +182,20 @@ def test_convert_dataset_changed_job_converts_every_file_and_says_why(tmp_path, 
     assert _manifest(tmp_path / "out")["job"]["method"] == "refined"
 
 
+def test_convert_dataset_prefix_names_the_appended_columns_and_the_manifest_records_it(tmp_path):
+    src = tmp_path / "data"
+    _write(src / "a.parquet", 20, seed=1)
+    result = hconv.convert_dataset(src, tmp_path / "out", prefix="hc_")
+    assert result.tally.rows == 20 and result.tally.per_status.sum() == 20
+    names = pq.read_schema(tmp_path / "out" / "a.parquet").names
+    assert names[-6:] == ["hc_wx", "hc_wy", "hc_wz", "hc_residual", "hc_cond", "hc_status"]
+    assert _manifest(tmp_path / "out")["job"]["prefix"] == "hc_"
+    logged: list[str] = []
+    hconv.convert_dataset(src, tmp_path / "out", log=logged.append)  # no prefix now: another job
+    assert any("the job differs" in line and "prefix: 'hc_' →" in line for line in logged), logged
+    assert "prefix" not in _manifest(tmp_path / "out")["job"]
+
+
 def test_convert_dataset_failing_file_is_named_the_others_finish_and_exit_code_is_its(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     data = _dataset(tmp_path / "data")

@@ -13,6 +13,7 @@ import pyarrow.parquet as pq
 import pytest
 from helpers import hconv_inprocess
 
+import hconv
 from hconv.errors import InputError, UsageError
 from hconv.tables import layout, pipeline
 from hconv.tables.job import Job
@@ -250,8 +251,190 @@ def test_plan_missing_vector_set_suggests_the_map_that_reads_look_alike_columns(
     assert w == [1.0, 1.0, 0.75]
 
 
-def test_plan_missing_vector_set_without_look_alikes_suggests_nothing():
+def test_plan_missing_vector_set_without_look_alikes_names_the_map_to_give():
     schema = pa.schema([(c, pa.float64()) for c in ("Ax", "By", "Cz", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz")])
     with pytest.raises(InputError) as info:
         layout.plan(schema, Job(), "x.csv")
-    assert str(info.value) == "x.csv: missing columns Hx, Hy, Hz (or a list column H)"
+    assert str(info.value) == (
+        "x.csv: missing columns Hx, Hy, Hz (or a list column H); if another column holds Hx, "
+        "give mapping={'Hx': 'COLUMN'}"
+    )
+
+
+def _csv_w(out) -> np.ndarray:
+    lines = out.read_text().splitlines()
+    header = lines[0].split(",")
+    return np.array([[float(r.split(",")[header.index(c)]) for c in ("wx", "wy", "wz")] for r in lines[1:]])
+
+
+def test_plan_reads_units_written_in_headers_and_names_in_any_case(tmp_path, capsys):
+    """A CSV as a spreadsheet writes it: units in brackets or parentheses after the names, names in
+    another case. ω is I⁻¹H in SI: 1 g·cm² is 1e-7 kg·m²."""
+    src = tmp_path / "units.csv"
+    src.write_text(
+        "t,hx [kg*m^2/s],HY [kg*m^2/s],Hz [kg*m^2/s],ixx (g*cm^2),Iyy (g*cm^2),IZZ (g*cm^2),"
+        "Ixy (g*cm^2),Ixz (g*cm^2),iyz (g*cm^2)\n"
+        "0,1,2,3,1e7,2e7,4e7,0,0,0\n"
+    )
+    out = tmp_path / "o.csv"
+    proc = hconv_inprocess("convert", str(src), str(out), capsys=capsys)
+    assert proc.returncode == 0, proc.stderr.decode()
+    np.testing.assert_array_equal(_csv_w(out), [[1.0, 1.0, 0.75]])
+    assert out.read_text().splitlines()[0].startswith("t,hx [kg*m^2/s],HY [kg*m^2/s]")  # the input's names, kept
+    # --unit wins over the header's
+    proc = hconv_inprocess("convert", str(src), str(out), "--force", "--unit", "I=kg*m**2", capsys=capsys)
+    assert proc.returncode == 0, proc.stderr.decode()
+    np.testing.assert_allclose(_csv_w(out), [[1e-7, 1e-7, 0.75e-7]], rtol=1e-15)
+
+
+@pytest.mark.parametrize(
+    "header, needle",
+    [
+        ("Hx [blorts],Hy,Hz,I1,I2,I3", "column 'Hx [blorts]' (the unit in its header): pint does not understand"),
+        ("Hx [m/s],Hy,Hz,I1,I2,I3", "column 'Hx [m/s]' (the unit in its header): 'm/s' is not a unit of"),
+    ],
+)
+def test_plan_header_unit_pint_cannot_use_names_the_column_and_unit_option(header, needle, tmp_path, capsys):
+    src = tmp_path / "bad.csv"
+    src.write_text(header + "\n1,2,3,1,1,1\n")
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "o.csv"), capsys=capsys)
+    err = proc.stderr.decode().strip()
+    assert proc.returncode == 3 and len(err.splitlines()) == 1, err
+    assert needle in err and err.endswith("or give its unit with --unit Hx=UNIT, which wins")
+    # the fix it names works
+    fixed = hconv_inprocess("convert", str(src), str(tmp_path / "o.csv"), "--unit", "Hx=kg*m^2/s", capsys=capsys)
+    assert fixed.returncode == 0, fixed.stderr.decode()
+
+
+def test_plan_two_columns_for_one_name_in_different_case_names_both_and_map():
+    schema = pa.schema([(c, pa.float64()) for c in ("hx", "HX", "Hy", "Hz", "I1", "I2", "I3")])
+    with pytest.raises(InputError) as info:
+        layout.plan(schema, Job(), "x.csv")
+    assert str(info.value) == "x.csv: columns 'hx' and 'HX' could both be Hx; say which with mapping={'Hx': 'hx'}"
+    plan = layout.plan(schema, Job(mapping={"Hx": "HX"}), "x.csv")
+    assert plan.groups["H"].columns == ("HX", "Hy", "Hz")
+
+
+def test_plan_exact_names_win_and_one_letter_names_keep_their_case():
+    """A column named exactly as hconv's name is read, never its look-alike in another case; and
+    M or V (a Mach number, a voltage) is not taken for the mass or the velocity."""
+    schema = pa.schema([(c, pa.float64()) for c in ("Hx", "HX", "Hy", "Hz", "I1", "I2", "I3", "M", "R")])
+    plan = layout.plan(schema, Job(), "x.csv")
+    assert plan.groups["H"].columns == ("Hx", "Hy", "Hz") and set(plan.groups) == {"H", "I"}
+
+
+@pytest.mark.parametrize(
+    "columns, needle",
+    [
+        (("Hx", "Hy", "H_z", "I1", "I2", "I3"), "if column 'H_z' holds Hz, give mapping={'Hz': 'H_z'}"),
+        (("Hx", "Hy", "Hz", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "I_yz"), "give mapping={'Iyz': 'I_yz'}"),
+        (("Hx", "Hy", "Hz", "inertia"), "if another column holds I1, give mapping={'I1': 'COLUMN'}"),
+        (("Hx", "Hy", "Hz", "I1", "I2", "I3", "rx", "ry"), "if another column holds rz, give mapping={'rz': 'COLUMN'}"),
+    ],
+)
+def test_plan_missing_columns_always_name_the_map(columns, needle):
+    schema = pa.schema([(c, pa.float64()) for c in columns])
+    with pytest.raises(InputError) as info:
+        layout.plan(schema, Job(), "x.csv")
+    assert needle in str(info.value) and "\n" not in str(info.value)
+
+
+def _struct_table(n: int, rng) -> tuple[pa.Table, np.ndarray, np.ndarray]:
+    H = rng.normal(size=(n, 3))
+    six = np.abs(rng.normal(size=(n, 6))) * [1, 1, 1, 0.1, 0.1, 0.1] + [3, 3, 3, 0, 0, 0]
+    h = pa.StructArray.from_arrays([pa.array(H[:, k]) for k in range(3)], names=["x", "y", "z"])
+    inertia = pa.StructArray.from_arrays(
+        [pa.array(six[:, k]) for k in range(6)], names=["xx", "yy", "zz", "xy", "xz", "yz"]
+    )
+    return pa.table({"t": np.arange(n), "H": h, "I": inertia}), H, six
+
+
+def _solve(H: np.ndarray, six: np.ndarray) -> np.ndarray:
+    xx, yy, zz, xy, xz, yz = six.T
+    M = np.stack([np.stack([xx, xy, xz], -1), np.stack([xy, yy, yz], -1), np.stack([xz, yz, zz], -1)], 1)
+    return np.array([np.linalg.solve(M[k], H[k]) for k in range(len(H))])
+
+
+def test_plan_reads_struct_columns_named_like_sets_from_a_parquet_file(tmp_path, rng, capsys):
+    """A Parquet file with H a struct {x, y, z} and I a struct {xx, ..., yz}, as pyarrow writes it:
+    the structs stand for their sets, and stay structs in the output."""
+    data, H, six = _struct_table(40, rng)
+    src, out = tmp_path / "s.parquet", tmp_path / "o.parquet"
+    pq.write_table(data, src)
+    proc = hconv_inprocess("convert", str(src), str(out), capsys=capsys)
+    assert proc.returncode == 0, proc.stderr.decode()
+    got = pq.read_table(out)
+    assert got.schema.field("H").type == data.schema.field("H").type
+    assert got.column("H").equals(data.column("H")) and got.column("I").equals(data.column("I"))
+    w = np.stack([got.column(c).to_numpy() for c in ("wx", "wy", "wz")], 1)
+    np.testing.assert_allclose(w, _solve(H, six), rtol=1e-13)
+
+
+def test_plan_map_reads_a_struct_field_by_its_dotted_path(tmp_path, rng, capsys):
+    data, H, six = _struct_table(5, rng)
+    momentum = pa.StructArray.from_arrays(
+        [data.column("H").combine_chunks().field(k) for k in range(3)], ["a", "b", "c"]
+    )
+    data = data.set_column(1, "L", momentum)
+    src = tmp_path / "s.parquet"
+    pq.write_table(data, src)
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "o.parquet"), capsys=capsys)
+    err = proc.stderr.decode().strip()
+    assert proc.returncode == 3 and "missing columns Hx, Hy, Hz" in err and "--map" in err
+    proc = hconv_inprocess(
+        "convert", str(src), str(tmp_path / "o.parquet"), "--map", "Hx=L.a,Hy=L.b,Hz=L.c", capsys=capsys
+    )
+    assert proc.returncode == 0, proc.stderr.decode()
+    got = pq.read_table(tmp_path / "o.parquet")
+    w = np.stack([got.column(c).to_numpy() for c in ("wx", "wy", "wz")], 1)
+    np.testing.assert_allclose(w, _solve(H, six), rtol=1e-13)
+    assert got.column("L").equals(data.column("L"))
+
+
+def test_read_struct_row_that_is_null_is_invalid_input(rng):
+    data, _, _ = _struct_table(3, rng)
+    h = data.column("H").combine_chunks()
+    masked = pa.StructArray.from_arrays(h.flatten(), names=["x", "y", "z"], mask=pa.array([False, True, False]))
+    got = hconv.convert_table(data.set_column(1, "H", masked))
+    assert got.column("status").to_pylist() == ["ok", "invalid_input", "ok"]
+    assert got.column("H").equals(pa.chunked_array([masked]))
+
+
+def test_plan_input_with_hconv_s_output_names_converts_with_a_prefix(tmp_path, capsys):
+    """An input that has a status and a wx column of its own: refused naming --prefix, and with it
+    converted, the input's columns kept as they were and hconv's prefixed, w_unit too."""
+    src, out = tmp_path / "log.csv", tmp_path / "o.csv"
+    src.write_text("Hx,Hy,Hz,I1,I2,I3,status,wx\n1,2,3,2,4,4,armed,9\n2,2,2,2,2,2,idle,8\n")
+    proc = hconv_inprocess("convert", str(src), str(out), capsys=capsys)
+    err = proc.stderr.decode().strip()
+    assert proc.returncode == 3 and len(err.splitlines()) == 1
+    assert err.endswith("already has output columns wx, status; rename or drop them (is this hconv's own output?), "
+                        "or give the columns hconv appends a prefix with --prefix out_")  # fmt: skip
+    proc = hconv_inprocess("convert", str(src), str(out), "--prefix", "out_", capsys=capsys)
+    assert proc.returncode == 0, proc.stderr.decode()
+    lines = out.read_text().splitlines()
+    assert lines[0] == "Hx,Hy,Hz,I1,I2,I3,status,wx,out_wx,out_wy,out_wz,out_residual,out_cond,out_status,out_w_unit"
+    assert lines[1].startswith("1,2,3,2,4,4,armed,9,0.5,0.5,0.75,") and lines[1].endswith(",ok,rad/s")
+    assert "ok\t2" in proc.stderr.decode()  # the tally counts hconv's status, not the input's
+    # converting the output again needs another prefix, and says so
+    again = hconv_inprocess("convert", str(out), str(tmp_path / "o2.csv"), "--prefix", "out_", capsys=capsys)
+    assert again.returncode == 3 and "or give the columns hconv appends a prefix with another --prefix" in (
+        again.stderr.decode()
+    )
+
+
+def test_plan_reads_the_unit_a_struct_field_stores_as_its_metadata():
+    unit = {b"unit": b"g*cm**2/s"}
+    h = pa.struct([pa.field(a, pa.float64(), metadata=unit) for a in "xyz"])
+    schema = pa.schema([("H", h), ("I1", pa.float64()), ("I2", pa.float64()), ("I3", pa.float64())])
+    assert layout.stored_units(schema) == {"H.x": "g*cm**2/s", "H.y": "g*cm**2/s", "H.z": "g*cm**2/s"}
+    plan = layout.plan(schema, Job(), "s.parquet")
+    assert plan.groups["H"].columns == ("H.x", "H.y", "H.z") and plan.groups["H"].factors == pytest.approx([1e-7] * 3)
+
+
+def test_plan_reads_an_observed_omega_struct_for_diagnose(rng):
+    """w_obs {x, y, z}, whose columns (wx_obs...) are not the struct's name and a field's."""
+    data, H, six = _struct_table(4, rng)
+    w = pa.StructArray.from_arrays([pa.array(rng.normal(size=4)) for _ in range(3)], names=["x", "y", "z"])
+    plan = layout.plan(data.append_column("w_obs", w).schema, Job(observed=True), "log.parquet")
+    assert plan.groups["w_obs"].columns == ("w_obs.x", "w_obs.y", "w_obs.z")

@@ -21,3 +21,9 @@ def test_job_identity_keeps_the_released_key_order():
     assert list(record) == RELEASED_KEYS
     assert (record["method"], record["engine"], record["src_format"]) == ("refined", "numpy", "csv")
     assert json.loads(json.dumps(record)) == record  # what the file holds is what the next run compares
+
+
+def test_job_identity_records_a_prefix_only_when_given():
+    assert "prefix" not in job_identity(hconv.Job(), None, None)
+    record = job_identity(hconv.Job(prefix="out_"), None, None)
+    assert list(record) == RELEASED_KEYS[:-2] + ["prefix"] + RELEASED_KEYS[-2:] and record["prefix"] == "out_"

@@ -199,28 +199,22 @@ def test_convert_bad_shapes_raise_with_expected_shape():
 
 
 def test_convert_one_body_of_the_wrong_shape_names_its_shape():
-    with pytest.raises(ValueError, match=r"Expected one body's I to have shape \(3,\), \(6,\) or \(3, 3\), got \(4,\)"):
+    with pytest.raises(
+        ValueError, match=r"Expected one body's I to have shape \(3,\), \(6,\), \(9,\) or \(3, 3\), got \(4,\)"
+    ):
         hconv.convert(np.ones(3), np.ones(4))
     with pytest.raises(ValueError, match=r"Expected H to have shape \(3,\) or \(N, 3\), got \(2,\)"):
         hconv.convert(np.ones(2), np.ones(3))
 
 
-def test_convert_stacked_h_with_another_shape_of_i_says_what_it_needs():
-    """A newcomer trial: a scalar I gave IndexError, and one body's (6,) or (3, 3) beside a stack
-    of H was counted as 6 or 3 tensors ("but H holds 1 vectors")."""
+def test_convert_shapes_that_do_not_broadcast_name_both():
+    """A newcomer trial: a scalar I gave IndexError. Stacks of unequal rows are refused naming both
+    shapes, as numpy would refuse them; a shape that is no tensor names what I takes."""
     cases = [
-        (
-            np.ones((5, 3)),
-            2.0,
-            r"^Expected I to have shape \(5, 3\), \(5, 6\) or \(5, 3, 3\) for H of shape \(5, 3\), got \(\)$",
-        ),
-        (
-            np.ones((5, 3)),
-            np.ones(6),
-            r"got \(6,\); \(3,\), \(6,\) and \(3, 3\) are one body's, for H of shape \(3,\)$",
-        ),
-        (np.ones((1, 3)), np.eye(3), r"^I holds 3 tensors but H holds 1 vector; a \(3, 3\) I is one body's tensor"),
-        (np.ones((2, 3)), np.ones((1, 6)), r"^I holds 1 tensor but H holds 2 vectors$"),
+        (np.ones((5, 3)), 2.0, r"^Expected one body's I to have shape \(3,\), \(6,\), \(9,\) or \(3, 3\), got \(\)$"),
+        (np.ones((5, 3)), np.ones((5, 4)), r"^Expected I to have shape \(N, 3\), \(N, 6\), \(N, 9\) or \(N, 3, 3\)"),
+        (np.ones((2, 3)), np.ones((3, 6)), r"^H of shape \(2, 3\) and I of shape \(3, 6\) do not broadcast"),
+        (np.ones(3), np.ones((4, 6)), None),  # one H over four tensors: fine
         (
             [[1, 2, 3], [1, 2]],
             np.ones((2, 6)),
@@ -228,8 +222,80 @@ def test_convert_stacked_h_with_another_shape_of_i_says_what_it_needs():
         ),
     ]
     for H, I, message in cases:
+        if message is None:
+            assert hconv.convert(H, I).w.shape == (4, 3)
+            continue
         with pytest.raises(ValueError, match=message):
             hconv.convert(H, I)
+    with pytest.raises(ValueError, match=r"^H of shape \(4, 3\) and r of shape \(2, 3\) do not broadcast"):
+        hconv.convert(np.ones((4, 3)), np.ones(6), np.ones((2, 3)), method="exact")
+
+
+def _loop_solve(H: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """I⁻¹H row by row with numpy's own solver, one call per row: a reference apart from hconv."""
+    return np.array([np.linalg.solve(M[k], H[k]) for k in range(len(H))])
+
+
+def _matrix(six: np.ndarray) -> np.ndarray:
+    xx, yy, zz, xy, xz, yz = six
+    return np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+
+
+def test_convert_one_body_s_inertia_broadcasts_over_many_h_as_the_tiled_stack(rng):
+    """One body's I, (6,), (3, 3) or (9,), or a stack of one row, over a log of its H: every row is
+    numpy's solve of that row, and the answer is the tiled call's, bit for bit."""
+    n = 50
+    H = rng.normal(size=(n, 3))
+    six = np.array([2.0, 3.0, 4.5, 0.3, -0.2, 0.1])
+    M = _matrix(six)
+    ref = _loop_solve(H, np.broadcast_to(M, (n, 3, 3)))
+    tiled = hconv.convert(H, np.tile(six, (n, 1)))
+    for I in (six, M, M.ravel(), six[None], M[None], M.reshape(1, 9)):
+        res = hconv.convert(H, I)
+        assert res.w.shape == (n, 3) and res.status.tolist() == ["ok"] * n
+        np.testing.assert_allclose(res.w, ref, rtol=1e-14, atol=0)
+        if I.shape[-1] == 6:
+            assert res.w.tobytes() == tiled.w.tobytes() and res.residual.tobytes() == tiled.residual.tobytes()
+    tiled9 = hconv.convert(H, np.tile(M.ravel(), (n, 1)))
+    assert hconv.convert(H, M).w.tobytes() == tiled9.w.tobytes() == hconv.convert(H, np.tile(M, (n, 1, 1))).w.tobytes()
+
+
+def test_convert_takes_nine_numbers_per_row_as_the_matrix_row_major(rng):
+    """I of shape (N, 9), as a file's nine columns give it: the same answer as (N, 3, 3)."""
+    n = 20
+    H = rng.normal(size=(n, 3))
+    six = np.abs(rng.normal(size=(n, 6))) * [1, 1, 1, 0.1, 0.1, 0.1] + [3, 3, 3, 0, 0, 0]
+    M = np.array([_matrix(s) for s in six])
+    res = hconv.convert(H, M.reshape(n, 9))
+    np.testing.assert_allclose(res.w, _loop_solve(H, M), rtol=1e-13)
+    assert res.w.tobytes() == hconv.convert(H, M).w.tobytes()
+
+
+def test_convert_one_offset_and_one_h_broadcast_over_many_rows(rng):
+    """r (3,) with many rows of H and I, and one H (3,) over many bodies, as numpy broadcasts;
+    the answers are the tiled calls', bit for bit."""
+    n = 30
+    H = rng.normal(size=(n, 3))
+    I = np.abs(rng.normal(size=(n, 3))) + 1.0
+    r = np.array([0.1, -0.2, 0.3])
+    one = hconv.convert(H, I, r, method="exact")
+    assert one.w.tobytes() == hconv.convert(H, I, np.tile(r, (n, 1)), method="exact").w.tobytes()
+    h = H[0]
+    many = hconv.convert(h, I)
+    np.testing.assert_allclose(many.w, h / I, rtol=1e-15)
+    assert many.w.tobytes() == hconv.convert(np.tile(h, (n, 1)), I).w.tobytes()
+    assert hconv.convert(h, I[0]).w.shape == (3,)  # every argument one body's: unstacked, as before
+
+
+def test_convert_3x3_inertia_beside_three_rows_stays_three_principal_rows():
+    """The one ambiguous shape keeps its old reading: I (3, 3) with H of three rows is three rows
+    of principal moments; I[None] uses one matrix for the three."""
+    H = np.arange(9.0).reshape(3, 3) + 1
+    I = np.array([[2.0, 3.0, 4.0], [3.0, 4.0, 5.0], [4.0, 5.0, 6.0]])  # a singular matrix
+    np.testing.assert_array_equal(hconv.convert(H, I).w, H / I)
+    M = np.diag([1.0, 2.0, 4.0])
+    np.testing.assert_array_equal(hconv.convert(H, M[None]).w, H / [1.0, 2.0, 4.0])
+    np.testing.assert_array_equal(hconv.convert(H[:2], M).w, H[:2] / [1.0, 2.0, 4.0])
 
 
 @pytest.mark.parametrize(

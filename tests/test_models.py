@@ -493,6 +493,55 @@ def test_check_massless_with_a_negative_moment_is_not_called_a_rod(tmp_path):
     assert "line mass" not in why and "singular" not in why
 
 
+# iCub's legs as its URDF gives them: a tensor of floating-point dust beside a real mass, and a
+# link with a mass and I = 0 (the other numbers of the links are the file's style, not its values)
+ICUB_LEGS = urdf(
+    '<link name="r_hip_1"><inertial><origin xyz="0 0 0" rpy="0 0 0"/><mass value="0.9"/>'
+    '<inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>',
+    '<link name="r_hip_2"><inertial><origin xyz="0.0133 0.0 -0.0588" rpy="0 0 0"/><mass value="1.3"/>'
+    '<inertia ixx="0.0" ixy="0.0" ixz="2.4e-35" iyy="0.0" iyz="0.0" izz="0.0"/></inertial></link>',
+    '<link name="r_upper_leg"><inertial><origin xyz="0.0 0.0 -0.12" rpy="0 0 0"/><mass value="1.5"/>'
+    '<inertia ixx="0.0037" ixy="0.0" ixz="0.0" iyy="0.0037" iyz="0.0" izz="0.0009"/></inertial></link>',
+)
+
+
+def test_check_negligible_tensor_is_a_point_mass_as_i_zero_is(tmp_path):
+    """Before: r_hip_2 was not_positive_definite, "no mass distribution has it", for rounding
+    dust of 2.4e-35 kg·m² beside 1.3 kg; and r_hip_1 (I = 0) had no density check."""
+    got = by_name(model(tmp_path, "icub.urdf", ICUB_LEGS))
+    dust, zero, leg = got["r_hip_2"], got["r_hip_1"], got["r_upper_leg"]
+    assert (dust.status, zero.status, leg.status) == ("singular", "singular", "ok")
+    assert dust.reason.startswith("I is negligible beside m·(1 nm)² = 1.3e-18 kg·m² (its largest moment is 2.4e-35")
+    assert "no mass distribution" not in dust.reason and "sign slip" not in dust.reason
+    assert zero.reason.startswith("I = 0 with m = 0.9 kg: a point mass")
+    for b in (dust, zero):
+        assert "also implausible_density: a mass of" in b.reason and "an infinite density" in b.reason
+
+
+@pytest.mark.parametrize(
+    "I, want",
+    [
+        # largest moment just below m·(1 nm)², any signs: dust
+        (np.diag([-0.9e-18, 0.0, 0.9e-18]), "singular"),
+        (np.diag([0.5e-18, 0.5e-18, 0.9e-18]), "singular"),
+        # just above: judged as a tensor, here a body far too dense, with its unit-slip advice
+        (np.diag([1.1e-18, 1.1e-18, 1.1e-18]), "implausible_density"),
+        (np.diag([-1.1e-18, 1.1e-18, 1.1e-18]), "not_positive_definite"),
+    ],
+)
+def test_check_negligible_threshold_is_m_times_a_nanometre_squared(tmp_path, I, want):
+    s, why = status_of(tmp_path, 1.0, I)
+    assert s == want
+    assert ("negligible" in why) == (want == "singular")
+
+
+def test_check_density_runs_where_the_trace_is_not_positive(tmp_path):
+    """Before: a negative trace with a positive mass went unjudged by the density check."""
+    s, why = status_of(tmp_path, 2.0, np.diag([-0.3, -0.2, 0.1]))
+    assert s == "not_positive_definite"
+    assert "also implausible_density: a mass of 2 kg with a trace of -0.4 kg·m², not positive, has no" in why
+
+
 def test_read_urdf_duplicate_link_names_are_a_note(tmp_path):
     """Before: the two links named "a" were listed twice with no word."""
     I = np.diag([0.1, 0.2, 0.25])
@@ -1353,6 +1402,7 @@ def test_mujoco_agrees_on_the_shipped_example():
     [
         ("mass='1' diaginertia='0.1 0.1 0.3'", "not_physical"),
         ("mass='1' diaginertia='0 0 0'", "singular"),
+        ("mass='1.3' fullinertia='0 0 0 0 2.4e-35 0'", "singular"),
         ("mass='0' diaginertia='0 0 0'", "massless"),
         ("mass='0' diaginertia='0.1 0.1 0.1'", "massless_with_inertia"),
         ("mass='-1' diaginertia='0.1 0.1 0.1'", "negative_mass"),

@@ -215,7 +215,9 @@ def _fill(text: str, stream: Any, indent: str = "  ", first: str = "") -> str:
 
 @app.command("convert")
 @friendly
-@job_options("method", "precision", "engine", *SCENE, *DEGENERATE, *COLUMNS, *DIALECT, "omega_unit", "keep_text")
+@job_options(
+    "method", "precision", "engine", *SCENE, *DEGENERATE, *COLUMNS, *DIALECT, "omega_unit", "keep_text", "prefix"
+)
 def convert_cmd(
     src: str = typer.Argument(
         ...,
@@ -416,6 +418,9 @@ def bodies_cmd(
     force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
     strict: bool = typer.Option(False, "--strict", help="exit 5 when a body is not ok"),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no summary on stderr when writing OUT"),
+    root: str | None = typer.Option(
+        None, "--root", metavar="DIR", help="a folder holding the model's, within which MJCF includes may go"
+    ),
 ) -> None:
     """Check the inertia of every body of a URDF, SDF or MJCF model; list them, or write them for hconv convert."""
     from hconv import modelview
@@ -433,7 +438,7 @@ def bodies_cmd(
                 f"{' and '.join(given)} {'is' if len(given) == 1 else 'are'} for OUT, which is not given; "
                 "give OUT (- for stdout), or drop " + ("it" if len(given) == 1 else "them") + " to list the bodies"
             )
-    m = models.read_model(model)
+    m = models.read_model(model, root=root)
     bad = [b for b in m.bodies if b.status != "ok"]
     if strict and not m.bodies:  # a model with nothing to check passes no check
         raise StrictError(

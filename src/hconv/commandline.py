@@ -192,6 +192,16 @@ JOB_OPTIONS = {
             help="a CSV input's decimal mark: . or , (the latter with another delimiter); default: sniffed",
         ),
     ),
+    "prefix": (
+        str,
+        typer.Option(
+            "",
+            "--prefix",
+            metavar="P",
+            help="put P before the name of every column hconv appends (wx → Pwx, status → Pstatus), "
+            "for an input that already has one of them",
+        ),
+    ),
 }
 _CONVENTIONS = ("frame", "omega_frame", "about", "products", "degenerate", "degenerate_rtol")
 SCENE = ("frame", "omega_frame", "about", "products")
@@ -300,17 +310,65 @@ def friendly(fn: Callable) -> Callable:
 
 
 def numbers(option: str, text: str, allowed: tuple[int, ...]) -> list[float]:
-    parts = [p.strip() for p in text.split(",")]  # "0 1" is an error, never the number 01
+    """The comma-separated numbers of ``option``'s ``text``, as many as one of ``allowed``.
+
+    The numbers may stand in brackets, as Python or JSON prints them (``[1, 2, 3]``, ``(1, 2, 3)``),
+    and nine may be a matrix's rows (``[[1,0,0],[0,1,0],[0,0,1]]``, read row-major). Commas
+    separate them, always: ``0 1`` is an error, never the number 01."""
+    flat, rows = _bracketed(option, text)
+    parts = [p.strip() for p in flat.split(",")]
     if "" in parts:
         raise UsageError(f"{option} has an empty value in {text!r}; give comma-separated numbers, like 1,2,3")
     try:
         values = [float(v) for v in parts]
     except ValueError:
         raise UsageError(f"{option} takes comma-separated numbers, got {text!r}") from None
+    if rows is not None and (len(rows) != 3 or any(k != 3 for k in rows) or 9 not in allowed):
+        raise UsageError(
+            f"{option} takes nested brackets only for an inertia matrix, three rows of three numbers, got {text!r}"
+        )
     if len(values) not in allowed:
         counts = ", ".join(str(k) for k in allowed[:-1]) + (" or " if len(allowed) > 1 else "") + str(allowed[-1])
         raise UsageError(f"{option} takes {counts} comma-separated numbers, got {len(values)} in {text!r}")
     return values
+
+
+_CLOSE = {"[": "]", "(": ")"}
+
+
+def _bracketed(option: str, text: str) -> tuple[str, list[int] | None]:
+    """``text`` without its brackets, and the numbers of each inner row when it is a list of lists
+    (None when it is not nested); UsageError for brackets that do not pair, or numbers beside rows."""
+    t = text.strip()
+    if not t or t[0] not in _CLOSE:
+        if any(c in t for c in "[]()"):
+            raise UsageError(f"{option}: the brackets in {text!r} do not pair; give 1,2,3 or [1,2,3]")
+        return text, None
+    bad = UsageError(f"{option}: the brackets in {text!r} do not pair; give 1,2,3 or [1,2,3]")
+    if t[-1] != _CLOSE[t[0]]:
+        raise bad
+    inner = t[1:-1].strip()
+    if not inner or inner[0] not in _CLOSE:
+        if any(c in inner for c in "[]()"):
+            raise bad
+        return inner, None
+    rows, flat = [], []
+    at = 0
+    while at < len(inner):
+        opening = inner[at]
+        if opening not in _CLOSE:
+            raise UsageError(f"{option}: {text!r} mixes numbers and rows in brackets; give every row in brackets")
+        end = inner.find(_CLOSE[opening], at)
+        row = inner[at + 1 : end] if end > 0 else "["
+        if end < 0 or any(c in row for c in "[]()"):
+            raise bad
+        rows.append(len(row.split(",")))
+        flat.append(row)
+        rest = inner[end + 1 :].lstrip()
+        if rest and not rest.startswith(","):
+            raise UsageError(f"{option}: {text!r} needs a comma between the rows")
+        at = len(inner) - len(rest[1:].lstrip()) if rest else len(inner)
+    return ",".join(flat), rows
 
 
 def json_number(x: float) -> float | None:

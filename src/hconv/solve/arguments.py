@@ -1,9 +1,10 @@
 """The arguments of :func:`hconv.solve.convert.convert`: H, I and r read as float64 numbers in SI
 and checked for shape, before any conversion.
 
-The shapes are those of :mod:`hconv.solve.convert`'s docstring; one body given unstacked is read
-as a stack of one. Numbers that carry a unit or a mask are read by the rule in the docstring of
-:func:`hconv.solve.convert.convert` (:mod:`hconv.solve.units` finds the units). A wrong shape is
+The shapes, and how they broadcast, are those of :func:`hconv.solve.convert.convert`'s docstring;
+every argument comes out a stack of the same number of rows. Numbers that carry a unit or a mask
+are read by the rule in the docstring of :func:`hconv.solve.convert.convert`
+(:mod:`hconv.solve.units` finds the units). A wrong shape is
 a ValueError, a unit or a type hconv does not read a UsageError, each naming the argument.
 """
 
@@ -25,43 +26,77 @@ class Arguments:
     """H, I and r as float64 numbers in SI, stacked, and how they were given."""
 
     H: np.ndarray  #: (N, 3) [kg·m²/s]
-    I: np.ndarray  #: (N, 6), (N, 3, 3) or (N, 3) [kg·m²]
+    I: np.ndarray  #: (N, 6), (N, 3, 3) or (N, 3) [kg·m²] (nine numbers come as (N, 3, 3))
     r: np.ndarray | None  #: (N, 3) [m], or None when not given
-    single: bool  #: one body, given unstacked: its result goes back unstacked
+    single: bool  #: one body, every argument unstacked: its result goes back unstacked
     quantities: list[type]  #: the classes of the pint Quantities given, in argument order
 
 
 def read(H: ArrayLike, I: ArrayLike, r: ArrayLike | None) -> Arguments:
-    """``H``, ``I`` and ``r`` (None: not given) read by :func:`as_float` and checked for shape."""
+    """``H``, ``I`` and ``r`` (None: not given) read by :func:`as_float`, their shapes checked and
+    broadcast against each other by the rule in :func:`hconv.solve.convert.convert`'s docstring:
+    each is one body's (no row axis) or a stack of rows, and stacks of N rows and of one row
+    broadcast to N rows, as numpy broadcasts. Nine numbers per tensor are a (3, 3) matrix."""
     quantities: list[type] = []  # the classes of the pint Quantities given, in argument order
     H = as_float("H", H, quantities)
     I = as_float("I", I, quantities)
-    single = H.ndim == 1
-    if single:
-        if H.shape != (3,):
-            raise ValueError(f"Expected H to have shape (3,) or (N, 3), got {H.shape}")
-        if I.shape not in ((3,), (6,), (3, 3)):
-            raise ValueError(f"Expected one body's I to have shape (3,), (6,) or (3, 3), got {I.shape}")
-        H, I = H[None], I[None]
-        r = None if r is None else as_float("r", r, quantities)[None]
-    if H.ndim != 2 or H.shape[1] != 3:
-        raise ValueError(f"Expected H to have shape (3,) or (N, 3), got {H.shape}")
-    n = H.shape[0]
-    if I.ndim not in (2, 3) or I.shape[1:] not in ((3,), (6,), (3, 3)):
-        one = "; (3,), (6,) and (3, 3) are one body's, for H of shape (3,)" if I.shape in ((3,), (6,), (3, 3)) else ""
+    r = None if r is None else as_float("r", r, quantities)
+    vectors = [(name, a, _vector_rows(name, a)) for name, a in (("H", H), ("r", r)) if a is not None]
+    i_rows = _tensor_rows(I, {k for _, _, k in vectors if k is not None})
+    given = vectors[:1] + [("I", I, i_rows)] + vectors[1:]
+    stacked = [(name, a, k) for name, a, k in given if k is not None]
+    many = [(name, a, k) for name, a, k in stacked if k != 1]
+    clash = next((x for x in many if x[2] != many[0][2]), None)
+    if clash is not None:
+        (name0, a0, k0), (name1, a1, k1) = many[0], clash
         raise ValueError(
-            f"Expected I to have shape ({n}, 3), ({n}, 6) or ({n}, 3, 3) for H of shape {H.shape}, got {I.shape}{one}"
+            f"{name0} of shape {a0.shape} and {name1} of shape {a1.shape} do not broadcast: {name0} has {k0} rows "
+            f"and {name1} {k1}; give each the same number of rows, or one body's (or one row) to use for every row"
         )
-    if I.shape[0] != n:
-        one = "; a (3, 3) I is one body's tensor, for H of shape (3,)" if I.shape == (3, 3) else ""
-        raise ValueError(f"I holds {_count(I.shape[0], 'tensor')} but H holds {_count(n, 'vector')}{one}")
+    n = many[0][2] if many else 1
+    if I.shape[-1:] == (9,):  # nine numbers, row-major, as a file's full9 columns give them
+        I = I.reshape(I.shape[:-1] + (3, 3))
+    H, I = _rows(H, n, k=given[0][2]), _rows(I, n, i_rows)
     if r is not None:
-        r = as_float("r", r, quantities)
-        if r.shape != (n, 3):
-            raise ValueError(
-                f"Expected r to have shape {(3,) if single else (n, 3)}, got {r.shape[1:] if single else r.shape}"
-            )
-    return Arguments(H, I, r, single, quantities)
+        r = _rows(r, n, vectors[-1][2])
+    return Arguments(H, I, r, not stacked, quantities)
+
+
+#: One body's inertia, by shape: principal moments, six numbers, nine numbers, a matrix.
+ONE_BODY_I = ((3,), (6,), (9,), (3, 3))
+
+
+def _vector_rows(name: str, a: np.ndarray) -> int | None:
+    """The rows of vector argument ``name`` (H or r): None for one body's ``(3,)``."""
+    if a.shape == (3,):
+        return None
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise ValueError(f"Expected {name} to have shape (3,) or (N, 3), got {a.shape}")
+    return a.shape[0]
+
+
+def _tensor_rows(I: np.ndarray, others: set) -> int | None:
+    """The rows of I: None for one body's tensor. A ``(3, 3)`` I is one body's matrix, except
+    beside H or r of three rows, where it has always been three rows of principal moments."""
+    if I.shape == (3, 3):
+        return 3 if others == {3} else None
+    if I.shape in ONE_BODY_I:
+        return None
+    if (I.ndim == 2 and I.shape[1] in (3, 6, 9)) or (I.ndim == 3 and I.shape[1:] == (3, 3)):
+        return I.shape[0]
+    if I.ndim <= 1:
+        raise ValueError(f"Expected one body's I to have shape (3,), (6,), (9,) or (3, 3), got {I.shape}")
+    raise ValueError(
+        f"Expected I to have shape (N, 3), (N, 6), (N, 9) or (N, 3, 3), or one body's (3,), (6,), (9,) or (3, 3), "
+        f"got {I.shape}"
+    )
+
+
+def _rows(a: np.ndarray, n: int, k: int | None) -> np.ndarray:
+    """Argument ``a`` of ``k`` rows (None: one body's, unstacked) as a stack of ``n`` rows; a row
+    used for many is copied into each, so that the engines see what a tiled input gives them."""
+    a = a[None] if k is None else a
+    return a if a.shape[0] == n else np.ascontiguousarray(np.broadcast_to(a, (n,) + a.shape[1:]))
 
 
 def as_float(name: str, given_a: ArrayLike, quantities: list[type] | None = None) -> np.ndarray:
@@ -173,10 +208,6 @@ def _carried(x: object) -> str | None:
 _NESTED = frozenset({list, tuple})
 #: Types that hold a plain number: the items of a list that :func:`_held` passes at once.
 _PLAIN = frozenset({float, int, np.float64, np.float32, np.int64, np.int32, np.ndarray, list, tuple})
-
-
-def _count(k: int, noun: str) -> str:
-    return f"{k} {noun}" + ("" if k == 1 else "s")
 
 
 def _dtype_text(dtype: np.dtype) -> str:

@@ -1,10 +1,16 @@
 """``convert``: H and I (and r) to ω with a chosen method, plus per-row diagnostics.
 
 Shapes: ``H`` is ``(N, 3)`` [kg·m²/s]; ``I`` is ``(N, 6)`` as (Ixx, Iyy, Izz, Ixy, Ixz, Iyz),
-``(N, 3, 3)`` or ``(N, 3)`` principal/diagonal moments [kg·m²]; ``r`` is ``(N, 3)`` [m]. One body
-may be given as ``H`` of shape ``(3,)`` with ``I`` of shape ``(6,)``, ``(3, 3)`` or ``(3,)``; its
-result comes back unstacked. These stacks are read into hconv's column layout at the edge
-(:func:`hconv.solve.forms.from_array`); :func:`convert_columns` takes that layout directly.
+``(N, 3, 3)``, ``(N, 9)`` (the matrix row-major, as a file's nine columns) or ``(N, 3)``
+principal/diagonal moments [kg·m²]; ``r`` is ``(N, 3)`` [m]. Each may also be one body's, without
+the row axis: ``(3,)`` for H and r, ``(3,)``, ``(6,)``, ``(9,)`` or ``(3, 3)`` for I. They
+broadcast as numpy broadcasts: one body's, or a stack of one row, is used for every row of the
+others (one body's I over a log of its H), stacks of N rows go together, and anything else is a
+ValueError naming both shapes. Only where every argument is one body's does the result come back
+unstacked. One exception keeps an old reading: an I of shape ``(3, 3)`` beside H or r of three
+rows is three rows of principal moments; pass ``I[None]`` to use one matrix for the three rows.
+These stacks are read into hconv's column layout at the edge (:func:`hconv.solve.forms.from_array`);
+:func:`convert_columns` takes that layout directly.
 Conventions are those of :mod:`hconv.kernels.inertia`.
 
 Diagnostics per row:

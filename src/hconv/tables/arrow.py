@@ -64,7 +64,7 @@ def output_fields(job: Job) -> list[pa.Field]:
                 )
             )
         fields.append(pa.field("null_dim", pa.int8(), metadata={"description": "principal moments dropped"}))
-    return fields
+    return [f.with_name(job.prefix + f.name) for f in fields] if job.prefix else fields
 
 
 def convert_table(
@@ -76,6 +76,7 @@ def convert_table(
     source: str = "table",
     job: Job | None = None,
     plan: layout.Layout | None = None,
+    prefix: str | None = None,
 ) -> pa.Table:
     """Convert every row of a pyarrow Table or RecordBatch; returns a Table.
 
@@ -86,7 +87,8 @@ def convert_table(
     :func:`hconv.tables.layout.plan`, for a caller converting many batches of one file. Raises
     :class:`hconv.errors.InputError` or
     ``UsageError`` for a schema or options that cannot be used; per-row problems become statuses.
-    ``source`` names the data in error messages.
+    ``source`` names the data in error messages. ``prefix`` goes before the name of every column
+    hconv appends (:class:`~hconv.tables.job.Job`'s ``prefix``).
     """
     if isinstance(data, pa.RecordBatch):
         data = pa.Table.from_batches([data])
@@ -95,7 +97,9 @@ def convert_table(
             f"convert_table takes a pyarrow Table or RecordBatch, got {type(data).__name__}; "
             "make one with pyarrow.table(...)"
         )
-    job = options.configure(Job, "convert_table", job, method=method, precision=precision, diagnostics=diagnostics)
+    job = options.configure(
+        Job, "convert_table", job, method=method, precision=precision, diagnostics=diagnostics, prefix=prefix
+    )
     return convert_batch(data, job, plan, source)[0]
 
 
@@ -107,6 +111,7 @@ def output_schema(
     *,
     source: str = "schema",
     job: Job | None = None,
+    prefix: str | None = None,
 ) -> pa.Schema:
     """The schema :func:`convert_table` returns for a table of ``input_schema``, converting nothing.
 
@@ -123,7 +128,9 @@ def output_schema(
     if not isinstance(input_schema, pa.Schema):
         hint = "; pass its .schema" if hasattr(input_schema, "schema") else ""
         raise UsageError(f"output_schema takes a pyarrow Schema, got {type(input_schema).__name__}{hint}")
-    job = options.configure(Job, "output_schema", job, method=method, precision=precision, diagnostics=diagnostics)
+    job = options.configure(
+        Job, "output_schema", job, method=method, precision=precision, diagnostics=diagnostics, prefix=prefix
+    )
     return result_schema(input_schema, job, layout.plan(input_schema, job, source))
 
 
@@ -172,6 +179,9 @@ def result_schema(schema: pa.Schema, job: Job, plan: layout.Layout) -> pa.Schema
     it, for :func:`output_schema` and for every converted batch."""
     meta = dict(schema.metadata or {})
     meta.update({b"hconv.method": methods.get(job.method).name.encode(), b"hconv.version": __version__.encode()})
+    meta.pop(layout.PREFIX_KEY, None)  # an input hconv wrote with a prefix: this run's is its own
+    if job.prefix:
+        meta[layout.PREFIX_KEY] = job.prefix.encode()
     return pa.schema(_with_input_units(schema, plan) + output_fields(job), metadata=meta)
 
 

@@ -155,7 +155,7 @@ def _header_hint(names: list, lines: list[str], dialect: Dialect, name: str) -> 
     spaced = [n for n in names if n != n.strip() and n.strip() in known]
     if spaced:
         return f" (the header has spaces around {', '.join(repr(n) for n in spaced[:3])}; remove them)"
-    if not any(n.strip() in known for n in names):
+    if not any(n.strip() in known or sets.reads_as(n.strip()) for n in names):
         return f" (the first line, {','.join(names)[:50]!r}, names none of hconv's columns: is it a CSV header?)"
     return ""
 
@@ -528,9 +528,10 @@ class CsvWriter:
     def __init__(self, path: str, schema: pa.Schema, delimiter: str = ","):
         self._delimiter, self._path = delimiter, path
         self._f = pa.OSFile(path, "wb")  # a native file: pyarrow's writer writes into it without Python
-        meta = schema.field("wx").metadata or {} if "wx" in schema.names else {}
+        wx, self._unit_column = layout.output_name("wx", schema), layout.output_name(UNIT_COLUMN, schema)
+        meta = schema.field(wx).metadata or {} if wx in schema.names else {}
         self._unit = meta[b"unit"].decode() if b"unit" in meta else None  # only tables with ω have one
-        names = schema.names + ([UNIT_COLUMN] if self._unit else [])
+        names = schema.names + ([self._unit_column] if self._unit else [])
         buf = io.StringIO()
         csv.writer(buf, lineterminator="\n", delimiter=delimiter).writerow(names)
         self._f.write(buf.getvalue().encode())
@@ -549,7 +550,7 @@ class CsvWriter:
         names = table.schema.names
         if self._unit:
             cols.append(pa.repeat(self._unit, table.num_rows))
-            names = names + [UNIT_COLUMN]
+            names = names + [self._unit_column]
         t = pa.Table.from_arrays(cols, names=names)
         # decided on the whole table, so that its slices are written alike
         if any(_empty_beside_null(c) for c in t.columns) or _needs_quoting(t, self._delimiter):

@@ -120,13 +120,14 @@ def convert_dataset(
     workers: int | None = None,
     cluster_timeout: float = 10.0,
     task_rows: int | None = None,
+    prefix: str | None = None,
 ) -> DatasetResult:
     """Convert every file of the dataset ``src`` (a directory, a glob or a URI) into ``dst`` (a
     directory or prefix), each at its relative path, and write the manifest last; see the module.
 
-    The keywords are :func:`~hconv.tables.pipeline.convert_file`'s, plus: ``force``: convert every
-    file again, and overwrite outputs the manifest does not list (nothing is ever deleted);
-    ``endpoint_url``: an S3-compatible server (default: AWS_ENDPOINT_URL_S3, AWS_ENDPOINT_URL);
+    The keywords are :func:`~hconv.tables.pipeline.convert_file`'s (``prefix`` among them), plus:
+    ``force``: convert every file again, and overwrite outputs the manifest does not list (nothing
+    is ever deleted); ``endpoint_url``: an S3-compatible server (default: AWS_ENDPOINT_URL_S3, AWS_ENDPOINT_URL);
     ``progress(done, total)`` after each file to convert; ``log(line)`` for what the run decided
     and for each failing file (``error: ...``); ``cluster``: convert the files on a Dask cluster
     (:mod:`hconv.tables.cluster`, the ``hconv[dask]`` extra): ``"local"`` (``workers`` processes,
@@ -139,7 +140,9 @@ def convert_dataset(
     if interrupted, and HconvError subclasses if the dataset cannot be read or written at all.
     """
     t0 = time.perf_counter()
-    job = options.configure(Job, "convert_dataset", job, method=method, precision=precision, diagnostics=diagnostics)
+    job = options.configure(
+        Job, "convert_dataset", job, method=method, precision=precision, diagnostics=diagnostics, prefix=prefix
+    )
     check_threads(threads)  # before anything is written: a bad option fails the run, not each file
     check_callback("progress", progress)
     check_callback("log", log)

@@ -83,9 +83,11 @@ class Job(Options):
     ``field_units`` (Python only): each column's unit as its field metadata would give it, for data
     whose engine dropped that metadata on the way (``hconv.units_of(files)``, docs/recipes.md); a
     column's own metadata and ``unit_options`` come first, and a column hconv does not read is
-    left alone, as its metadata would be. ``delimiter`` and ``decimal`` (``--delimiter``,
-    ``--decimal``): how a CSV input is written, where sniffing it would otherwise decide
-    (docs/input.md); None: sniffed.
+    left alone, as its metadata would be. ``prefix`` (``--prefix``) goes before the name of every
+    column hconv appends (``wx`` becomes ``out_wx`` with ``prefix='out_'``), so that an input
+    that already has a ``status`` or a ``wx`` column can be converted. ``delimiter`` and
+    ``decimal`` (``--delimiter``, ``--decimal``): how a CSV input is written, where sniffing it
+    would otherwise decide (docs/input.md); None: sniffed.
     """
 
     mapping: tuple = ()
@@ -97,6 +99,7 @@ class Job(Options):
     field_units: tuple = ()  #: (column, unit) pairs, as field metadata would give them
     delimiter: str | None = None  #: a CSV input's delimiter, one of DELIMITERS; None: sniffed
     decimal: str | None = None  #: a CSV input's decimal mark, one of DECIMALS; None: sniffed
+    prefix: str = ""  #: put before the name of every column hconv appends (wx: Pwx), for an input that has them
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "mapping", _pairs("mapping", self.mapping))
@@ -115,6 +118,11 @@ class Job(Options):
         for name in ("observed", "keep_text"):  # diagnostics='no' would read as True
             if not isinstance(getattr(self, name), bool):
                 raise UsageError(f"{option(name)} must be True or False, got {getattr(self, name)!r}")
+        if not isinstance(self.prefix, str) or any(c in self.prefix for c in ',\n\r"'):
+            raise UsageError(
+                f"{option('prefix')} takes text to put before hconv's column names, without commas, quotes or "
+                f"line breaks, e.g. 'out_', got {self.prefix!r}"
+            )
         # an unknown unit fails now, not mid-run
         if not isinstance(self.omega_unit, str):
             raise UsageError(f"{option('omega_unit')} takes a unit as text, e.g. 'deg/s', got {self.omega_unit!r}")

@@ -1,6 +1,24 @@
 """Which columns hold what: the input's column sets (:mod:`hconv.tables.sets`), found by name, and
 the form of its inertia.
 
+Each of hconv's names is found (:func:`hconv.tables.columns.find`), first to last: by ``--map``; in a column of that
+exact name; in one of that name with its unit written after it (``Hx [kg*m^2/s]``, ``Ixx (g*cm^2)``)
+or in a struct's field, by its struct's name and its own run together (``H.x``: Hx, so that a
+struct ``H`` with fields x, y, z is the set H); then the same without regard to case, for names
+of more than one letter. Two columns for one name at the same step are an error naming both and
+``--map``. A struct's fields are columns by their dotted path (``--map Hx=L.a``); the struct
+itself is never read as a number, and passes through as it was.
+
+A value's unit, first to last: ``--unit`` (by column, by hconv's name, by set); the column's
+field metadata ``unit`` (:func:`stored_units`, Spark's schema too); the Job's ``field_units``
+(metadata an engine dropped); the unit written in its header; else SI. A header's unit that pint
+cannot read, or of another quantity, is an InputError naming the column and the ``--unit`` that
+wins over it.
+
+The columns hconv appends (:data:`RESERVED`) carry the Job's ``prefix`` (``--prefix``) before
+their names, which a converted table's schema records (:func:`output_name`); an input that has
+one of those names already is refused, naming ``--prefix``.
+
 The inertia forms and their columns are :mod:`hconv.solve.forms`' registry. A file uses one form,
 chosen by its columns, for every row; two forms at once (``I1`` and ``Ixx``, say) is an error, as
 is a set with some of its columns missing. With q present the tensor
@@ -22,10 +40,11 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 
-from hconv.errors import InputError, UsageError, entries, entry, option
+from hconv.errors import InputError, UsageError, entry, option
 from hconv.solve import forms, units
+from hconv.tables import columns
 from hconv.tables.job import Job
-from hconv.tables.sets import OPTIONAL_SETS, QUANTITY, VECTOR_SETS, all_names
+from hconv.tables.sets import OPTIONAL_SETS, QUANTITY, VECTOR_SETS, all_names, header_name
 
 #: The columns hconv writes after the input's.
 W_COLUMNS = ("wx", "wy", "wz")
@@ -36,6 +55,9 @@ UNIT_COLUMN = "w_unit"
 #: Every name hconv writes: an input that has one is refused, naming it, so that no output holds
 #: a name twice (or one column of the input and another of hconv under one name).
 RESERVED = OUTPUT_COLUMNS + NULL_COLUMNS + (UNIT_COLUMN,)
+#: The schema metadata key of a converted table that records the Job's ``prefix`` (only when one
+#: was given), so that a writer finds hconv's columns by :func:`output_name`.
+PREFIX_KEY = b"hconv.prefix"
 #: The file metadata key under which Spark stores its schema, field metadata included, in the
 #: Parquet files it writes. Spark writes no Arrow schema, so pyarrow reads its fields bare.
 SPARK_SCHEMA_KEY = b"org.apache.spark.sql.parquet.row.metadata"
@@ -79,7 +101,7 @@ class Layout:
         form = self.form
         for name, g in self.groups.items():
             if g.is_list and g.size is None and data.num_rows:
-                k = _list_size(data.column(g.columns[0]).combine_chunks(), g, self.source, first_row)
+                k = _list_size(columns.column(data, g.columns[0]).combine_chunks(), g, self.source, first_row)
                 if k is not None:
                     groups[name] = replace(g, size=k)
                     if name == "I":
@@ -106,12 +128,12 @@ class Layout:
             if g.is_list:
                 if g.size is None:
                     g = replace(g, size=form.list_size if g.name == "I" else len(VECTOR_SETS[g.name]))
-                col = data.column(g.columns[0]).combine_chunks() if n else None
+                col = columns.column(data, g.columns[0]).combine_chunks() if n else None
                 a = _list_values(col, g, n, self.source, first_row)
             else:
                 a = np.empty((len(g.columns), n))
                 for k, c in enumerate(g.columns):
-                    a[k] = _floats(data.column(c))
+                    a[k] = _floats(columns.column(data, c))
                 if g.name == "I":
                     a = form.values(a)
             if g.factors and any(f != 1.0 for f in g.factors):
@@ -120,6 +142,12 @@ class Layout:
                 a = a[[3, 0, 1, 2]]
             out[g.name] = a
         return out, form.name
+
+
+def output_name(column: str, schema: pa.Schema) -> str:
+    """The name hconv's column ``column`` (``wx``, ``status``, ``w_unit``...) has in a converted
+    table of ``schema``: with the Job's prefix, which the schema's metadata records."""
+    return (schema.metadata or {}).get(PREFIX_KEY, b"").decode() + column
 
 
 def _list_size(col: pa.Array, g: Group, source: str, first_row: int = 0) -> int | None:
@@ -218,8 +246,10 @@ def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
             f"{source}: column name{_plural(dupes)} {', '.join(map(repr, dupes))} appear"
             f"{'' if len(dupes) > 1 else 's'} more than once; rename the copies"
         )
-    present = set(names)
-    mapping = _mapping(job.mapping, present, source)
+    fields = columns.columns_of(schema)
+    present = set(fields)
+    given = _mapping(job.mapping, present, source)
+    mapping = {**columns.find(list(fields), given, source), **given}  # --map, then the names found
     used_elsewhere = set(mapping.values())
 
     def src(n: str) -> str:
@@ -227,15 +257,18 @@ def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
         return mapping.get(n, n)
 
     def has(n: str) -> bool:
-        """The input has hconv's name n (a column that --map gave another name does not count)."""
-        return src(n) in present and (n in mapping or n not in used_elsewhere)
+        """The input has hconv's name n (a column that --map gave another name does not count,
+        nor a struct, whose fields are read instead)."""
+        c = src(n)
+        return c in present and (n in mapping or n not in used_elsewhere) and not pa.types.is_struct(fields[c].type)
 
     def taken(lack: list) -> str:
-        """Why a lacking name whose column is there is not read: --map gave the column to another name."""
-        back = {column: n for n, column in mapping.items()}
-        c = next((c for c in lack if c not in mapping and c in present and c in back), None)
+        """Why a lacking name whose column is there is not read: --map gave the column to another
+        name; else the --map that would read it, from a column of a name close to it."""
+        back = {column: n for n, column in given.items()}
+        c = next((c for c in lack if c not in given and c in present and c in back), None)
         if c is None:
-            return ""
+            return columns.map_hint(lack, [f for f in fields if f not in used_elsewhere and f not in all_names()])
         return (
             f" (column {c!r} is read as {back[c]}: {entry('mapping', back[c], c)}); "
             f"give {c} a column too, e.g. {entry('mapping', c, 'COLUMN')}"
@@ -248,20 +281,22 @@ def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
     for name in VECTOR_SETS:
         if name in optional or name == "H" or name in need:
             why = "H is required" if name == "H" else need.get(name)
-            g = _vector_group(name, schema, has, src, source, why, taken)
+            g = _vector_group(name, fields, has, src, source, why, taken)
             if g is not None:
                 groups[name] = g
-    form, groups["I"] = _inertia_group(schema, has, src, source, taken)
+    form, groups["I"] = _inertia_group(fields, has, src, source, taken)
 
-    clash = [] if job.observed else [c for c in RESERVED if c in present]
+    clash = [] if job.observed else [job.prefix + c for c in RESERVED if job.prefix + c in present]
     if clash:
+        again = f"another {option('prefix')}" if job.prefix else option("prefix", "out_")
         raise InputError(
             f"{source}: already has output column{_plural(clash)} {', '.join(clash)}; "
-            f"rename or drop {'them' if len(clash) > 1 else 'it'} (is this hconv's own output?)"
+            f"rename or drop {'them' if len(clash) > 1 else 'it'} (is this hconv's own output?), or give the "
+            f"columns hconv appends a prefix with {again}"
         )
     for g in groups.values():
         for c in g.columns:
-            t = schema.field(c).type
+            t = fields[c].type
             if g.is_list:
                 if not (_is_list(t) and _is_numeric(t.value_type)):
                     raise InputError(f"{source}: column {c!r} has type {t}, but must be a list of numbers")
@@ -278,7 +313,7 @@ def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
             f"{option('mapping')} at the columns that hold w, x, y and z"
         )
     stored = stored_units(schema)
-    groups = {k: _with_units(g, stored, job, mapping) for k, g in groups.items()}
+    groups = {k: _with_units(g, stored, job, mapping, source) for k, g in groups.items()}
     _check_unit_keys(job.unit_options, groups, present)
     return Layout(groups, form, source, job.quat_order)
 
@@ -293,7 +328,7 @@ def _mapping(pairs: tuple, present: set, source: str) -> dict:
 
 def _vector_group(
     name: str,
-    schema: pa.Schema,
+    fields: dict[str, pa.Field],
     has: Callable[[str], bool],
     src: Callable[[str], str],
     source: str,
@@ -314,16 +349,16 @@ def _vector_group(
             f"give all of {', '.join(cols)} or none"
         )
     if found:
-        if len(cols) > 1 and has(name) and _is_list(schema.field(src(name)).type):
+        if len(cols) > 1 and has(name) and _is_list(fields[src(name)].type):
             raise InputError(f"{source}: has both {', '.join(cols)} and a list column {src(name)!r}; keep one")
         return Group(name, tuple(src(c) for c in cols), False, len(cols))
-    if len(cols) > 1 and has(name) and not _is_list(schema.field(src(name)).type):
+    if len(cols) > 1 and has(name) and not _is_list(fields[src(name)].type):
         raise InputError(
-            f"{source}: column {src(name)!r} has type {schema.field(src(name)).type}; {name} is read "
+            f"{source}: column {src(name)!r} has type {fields[src(name)].type}; {name} is read "
             f"from {', '.join(cols)} or from a list column of {len(cols)} numbers"
         )
-    if len(cols) > 1 and has(name) and _is_list(schema.field(src(name)).type):
-        t = schema.field(src(name)).type
+    if len(cols) > 1 and has(name) and _is_list(fields[src(name)].type):
+        t = fields[src(name)].type
         size = t.list_size if pa.types.is_fixed_size_list(t) else None
         if size is not None and size != len(cols):
             raise InputError(
@@ -333,38 +368,21 @@ def _vector_group(
     if why:
         what = f"{', '.join(cols)}" + (f" (or a list column {name})" if len(cols) > 1 else "")
         tail = "" if name == "H" else f"; {why}"
-        raise InputError(f"{source}: missing column{_plural(cols)} {what}{tail}{_look_alike(name, schema)}")
+        hint = columns.look_alike(name, list(fields), RESERVED) or taken(list(cols))
+        raise InputError(f"{source}: missing column{_plural(cols)} {what}{tail}{hint}")
     return None
 
 
-def _look_alike(name: str, schema: pa.Schema) -> str:
-    """A hint for a missing vector set whose components the input may hold under other names: the
-    columns ``Px, Py, Pz`` (``Pw`` too for q) that no hconv name reads, for each such prefix P."""
-    cols = VECTOR_SETS[name]
-    if len(cols) == 1 or any(not c.startswith(name) for c in cols):
-        return ""  # m, and w_obs (wx_obs...), whose names are not a prefix and an axis letter
-    axes = [c[len(name) :] for c in cols]
-    ours = set(all_names()) | set(RESERVED)  # columns hconv reads by their names, or writes
-    free = [f for f in schema.names if f not in ours]
-    prefixes = sorted(
-        {f[: -len(axes[0])] for f in free if f.endswith(axes[0]) and len(f) > len(axes[0])}
-        - {n for n in VECTOR_SETS if n != name}
-        - {"w"}  # wx, wy, wz: hconv's own output
-    )
-    found = [p for p in prefixes if all(p + a in free for a in axes)]
-    if not found:
-        return ""
-    maps = " or ".join(entries("mapping", {c: p + a for c, a in zip(cols, axes)}) for p in found[:2])
-    held = " or ".join(", ".join(p + a for a in axes) for p in found[:2])
-    return f"; if {held} hold {name}, give {maps}"
-
-
 def _inertia_group(
-    schema: pa.Schema, has: Callable[[str], bool], src: Callable[[str], str], source: str, taken: Callable[[list], str]
+    fields: dict[str, pa.Field],
+    has: Callable[[str], bool],
+    src: Callable[[str], str],
+    source: str,
+    taken: Callable[[list], str],
 ) -> tuple[str | None, Group]:
     """The one inertia form the schema holds, asking :mod:`hconv.solve.forms`' registry."""
     found = {}
-    list_column = has("I") and _is_list(schema.field(src("I")).type)
+    list_column = has("I") and _is_list(fields[src("I")].type)
     if list_column:
         found["list"] = ["I"]
     for form in forms.FORMS.values():
@@ -390,10 +408,13 @@ def _inertia_group(
             f"or point {option('mapping')} at the columns to use"
         )
     if not found:
-        raise InputError(f"{source}: missing the inertia; give {forms.forms_text()}, or a list column I")
+        raise InputError(
+            f"{source}: missing the inertia; give {forms.forms_text()}, or a list column I"
+            f"{taken([c for c in forms.column_names() if len(c) > 1])}"
+        )
     ((name, got),) = found.items()
     if name == "list":
-        t = schema.field(src("I")).type
+        t = fields[src("I")].type
         size = t.list_size if pa.types.is_fixed_size_list(t) else None
         g = Group("I", (src("I"),), True, size)
         return (_list_form(size, g, source).name if size else None), g
@@ -411,7 +432,8 @@ def _inertia_group(
 def stored_units(schema: pa.Schema) -> dict[str, str]:
     """Each column's unit as ``schema`` stores it, in the schema's column order: its field
     metadata ``unit``, else the unit Spark's schema (file metadata :data:`SPARK_SCHEMA_KEY`) gives
-    it. Columns without one are left out."""
+    it; a struct's fields by their dotted path (:func:`hconv.tables.columns.columns_of`), after the top-level columns.
+    Columns without one are left out."""
     found = {}
     try:
         spark = json.loads((schema.metadata or {}).get(SPARK_SCHEMA_KEY, b"{}"))
@@ -421,16 +443,16 @@ def stored_units(schema: pa.Schema) -> dict[str, str]:
                 found[f["name"]] = unit
     except (ValueError, AttributeError, TypeError, KeyError):  # not the schema Spark writes: no units from it
         pass
-    for f in schema:
+    fields = columns.columns_of(schema)
+    for name, f in fields.items():
         meta = f.metadata or {}
         if meta.get(b"unit"):
-            found[f.name] = meta[b"unit"].decode(errors="replace")
-    return {c: found[c] for c in schema.names if c in found}
+            found[name] = meta[b"unit"].decode(errors="replace")
+    return {c: found[c] for c in fields if c in found}
 
 
-def _with_units(g: Group, stored: dict, job: Job, mapping: dict) -> Group:
-    """``g`` with the unit of each of its values: from --unit, else the schema's own (field
-    metadata), else the Job's ``field_units`` (metadata an engine dropped), else SI."""
+def _with_units(g: Group, stored: dict, job: Job, mapping: dict, source: str = "input") -> Group:
+    """``g`` with the unit of each of its values, by the rule of the module docstring."""
     back = {v: k for k, v in mapping.items()}  # column -> hconv name
     given = dict(job.unit_options)
     dropped = dict(job.field_units)
@@ -447,9 +469,23 @@ def _with_units(g: Group, stored: dict, job: Job, mapping: dict) -> Group:
             unit, where = stored[c], f"column {c!r} (its unit metadata)"
         elif unit is None and c in dropped:
             unit, where = dropped[c], entry("field_units", c, dropped[c])
+        elif unit is None and (written := header_name(c)[1]) is not None:
+            us.append(written)
+            fs.append(_header_factor(quantity, c, written, hname, source))
+            continue
         us.append(unit or "")
         fs.append(1.0 if unit is None else units.factor(quantity, unit, where))
     return Group(g.name, g.columns, g.is_list, g.size, tuple(us), tuple(fs))
+
+
+def _header_factor(quantity: str, c: str, unit: str, hname: str, source: str) -> float:
+    """The factor to SI of the unit written in column ``c``'s header; InputError naming the
+    column, and the --unit that reads it otherwise, when pint cannot read it or it is another
+    quantity's."""
+    try:
+        return units.factor(quantity, unit, f"{source}: column {c!r} (the unit in its header)")
+    except UsageError as exc:
+        raise InputError(f"{exc}; or give its unit with {entry('unit_options', hname, 'UNIT')}, which wins") from None
 
 
 def _check_unit_keys(options: tuple, groups: dict, present: set) -> None:

@@ -55,7 +55,7 @@ class FileRecord:
 #: The order a manifest writes the job's fields in, fixed so that its bytes do not follow the
 #: classes' field order (``engine`` is :class:`hconv.Options`' since ``Job`` extends it).
 JOB_KEYS = ("method", "precision", "diagnostics", "conventions", "mapping", "unit_options", "quat_order",
-            "omega_unit", "observed", "engine", "keep_text", "field_units")  # fmt: skip
+            "omega_unit", "observed", "engine", "keep_text", "field_units", "prefix")  # fmt: skip
 
 
 #: Fields added later that a manifest records only when set, so that a dataset converted before
@@ -65,8 +65,11 @@ UNSET_UNRECORDED = ("delimiter", "decimal")
 
 def job_identity(job: Job, src_format: str | None, dst_format: str | None) -> dict:
     """The job as the manifest records it: every Job field, in :data:`JOB_KEYS`' order, and the
-    formats asked for."""
+    formats asked for. ``prefix`` only when one is given: a manifest written before it existed
+    still records the same job."""
     fields = dataclasses.asdict(job)
+    if not job.prefix:
+        del fields["prefix"]
     d = {k: fields.pop(k) for k in JOB_KEYS if k in fields} | fields  # a field added later goes last
     for k in UNSET_UNRECORDED:
         if d.get(k) is None:

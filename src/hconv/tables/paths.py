@@ -39,6 +39,7 @@ def convert_path(
     workers: int | None = None,
     cluster_timeout: float | None = None,
     task_rows: int | None = None,
+    prefix: str | None = None,
 ) -> pipeline.Tally | dataset.DatasetResult:
     """Convert ``src`` into ``dst`` as ``hconv convert SRC DST`` does: a dataset (a directory, a
     glob or a URI: :func:`~hconv.tables.dataset.is_dataset`) file by file, returning its
@@ -46,11 +47,13 @@ def convert_path(
     returning its :class:`~hconv.tables.pipeline.Tally`.
 
     The keywords are those two functions', with the run configuration ``job`` or ``method``,
-    ``precision`` and ``diagnostics`` (not both: :func:`hconv.solve.options.configure`).
+    ``precision``, ``diagnostics`` and ``prefix`` (not both: :func:`hconv.solve.options.configure`).
     ``log``, ``endpoint_url``, ``cluster``, ``workers``, ``cluster_timeout`` and ``task_rows``
     are a dataset's; ``endpoint_url`` and the cluster's are refused for one file.
     """
-    job = options.configure(Job, "convert_path", job, method=method, precision=precision, diagnostics=diagnostics)
+    job = options.configure(
+        Job, "convert_path", job, method=method, precision=precision, diagnostics=diagnostics, prefix=prefix
+    )
     src, dst = os.fspath(src), os.fspath(dst)
     common: dict[str, Any] = dict(
         job=job, src_format=src_format, dst_format=dst_format, force=force, strict=strict, threads=threads

@@ -25,7 +25,7 @@ import pyarrow as pa
 from hconv import interrupts
 from hconv.errors import StrictError, UsageError, option
 from hconv.solve import engines, methods, options, status
-from hconv.tables import csvio, csvtypes
+from hconv.tables import csvio, csvtypes, layout
 from hconv.tables.arrow import convert_batch
 from hconv.tables.inputs import Input
 from hconv.tables.job import Job
@@ -51,10 +51,11 @@ class Tally:
     def add(self, table: pa.Table, engine: str | None = None) -> None:
         if engine is not None:
             self.engines[engine] = self.engines.get(engine, 0) + table.num_rows
-        st = table.column("status").combine_chunks()
+        st = table.column(layout.output_name("status", table.schema)).combine_chunks()
         self.per_status += np.bincount(st.indices.to_numpy(zero_copy_only=False), minlength=len(status.STATUSES))
-        if "residual" in table.column_names:
-            res = table.column("residual").to_numpy()
+        residual = layout.output_name("residual", table.schema)
+        if residual in table.column_names:
+            res = table.column(residual).to_numpy()
             if res.size and not np.isnan(res).all():
                 k = int(np.nanargmax(res))
                 if not res[k] <= self.worst_residual:  # also true while worst is NaN
@@ -217,12 +218,13 @@ def convert_file(
     name: str | None = None,
     rows: tuple[int, int] | None = None,
     dst_name: str | None = None,
+    prefix: str | None = None,
 ) -> Tally:
     """Convert the table in ``src`` into ``dst`` ("-" for stdin/stdout); returns the tally.
 
     ``job`` (conventions, units, mapping) is the whole run configuration; or ``method`` (default
-    exact), ``precision`` (64) and ``diagnostics`` (True) make one; not both
-    (:func:`hconv.solve.options.configure`).
+    exact), ``precision`` (64), ``diagnostics`` (True) and ``prefix`` (before the name of every
+    column hconv appends; none) make one; not both (:func:`hconv.solve.options.configure`).
     ``strict``: any row whose status is not ok fails the run (StrictError naming the first rows),
     and nothing is written.
     ``threads``: batches converted at once (default :func:`default_threads`); the output is the
@@ -239,7 +241,9 @@ def convert_file(
     check_threads(threads)
     check_callback("progress", progress)
     threads = threads or default_threads()
-    job = options.configure(Job, "convert_file", job, method=method, precision=precision, diagnostics=diagnostics)
+    job = options.configure(
+        Job, "convert_file", job, method=method, precision=precision, diagnostics=diagnostics, prefix=prefix
+    )
     if engines.for_files(job.engine) != job.engine:
         job = dataclasses.replace(job, engine=engines.for_files(job.engine))
     fin = format_of(src, src_format, "src_format")
@@ -325,7 +329,9 @@ STRICT_ROWS_NAMED = 5
 
 
 def _check_strict(table: pa.Table, first_row: int, source: str) -> None:
-    codes = table.column("status").combine_chunks().indices.to_numpy(zero_copy_only=False)
+    codes = (
+        table.column(layout.output_name("status", table.schema)).combine_chunks().indices.to_numpy(zero_copy_only=False)
+    )
     bad = np.flatnonzero(codes != 0)
     if bad.size:
         named = ", ".join(

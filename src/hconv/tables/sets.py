@@ -20,6 +20,8 @@ Kept apart from :mod:`hconv.tables.layout` (which needs pyarrow) so that a Job c
 
 from __future__ import annotations
 
+import re
+
 from hconv.solve import forms
 
 VECTOR_SETS = {
@@ -30,6 +32,9 @@ VECTOR_SETS = {
     "v": ("vx", "vy", "vz"),
     "w_obs": ("wx_obs", "wy_obs", "wz_obs"),
 }
+#: The fields of a struct named like a vector set, one per column in its order: a struct ``H``
+#: with fields x, y, z is Hx, Hy, Hz, and ``w_obs`` {x, y, z} is wx_obs, wy_obs, wz_obs.
+STRUCT_FIELDS = {"H": "xyz", "q": "wxyz", "r": "xyz", "v": "xyz", "w_obs": "xyz"}
 #: The unit quantity (a key of hconv.solve.units.SI) of each set.
 QUANTITY = {"H": "H", "I": "I", "q": "q", "r": "r", "m": "m", "v": "v", "w_obs": "w"}
 #: Sets read whenever present (they change the answer or its status); v and w_obs only when needed
@@ -54,3 +59,26 @@ def quantity_of(name: str) -> str | None:
     if name in forms.column_names():
         return QUANTITY["I"]
     return next((QUANTITY[s] for s, cols in VECTOR_SETS.items() if name in cols), None)
+
+
+#: A unit written after a column's name, in brackets or parentheses: ``Hx [kg*m^2/s]``, ``Ixx (g*cm^2)``.
+_HEADER_UNIT = re.compile(r"^(?P<name>.*?)\s*(?:\[(?P<b>[^\[\]]+)\]|\((?P<p>[^()]+)\))\s*$")
+
+
+def header_name(column: str) -> tuple[str, str | None]:
+    """A column's name without the unit written after it, and that unit (None when none is)."""
+    m = _HEADER_UNIT.match(column)
+    if m is None or not m["name"]:
+        return column, None
+    return m["name"], (m["b"] or m["p"]).strip()
+
+
+def reads_as(column: str) -> str | None:
+    """The hconv name a column of this name stands for, without its header's unit and, for names
+    of more than one letter, without regard to case (the rule of :func:`hconv.tables.columns.find`,
+    which also settles two columns for one name); None for a name hconv does not read."""
+    bare = header_name(column)[0]
+    names = all_names()
+    if bare in names:
+        return bare
+    return next((n for n in names if len(n) > 1 and n.lower() == bare.lower()), None)

@@ -34,11 +34,15 @@ class _Compiler:
     degrees: bool = True  # MuJoCo's default angle is degree
     eulerseq: str = "xyz"
     inertiafromgeom: str = "auto"
+    settotalmass: float = -1.0  # MuJoCo's default; a positive value rescales the model
+    settotalmass_at: str = ""  # the <compiler> that sets it, for the note
+    bounded: bool = False  # boundmass or boundinertia raise values before settotalmass scales them
 
 
 def _compiler(root: Node) -> tuple[_Compiler, list[str]]:
     """The compiler settings that decide angles, for the whole model (the last of each counts)."""
     degrees, seq, fromgeom, notes = True, "xyz", "auto", []
+    total, total_at, bounded = -1.0, "", False
     for c in root.findall("compiler"):
         a = c.attrib
         if "angle" in a:
@@ -60,19 +64,25 @@ def _compiler(root: Node) -> tuple[_Compiler, list[str]]:
             )
         for bound in ("boundmass", "boundinertia"):
             if bound in a and c.numbers(bound, (1,)) != [0.0]:
+                bounded = True
                 notes.append(f"{c.where}: {bound}: MuJoCo raises smaller values to it; hconv lists the file's values")
+        if "settotalmass" in a:
+            total, total_at = c.required("settotalmass", (1,), "")[0], c.where
     if fromgeom == "true":
         notes.append(
             'compiler inertiafromgeom="true": MuJoCo ignores every <inertial> and computes the inertia '
             "from the geoms; hconv lists the file's values"
         )
-    return _Compiler(degrees, seq, fromgeom), notes
+    return _Compiler(degrees, seq, fromgeom, total, total_at, bounded), notes
 
 
-def bodies(root: Node, path: Path, shown: str, budget: Budget) -> tuple[list[ReadBody], list[str]]:
+def bodies(
+    root: Node, path: Path, shown: str, budget: Budget, include_root: Path | None = None
+) -> tuple[list[ReadBody], list[str]]:
     """The bodies of MJCF model ``root`` (read from ``path``, shown as ``shown``), depth first in the
-    file's order, and notes on what hconv did not follow."""
-    expand_includes(root, path, shown, budget)
+    file's order, and notes on what hconv did not follow. ``include_root``: the folder within which
+    includes may go (:func:`hconv.tools.modelxml.expand_includes`)."""
+    expand_includes(root, path, shown, budget, include_root)
     comp, notes = _compiler(root)
     for n in walk(root):
         if n.tag in ("replicate", "attach", "composite", "flexcomp"):
@@ -91,7 +101,32 @@ def bodies(root: Node, path: Path, shown: str, budget: Budget) -> tuple[list[Rea
         raws.append(_body(body, name, comp, shown))
         stack.extend(reversed([(c, name, j) for j, c in enumerate(_child_bodies(body), 1)]))
     notes += _misplaced_bodies(root, listed)
+    if comp.settotalmass > 0:
+        notes.append(_total_mass_note(comp, raws))
     return raws, notes
+
+
+def _total_mass_note(comp: _Compiler, raws: list[ReadBody]) -> str:
+    """What ``settotalmass`` makes MuJoCo do, with the factor when the file alone decides it.
+
+    MuJoCo (checked with 4.0) scales every body's mass and inertia by one factor, after
+    ``boundmass`` and ``boundinertia``, so that the masses of all bodies, those it infers from
+    geoms among them, add up to the value. hconv, which infers no mass from geoms, lists the
+    file's values, as it does under ``boundmass``; it gives the factor when no body's mass comes
+    from elsewhere than its <inertial>."""
+    target = comp.settotalmass
+    said = f"{comp.settotalmass_at}: settotalmass={target:g}: MuJoCo scales every mass and inertia"
+    own = all(r.status is None for r in raws) and not comp.bounded and comp.inertiafromgeom != "true"
+    total = math.fsum(r.m for r in raws) if own else math.nan
+    if own and total > 0:
+        return (
+            f"{said} by {target:g} / {total:.6g} = {target / total:.6g} (the file's masses add up to "
+            f"{total:.6g} kg); hconv lists and checks the file's values"
+        )
+    return (
+        f"{said} so that the masses, with those it infers from geoms or raises to a bound, add up to "
+        f"{target:g} kg; hconv lists and checks the file's values"
+    )
 
 
 def _misplaced_bodies(root: Node, listed: set[int]) -> list[str]:

@@ -14,7 +14,21 @@ hconv's own in :mod:`hconv.kernels.inertia`):
 
 The checks are hconv's own (:mod:`hconv.solve.status`): a moment is zero by ``singular_rtol``, the
 triangle inequality holds within ``TRIANGLE_RTOL`` of the trace, and the density band is the
-unit-slip check's (:func:`hconv.solve.units.implausible`). This module adds no threshold.
+unit-slip check's (:func:`hconv.solve.units.implausible`). This module adds one threshold, for
+tensors that are nothing beside the mass:
+
+* A body with m > 0 whose largest principal moment, in magnitude, is at most
+  ``m·NEGLIGIBLE_LENGTH²`` (1 nm) has a negligible tensor: a point mass, as I = 0 is (``singular``),
+  whatever its signs, not ``not_positive_definite``. Model files carry such dust: iCub's links
+  have ``ixz = 2.4e-35`` beside m = 1.3 kg, and an indefinite tensor of 1e-35 kg·m² is rounding,
+  not a sign slip. Why 1 nm, a radius of gyration of atomic size: it is a thousand times below
+  the finest length model files write (positions to six decimals of a metre), so no body a file
+  describes comes near it; and it stays below what a unit slip leaves of a real body (the
+  largest, g·mm² read as kg·m², shrinks I by 1e9 and a 1 mm body's radius of gyration to some
+  30 nm), so that a slip keeps ``implausible_density`` with its advice and is not called dust.
+* The density check runs where the trace is not positive too, and on negligible tensors: a
+  positive mass with no inertia has a radius of gyration of zero, so the cube has an infinite
+  density, above the band (:func:`hconv.solve.units.implausible` leaves such rows unjudged).
 """
 
 from __future__ import annotations
@@ -27,6 +41,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hconv.errors import UsageError, option
 from hconv.kernels.inertia import Sym3, principal_frame
 from hconv.solve import forms, status, units
 from hconv.solve.options import check_choice
@@ -53,6 +68,9 @@ STATUSES: dict[str, str] = {
 }
 #: The output forms: hconv's six tensor numbers in B, or the principal moments with q_B.
 OUTPUT_FORMS = ("sym6", "principal")
+#: The radius of gyration below which a body's tensor is negligible beside its mass [m] (the
+#: module's docstring says why 1 nm).
+NEGLIGIBLE_LENGTH = 1e-9
 STATUS_COLUMN = "inertia_status"  # not "status": hconv convert writes that one, and refuses an input with it
 REASON_COLUMN = "inertia_reason"
 
@@ -121,22 +139,45 @@ class Model:
         return pa.Table.from_arrays([a for a, _ in cols.values()], schema=pa.schema(fields))
 
 
-def read_model(path: str | os.PathLike) -> Model:
+def read_model(path: str | os.PathLike, *, root: str | os.PathLike | None = None) -> Model:
     """Read the bodies of a URDF, SDF or MJCF model (told apart by the root element) and check
-    each one; InputError (one line: file, line, element and the fix) for a file it cannot read."""
+    each one; InputError (one line: file, line, element and the fix) for a file it cannot read.
+
+    ``root``: a folder holding the model's, within which MJCF includes may go (metaworld's
+    models include ``../scene/basic_scene.xml``); by default the model's own folder."""
     shown = os.fspath(path)
+    include_root = None if root is None else _include_root(Path(root), Path(path))
     budget = Budget(shown)
-    root = read(Path(path), shown, budget)
-    readers = {"robot": ("URDF", urdf.bodies), "sdf": ("SDF", sdf.bodies), "mujoco": ("MJCF", mjcf.bodies)}
-    if root.tag not in readers:
+    top = read(Path(path), shown, budget)
+    if top.tag not in _READERS:
         raise error(
-            root,
+            top,
             "is the root element, so this is not a model hconv reads",
             "give a URDF (<robot>), SDF (<sdf>) or MJCF (<mujoco>) file",
         )
-    fmt, reader = readers[root.tag]
-    raws, notes = reader(root, Path(path), shown, budget)
+    fmt, reader = _READERS[top.tag]
+    if fmt == "MJCF":
+        raws, notes = mjcf.bodies(top, Path(path), shown, budget, include_root=include_root)
+    else:
+        raws, notes = reader(top, Path(path), shown, budget)
     return Model(shown, fmt, tuple(_check(raws)), tuple(notes))
+
+
+_READERS = {"robot": ("URDF", urdf.bodies), "sdf": ("SDF", sdf.bodies), "mujoco": ("MJCF", mjcf.bodies)}
+
+
+def _include_root(root: Path, model: Path) -> Path:
+    """``root``, checked: a folder that holds the model's; UsageError naming the option otherwise."""
+    if not root.is_dir():
+        raise UsageError(f"{option('root', os.fspath(root))} is not a folder; name the folder includes may come from")
+    folder = model.resolve().parent
+    held = root.resolve()
+    if held != folder and held not in folder.parents:
+        raise UsageError(
+            f"{option('root', os.fspath(root))} does not hold the model's folder {str(folder)!r}; "
+            "name a folder that holds both the model and what it includes"
+        )
+    return held
 
 
 def write_bodies(
@@ -214,12 +255,18 @@ def _check(raws: list[ReadBody]) -> list[Body]:
     with np.errstate(invalid="ignore"):
         zero = have & np.all(I_C_B.reshape(n, 9) == 0, axis=1)
         top = np.abs(S).max(axis=0)
+        negligible = have & (m > 0) & (top <= m * NEGLIGIBLE_LENGTH**2)
         # A moment below zero beyond the singular threshold makes the tensor indefinite, whatever
         # else is zero: (-1, 0, 1) is no rod, and its reason must say so, not "a line mass".
-        negative = have & (S[0] < -status.singular_rtol(np.float64) * top)
+        negative = have & ~negligible & (S[0] < -status.singular_rtol(np.float64) * top)
         singular = (
-            have & ~negative & (np.abs(S).min(axis=0) <= status.singular_rtol(np.float64) * top) & ~(zero & (m == 0))
+            have
+            & ~negative
+            & (negligible | (np.abs(S).min(axis=0) <= status.singular_rtol(np.float64) * top))
+            & ~(zero & (m == 0))
         )
+        # no inertia beside a positive mass: an infinite density, which units.implausible leaves unjudged
+        pointlike = have & (m > 0) & (negligible | (trace <= 0))
         flags = {
             "negative_mass": have & (m < 0),
             "massless_with_inertia": have & (m == 0) & ~zero,
@@ -227,7 +274,8 @@ def _check(raws: list[ReadBody]) -> list[Body]:
             "singular": singular,
             "not_positive_definite": have & ~singular & (S[0] < 0),
             "not_physical": have & ~singular & (S[0] >= 0) & (S[2] > S[0] + S[1] + status.TRIANGLE_RTOL * trace),
-            "implausible_density": have & units.implausible(np.where(have, trace, 0.0), np.where(have, m, 0.0)),
+            "implausible_density": pointlike
+            | (have & units.implausible(np.where(have, trace, 0.0), np.where(have, m, 0.0))),
         }
         flip_ok = _valid(moments_flipped)
     for k, r in enumerate(raws):
@@ -255,9 +303,17 @@ def _why(name: str, m: float, S: np.ndarray, I: np.ndarray, flip_ok: bool) -> st
         return f"m = 0 with I ≠ 0 (moments {', '.join(_g(s) for s in S)} kg·m²): no inertia without mass"
     if name == "massless":
         return "m = 0 and I = 0: a frame, not a body; engines accept it only fixed to a parent"
+    top = float(np.abs(S).max())
+    negligible = m > 0 and top <= m * NEGLIGIBLE_LENGTH**2
     if name == "singular":
         if not np.any(I):
             return f"I = 0 with m = {_g(m)} kg: a point mass; engines need positive moments (MuJoCo refuses it)"
+        if negligible:
+            return (
+                f"I is negligible beside m·(1 nm)² = {_g(m * NEGLIGIBLE_LENGTH**2)} kg·m² (its largest moment "
+                f"is {_g(top)} kg·m², floating-point dust): a point mass, as if I = 0; engines need positive "
+                "moments: give the link's real inertia"
+            )
         zeros = int(np.sum(np.abs(S) <= status.singular_rtol(np.float64) * np.abs(S).max()))
         what = "a line mass, like an ideal rod" if zeros == 1 else "a point mass"
         listed = ", ".join(_g(s) for s in S)
@@ -277,9 +333,19 @@ def _why(name: str, m: float, S: np.ndarray, I: np.ndarray, flip_ok: bool) -> st
             f"no mass distribution has it; {flip}"
         )
     if name == "implausible_density":
+        lo, hi = status.UNIT_DENSITY_BAND
+        if negligible or S.sum() <= 0:
+            what, cause = (
+                ("no inertia to speak of", ": the inertia left out or a placeholder")
+                if negligible
+                else (f"a trace of {_g(S.sum())} kg·m², not positive,", "")
+            )
+            return (
+                f"a mass of {_g(m)} kg with {what} has no radius of gyration, so the cube with it an infinite "
+                f"density (hconv accepts {_g(lo)} to {_g(hi)} kg/m³){cause}"
+            )
         side = 2.0 * math.sqrt(S.sum() / (2.0 * m))
         rho = m / side**3
-        lo, hi = status.UNIT_DENSITY_BAND
         if rho < lo:
             return (
                 f"the uniform cube with this mass and radius of gyration has density {_g(rho)} kg/m³ "

@@ -10,8 +10,12 @@ names the file, the line and the fix):
   again if an encoding hid them from that scan, never reads a DTD, and refuses an entity
   reference that a DTD it did not read might define.
 * pull in other files, except MJCF's ``<include file=...>``: relative to the main model's folder,
-  as MuJoCo resolves it, and only inside that folder; each file at most once (as MuJoCo), which
-  also ends cycles. XInclude is not processed and is refused, since ignoring it would drop bodies.
+  as MuJoCo resolves it (an included file's own include, when not found there, beside that file,
+  where MuJoCo 4.0 looks next; a backslash read as ``/``, as MuJoCo 4.0 reads it on Linux too),
+  and only inside that folder, or inside a root folder the user names (``--root``; metaworld's
+  models include ``../scene/...``): a ``..`` or a symbolic link that leads beyond it is refused;
+  each file at most once (as MuJoCo), which also ends cycles. XInclude is not processed and is
+  refused, since ignoring it would drop bodies.
 * exhaust memory or time: a model larger than :data:`MAX_BYTES`, with all it includes, is refused;
   so is one of more than :data:`MAX_ELEMENTS` elements or nested deeper than :data:`MAX_DEPTH`,
   and one whose body names (SDF's ``model::link``, MJCF's path of an unnamed body), which grow
@@ -30,13 +34,14 @@ import errno
 import itertools
 import os
 import re
+import shlex
 import stat
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from xml.parsers import expat
 
-from hconv.errors import InputError
+from hconv.errors import InputError, on_command_line, option
 
 #: The largest model file hconv reads [bytes]. Real URDF, SDF and MJCF files are kilobytes to a
 #: few megabytes (meshes live in files of their own); a file beyond this is not a model.
@@ -392,13 +397,17 @@ def _check_kind(st: os.stat_result, shown: str) -> None:
         )
 
 
-def expand_includes(root: Node, model: Path, shown: str, budget: Budget | None = None) -> None:
+def expand_includes(
+    root: Node, model: Path, shown: str, budget: Budget | None = None, include_root: Path | None = None
+) -> None:
     """Replace every ``<include file=...>`` under ``root`` (read from ``model``) by the children of
     the included file's top element, as MuJoCo does: paths relative to the main model's folder,
     each file at most once. Walked with a work list, not recursion. ``budget``: the model's, which
-    each included file adds to."""
+    each included file adds to. ``include_root``: the folder (holding the model's) within which
+    includes may go; the model's folder when None."""
     budget = budget or Budget(shown)
     folder = model.resolve().parent
+    allowed = include_root.resolve() if include_root is not None else folder
     seen = {model.resolve(): shown}
     # the files an element is read from, innermost first: (file, (its includer, (...))), one
     # pair per include, so that a chain of includes is not a tuple copied at each
@@ -422,7 +431,11 @@ def expand_includes(root: Node, model: Path, shown: str, budget: Budget | None =
             name = child.attrib.get("file")
             if not name or not name.strip():
                 raise error(child, "has no attribute file", 'name the file to include: <include file="parts.xml"/>')
-            target = _include_target(child, name, folder)
+            # MuJoCo (4.0) looks beside the main model first, then beside the including file
+            base, beside = folder, ch[0].parent
+            if beside != folder and not _exists(folder / _slashed(name)) and _exists(beside / _slashed(name)):
+                base = beside
+            target = _include_target(child, name, base, allowed, include_root is not None)
             if target in seen:  # read before: a cycle when it is one of the files this include is in
                 files: list[Path] = []
                 link: _Chain | None = ch
@@ -457,8 +470,10 @@ def _check_included(node: Node, name: str, target: Path, shown: str) -> None:
     (of several, perhaps in an included file) to fix."""
     # where the user looks for it: beside the main model, as they named that
     # (the folder is the user's own path, shown whole; only what the file wrote is clipped)
-    expected = os.path.join(os.path.dirname(shown), name)
-    at = f" ({os.path.join(os.path.dirname(shown), clip(name))})" if expected != name else ""
+    expected = os.path.join(os.path.dirname(shown), _slashed(name))
+    # a Windows path: say how it was read, so that "not found" is not blamed on the folder alone
+    slash = ", each backslash read as /, as MuJoCo reads it" if "\\" in name else ""
+    at = f" ({os.path.join(os.path.dirname(shown), clip(_slashed(name)))}{slash})" if expected != name else ""
     try:
         st = os.stat(target)
     except OSError as exc:
@@ -483,13 +498,35 @@ def _check_included(node: Node, name: str, target: Path, shown: str) -> None:
         ) from None
 
 
-def _include_target(node: Node, name: str, folder: Path) -> Path:
+def _pasteable(folder: Path) -> str:
+    """``folder`` as the reader pastes it: quoted for the shell on the command line (a space in
+    it must not split the option), as it is for Python, where :func:`option` quotes it."""
+    return shlex.quote(str(folder)) if on_command_line() else str(folder)
+
+
+def _exists(path: Path) -> bool:
+    """Whether ``path`` leads to something (False for a link loop or a name the system refuses)."""
+    try:
+        return os.path.exists(path)
+    except (OSError, ValueError):
+        return False
+
+
+def _slashed(name: str) -> str:
+    """``name`` as MuJoCo opens it: a Windows backslash is a folder separator, on Linux too
+    (MuJoCo 4.0 on Linux opens ``assets\\a.xml`` as ``assets/a.xml``)."""
+    return name.replace("\\", "/")
+
+
+def _include_target(node: Node, name: str, folder: Path, allowed: Path, named_root: bool) -> Path:
+    """The file ``name`` (in an include at ``node``) names, relative to the model's ``folder``;
+    InputError unless it lies within ``allowed`` (``named_root``: the user named that folder)."""
     if "://" in name or name.startswith(("http:", "https:", "file:")):
         raise error(
             node, f"names {quote(name)}, which is not a file path", "hconv reads no URLs: give a path to a file"
         )
     try:
-        target = (folder / name).resolve()
+        target = (folder / _slashed(name)).resolve()
     except RuntimeError:  # Python 3.10 to 3.12: "Symlink loop from ..."; a later one raises OSError(ELOOP)
         raise _loop(node, name, folder) from None
     except (OSError, ValueError) as exc:
@@ -499,12 +536,20 @@ def _include_target(node: Node, name: str, folder: Path) -> Path:
         raise error(
             node, f"names {quote(name)}, which cannot be followed: {clip(why)}", "name a file in the model's folder"
         ) from None
-    if folder != target and folder not in target.parents:
-        raise error(
-            node,
-            f"names {quote(name)}, outside the model's folder {quote(str(folder))}",
-            "hconv reads includes from the model's folder only: copy the file there",
+    if allowed != target and allowed not in target.parents:
+        # where the path leads, when a symbolic link (not the name itself) took it out
+        lexical = Path(os.path.normpath(folder / _slashed(name)))
+        leads = f" (a symbolic link to {quote(str(target))})" if lexical != target else ""
+        where = f"the root folder {quote(str(allowed))} ({option('root')})" if named_root else "the model's folder"
+        if not named_root:
+            where += f" {quote(str(allowed))}"
+        common = Path(os.path.commonpath([allowed, target]))
+        fix = (
+            f"MuJoCo reads it; give {option('root', _pasteable(common))} to let includes come from within that folder"
+            if common != Path(common.anchor)
+            else "copy the file into the model's folder"
         )
+        raise error(node, f"names {quote(name)}{leads}, outside {where}", fix)
     return target
 
 
