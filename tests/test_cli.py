@@ -799,7 +799,11 @@ def test_convert_delimiter_and_decimal_options_override_the_sniff(tmp_path, caps
     assert_one_line_error(proc, 2, "cannot tell the delimiter", "pass --delimiter ',' or --delimiter ';'")
     src.write_text("Hx;Hy;Hz;I1;I2;I3\n1;2;3;4;5;8\n")
     proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.csv"), "--delimiter", "tab", capsys=capsys)
-    assert_one_line_error(proc, 3, "the header is separated by semicolons, not tabs: pass --delimiter semicolon")
+    assert_one_line_error(proc, 3, "separated by semicolons, not tabs: pass --delimiter semicolon or drop --delimiter")
+    named = tmp_path / "in.tsv"  # the name says tabs; the file has semicolons
+    named.write_text(src.read_text())
+    proc = hconv_inprocess("convert", str(named), str(tmp_path / "out.csv"), capsys=capsys)
+    assert_one_line_error(proc, 3, "pass --delimiter semicolon, or name the file .csv)")
     src.write_text("Hx;Hy;Hz;I1;I2;I3\n1,5;2;3;4;5;7,5\n")
     proc = hconv_inprocess(
         "convert", str(src), str(tmp_path / "out.csv"), "--delimiter", ";", "--decimal", ",", "-q", capsys=capsys

@@ -137,9 +137,10 @@ def _parse_options(d: Dialect) -> pacsv.ParseOptions:
     return pacsv.ParseOptions(delimiter=d.delimiter)
 
 
-def _header_hint(names: list, lines: list[str], dialect: Dialect, name: str) -> str:
-    """Why a header may not have matched: spaces around names, a delimiter given that the header
-    does not have, or a first line that is no header."""
+def _header_hint(names: list, lines: list[str], dialect: Dialect, name: str, given: bool) -> str:
+    """Why a header may not have matched: spaces around names, a delimiter given (``given``: by
+    ``--delimiter``; else by the name, .tsv) that the header does not have, or a first line that
+    is no header."""
     known = sets.all_names()
     if not any(n.strip() in known for n in names):
         try:
@@ -148,10 +149,9 @@ def _header_hint(names: list, lines: list[str], dialect: Dialect, name: str) -> 
             sniffed = dialect.delimiter
         if sniffed != dialect.delimiter:
             words = DELIMITERS[sniffed], DELIMITERS[dialect.delimiter]
-            return (
-                f" (the header is separated by {words[0]}s, not {words[1]}s: "
-                f"pass {option('delimiter', words[0])}, or name the file .csv)"
-            )
+            other = f" or drop {option('delimiter')}" if given else ", or name the file .csv"
+            fix = f"pass {option('delimiter', words[0])}{other}"
+            return f" (the header is separated by {words[0]}s, not {words[1]}s: {fix})"
     spaced = [n for n in names if n != n.strip() and n.strip() in known]
     if spaced:
         return f" (the header has spaces around {', '.join(repr(n) for n in spaced[:3])}; remove them)"
@@ -217,7 +217,7 @@ def open_csv(path: str, name: str, job: Job) -> Input:
     try:
         plan = layout.plan(pa.schema([(n, pa.float64()) for n in names]), job, name)
     except InputError as exc:
-        raise InputError(f"{exc}{_header_hint(names, lines, dialect, name)}") from None
+        raise InputError(f"{exc}{_header_hint(names, lines, dialect, name, job.delimiter is not None)}") from None
     rows = [r for r in csv.reader(lines[1:], delimiter=dialect.delimiter) if r]
     found = _units_row(rows[0], names, plan, name) if rows else ()
     if rows and found:
