@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Reproduce the benchmark figures and charts of docs/bench.md with one command, from the repository root:
 #   bash benchmarks/run.sh
-# It installs the bench extra (matplotlib, numba) into .venv, then runs the full benchmark
+# It installs hconv (building its compiled engine) and the bench extra (matplotlib) into .venv,
+# then runs the full benchmark
 # (2M rows, 3 repeats, peak memory on 20M rows; about 5 minutes and 4 GB of temporary disk) and
 # the stability sweeps. Run it on an otherwise idle machine: the targets are ratios within one run.
 set -euo pipefail
@@ -11,3 +12,4 @@ cd "$(dirname "$0")/.."
 COLUMNS=170 .venv/bin/hconv bench --rows 2000000 --repeats 3 --memory-rows 20000000 \
     --out docs/speed-vs-accuracy.png --json docs/bench.json
 COLUMNS=170 .venv/bin/hconv stability --out docs/stability.png > /dev/null
+.venv/bin/python benchmarks/engine_targets.py

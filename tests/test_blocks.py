@@ -52,7 +52,7 @@ def test_convert_blocks_stop_at_a_block_that_fails(rng, monkeypatch):
     I, H = physical_bodies(rng, 2)[np.zeros(n, int)], np.ones((n, 3))
     monkeypatch.setattr(blocks.engines, "available_cores", lambda: 2)
     calls = []
-    real = blocks._convert_common
+    real = blocks._convert_block
 
     def failing(*args: object) -> None:
         calls.append(1)
@@ -60,7 +60,7 @@ def test_convert_blocks_stop_at_a_block_that_fails(rng, monkeypatch):
             raise KeyboardInterrupt
         real(*args)
 
-    monkeypatch.setattr(blocks, "_convert_common", failing)
+    monkeypatch.setattr(blocks, "_convert_block", failing)
     with pytest.raises(KeyboardInterrupt):
         hconv.convert(H, I, engine="numpy")
     # the other thread may finish a few blocks before the main thread sees the failure, not all

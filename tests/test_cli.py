@@ -602,11 +602,11 @@ def test_one_value_a_run_reads_is_accepted(capsys, given):
     assert code == 0 and out.startswith("w        = [") and err == "", err
 
 
-def test_one_does_not_import_pyarrow_rich_pint_or_numba():
+def test_one_does_not_import_pyarrow_rich_pint_or_a_jit():
     code = (
         "import sys; sys.argv = ['hconv', 'one', '--H', '1,2,3', '--I', '1,2,2.5'];"
         "from hconv.cli import main\ntry: main()\nexcept SystemExit: pass\n"
-        "print(sorted(m for m in ('pyarrow', 'rich', 'pint', 'numba') if m in sys.modules))"
+        "print(sorted(m for m in ('pyarrow', 'rich', 'pint', 'numba', 'llvmlite') if m in sys.modules))"
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=60)
     assert proc.stdout.decode().splitlines()[-1] == "[]"
@@ -620,26 +620,16 @@ def test_methods_json_lists_every_method_with_unit(capsys):
     assert all(m["fails"] and m["cost"] for m in listed)
 
 
-def test_engines_lists_each_engine_within_80_columns(capsys, monkeypatch, tmp_path):
-    from hconv.solve import engines
-
-    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))  # no marker: not compiled here
-    monkeypatch.setattr(engines, "_ready", None)
-    monkeypatch.setattr(engines, "numba_installed", lambda: True)
+def test_engines_lists_each_engine_within_80_columns(capsys, monkeypatch):
+    monkeypatch.delenv("HCONV_ENGINE", raising=False)
     code, out, _ = run_inprocess("engines", capsys=capsys)
     assert code == 0 and [ln.split()[0] for ln in out.splitlines() if not ln.startswith(" ")] == [
+        "compiled",
         "numpy",
-        "numba",
-        "python",
         "auto",
     ]
-    assert "installed, not compiled: run hconv engines --compile" in out
+    assert "built in" in out and "numba" not in out
     assert max(len(ln) for ln in out.splitlines()) <= 80
-    monkeypatch.setattr(engines, "numba_installed", lambda: False)
-    code, out, _ = run_inprocess("engines", capsys=capsys)
-    assert "not installed: pip install 'hconv[fast]'" in out
-    code, _, err = run_inprocess("engines", "--compile", capsys=capsys)
-    assert code == 2 and err.strip() == "hconv: error: --compile needs numba: pip install 'hconv[fast]'"
 
 
 def test_convert_engine_option_rejects_others_in_one_line(tmp_path, capsys):

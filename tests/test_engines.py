@@ -1,11 +1,9 @@
-"""Which engine converts: the auto rule, the environment override, the compiled-code marker, and
-the promise that numba is imported only when it runs."""
+"""Which engine converts: the auto rule, the environment override, the engines hconv no longer
+has, and the promise that nothing is compiled or loaded at run time beyond the extension."""
 
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
-import json
 import os
 import subprocess
 import sys
@@ -13,24 +11,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import hconv_inprocess
 
 import hconv
 from hconv.errors import UsageError
-from hconv.solve import engines, methods, rows
+from hconv.solve import engines, methods
 
-NUMBA = importlib.util.find_spec("numba") is not None
 ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture
-def fresh(monkeypatch, tmp_path):
-    """auto's state as in a new process, with the marker in an empty cache directory."""
+def fresh(monkeypatch):
+    """auto as a user gets it: no HCONV_ENGINE."""
     monkeypatch.delenv("HCONV_ENGINE", raising=False)
-    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
-    monkeypatch.setattr(engines, "_spent", 0.0)
-    monkeypatch.setattr(engines, "_ready", None)
-    monkeypatch.delitem(sys.modules, "hconv.solve.compiled", raising=False)
-    return tmp_path
 
 
 def _auto(n: int, **kw) -> str:
@@ -39,10 +32,10 @@ def _auto(n: int, **kw) -> str:
     return engines.resolve("auto", n, m, args["precision"], args["degenerate"], args["form"])
 
 
-def test_resolve_auto_one_body_is_python_and_small_batches_numpy(fresh):
-    assert _auto(1) == "python"
-    assert _auto(100) == "numpy"
-    assert _auto(10**7) == "numpy"  # numba not compiled here (empty cache): auto never compiles
+def test_resolve_auto_is_compiled_at_every_size(fresh):
+    for n in (1, 100, 10**7):
+        assert _auto(n) == "compiled"
+        assert _auto(n, method="refined", form="full9") == "compiled"
 
 
 def test_resolve_auto_runs_the_rest_on_numpy(fresh):
@@ -50,91 +43,62 @@ def test_resolve_auto_runs_the_rest_on_numpy(fresh):
     assert _auto(1, precision=32) == "numpy"
     assert _auto(1, degenerate="pinv") == "numpy"
     assert _auto(1, form="principal") == "numpy"
-    assert engines.resolve("python", 5, methods.get("lapack"), 64, "error", "sym6") == "numpy"
-    assert engines.resolve("python", 5, methods.get("exact"), 64, "error", "sym6", degenerate_rtol=1e-9) == "numpy"
-
-
-def test_resolve_auto_numba_once_compiled_and_worth_it(fresh, monkeypatch):
-    monkeypatch.setattr(engines, "numba_installed", lambda: True)
-    monkeypatch.setattr(engines, "compiled_ready", lambda: True)
-    assert _auto(engines.AUTO_MIN_ROWS - 1) == "numpy"
-    assert _auto(engines.AUTO_MIN_ROWS) == "numba"
-    engines.spend(engines.START_COST)  # many small calls have cost as much as loading numba
-    assert _auto(100) == "numba"
-    assert _auto(1) == "python"
-    sys.modules["hconv.solve.compiled"] = sys  # loaded (a stand-in: the rule looks at the name only)
-    assert _auto(1) == "numba"
+    assert engines.resolve("compiled", 5, methods.get("lapack"), 64, "error", "sym6") == "numpy"
+    assert engines.resolve("compiled", 5, methods.get("exact"), 64, "error", "sym6", degenerate_rtol=1e-9) == "numpy"
 
 
 def test_resolve_environment_sets_what_auto_means(fresh, monkeypatch):
-    monkeypatch.setenv("HCONV_ENGINE", "python")
-    assert _auto(10**6) == "python"
-    assert engines.resolve("numpy", 10, methods.get("exact"), 64, "error", "sym6") == "numpy"  # a named engine wins
+    monkeypatch.setenv("HCONV_ENGINE", "numpy")
+    assert _auto(10**6) == "numpy"
+    assert engines.resolve("compiled", 10, methods.get("exact"), 64, "error", "sym6") == "compiled"  # named wins
     monkeypatch.setenv("HCONV_ENGINE", "fortran")
-    with pytest.raises(UsageError, match="HCONV_ENGINE must be one of auto, numpy, numba, python, got 'fortran'"):
+    with pytest.raises(UsageError, match="HCONV_ENGINE must be one of auto, numpy, compiled, got 'fortran'"):
         _auto(10)
 
 
 def test_for_files_auto_is_numpy_unless_the_environment_says(fresh, monkeypatch):
     assert engines.for_files("auto") == "numpy"
-    assert engines.for_files("numba") == "numba"  # asked for by name: as asked
-    monkeypatch.setenv("HCONV_ENGINE", "numba")
-    assert engines.for_files("auto") == "numba"
+    assert engines.for_files("compiled") == "compiled"  # asked for by name: as asked
+    monkeypatch.setenv("HCONV_ENGINE", "compiled")
+    assert engines.for_files("auto") == "compiled"
 
 
-def test_resolve_numba_without_numba_names_the_fix(fresh, monkeypatch):
-    monkeypatch.setattr(engines, "numba_installed", lambda: False)
-    fix = r"engine='numba' needs numba: pip install 'hconv\[fast\]' \(or use engine='auto'\)"
-    with pytest.raises(UsageError, match=fix):
-        hconv.convert(np.ones(3), np.eye(3), engine="numba")
-    with pytest.raises(UsageError, match="engine must be one of auto, numpy, numba, python, got 'gpu'"):
+@pytest.mark.parametrize("gone", ["numba", "python"])
+def test_check_engine_refuses_a_gone_engine_naming_compiled(gone, fresh):
+    message = rf"^engine='{gone}' is gone: the compiled engine is built into hconv now; use engine='compiled'"
+    with pytest.raises(UsageError, match=message):
+        hconv.convert(np.ones(3), np.eye(3), engine=gone)
+    with pytest.raises(UsageError, match=message):
+        hconv.Job(engine=gone)
+    with pytest.raises(UsageError, match="engine must be one of auto, numpy, compiled, got 'gpu'"):
         hconv.convert(np.ones(3), np.eye(3), engine="gpu")
-    with pytest.raises(UsageError, match="engine='numba' needs numba"):
-        hconv.Job(engine="numba")
-    monkeypatch.setenv("HCONV_ENGINE", "numba")  # the message names what asked for numba
-    with pytest.raises(UsageError, match=r"HCONV_ENGINE=numba needs numba: .* \(or unset HCONV_ENGINE\)"):
-        hconv.convert(np.ones((5, 3)), np.tile(np.eye(3), (5, 1, 1)))
 
 
-def test_compiled_ready_reads_the_marker_and_its_files(fresh):
-    assert not engines.compiled_ready()
-    index = fresh / "rows.convert_rows-1.py311.nbi"
-    index.write_text("")
-    path = engines.marker_path()
-    path.parent.mkdir(parents=True)
-    path.write_text(json.dumps({"index": [str(index)]}))
-    engines.forget_ready()
-    assert engines.compiled_ready()
-    index.unlink()  # numba's cache cleared: the marker no longer counts
-    engines.forget_ready()
-    assert not engines.compiled_ready()
-    path.write_text("{not json")
-    engines.forget_ready()
-    assert not engines.compiled_ready()
+@pytest.mark.parametrize("gone", ["numba", "python"])
+def test_resolve_environment_refuses_a_gone_engine_naming_compiled(gone, fresh, monkeypatch):
+    monkeypatch.setenv("HCONV_ENGINE", gone)
+    message = rf"^HCONV_ENGINE={gone} is gone: .*; use HCONV_ENGINE=compiled \(or unset it for auto\)$"
+    with pytest.raises(UsageError, match=message):
+        hconv.convert(np.ones(3), np.eye(3))
+    with pytest.raises(UsageError, match=message):
+        hconv.convert(np.ones((5, 3)), np.tile(np.eye(3), (5, 1, 1)), method="refined")
 
 
-def test_marker_path_is_another_for_a_copy_of_the_same_row_code(fresh, monkeypatch):
-    """A fresh clone or environment beside a compiled one has compiled nothing: numba caches
-    beside each copy of rows.py, so the marker of one copy must not speak for another (a trial
-    found auto compiling for 13 s in a fresh clone that another checkout's marker called ready)."""
-    here = engines.marker_path()
-    copy = fresh / "elsewhere" / "rows.py"
-    copy.parent.mkdir()
-    copy.write_bytes(Path(rows.__file__).read_bytes())
-    with monkeypatch.context() as m:
-        m.setattr(rows, "__file__", str(copy))
-        assert engines.marker_path() != here
-    assert engines.marker_path() == here
+def test_engines_command_lists_the_compiled_engine_and_compile_does_nothing(capsys, fresh):
+    proc = hconv_inprocess("engines", "--compile", capsys=capsys)
+    out = proc.stdout.decode()
+    assert proc.returncode == 0, proc.stderr.decode()
+    assert out.startswith("nothing to compile: the compiled engine is built when hconv is installed\n")
+    assert "compiled" in out.splitlines()[1] and "numba" not in out
 
 
-@pytest.mark.skipif(not NUMBA, reason="needs hconv[fast]")
-def test_warm_compiles_and_marks(fresh):
-    from hconv.solve import compiled
-
-    compiled._marked = False  # a module imported afresh by the fixture
-    assert not engines.marker_path().exists()
-    compiled.warm()
-    assert engines.marker_path().exists() and engines.compiled_ready()
+def test_convert_one_body_and_batches_are_the_compiled_engine(fresh):
+    h, i = np.array([1.0, 2.0, 3.0]), np.array([[2.0, 0.1, 0.0], [0.1, 3.0, 0.2], [0.0, 0.2, 4.0]])
+    one = hconv.convert(h, i)
+    assert one.engine == "compiled" and one.status == "ok" and one.w.shape == (3,)
+    assert np.array_equal(one.w, hconv.convert(h, i, engine="numpy").w)
+    many = hconv.convert(np.tile(h, (1000, 1)), np.tile(i, (1000, 1, 1)))
+    assert many.engine == "compiled" and np.array_equal(many.w[-1], one.w)
 
 
 def _modules_after(code: str) -> set:
@@ -151,22 +115,17 @@ def _modules_after(code: str) -> set:
     return set(out.stdout.split())
 
 
-def test_one_never_imports_numba():
-    code = (
-        "import sys\nfrom hconv.cli import main\n"
-        "sys.argv = ['hconv', 'one', '--H', '1,2,3', '--I', '2,3,4,0.1,0,0.2']\n"
-        "try:\n    main()\nexcept SystemExit:\n    pass"
-    )
-    assert "numba" not in _modules_after(code)
-
-
-def test_convert_small_batches_never_import_numba():
+def test_convert_in_a_fresh_process_loads_the_extension_and_no_jit():
+    """The first call of a process is the compiled engine's, with nothing compiled at run time: no
+    numba, no LLVM."""
     code = (
         "import numpy as np, hconv\n"
         "for n in (1, 100, 10000):\n"
-        "    hconv.convert(np.ones((n, 3)), np.tile(np.diag([1.0, 2.0, 2.5]), (n, 1, 1)))"
+        "    assert hconv.convert(np.ones((n, 3)), np.tile(np.diag([1.0, 2.0, 2.5]), (n, 1, 1))).engine == 'compiled'"
     )
-    assert "numba" not in _modules_after(code)
+    loaded = _modules_after(code)
+    assert "hconv.solve.rowcode" in loaded
+    assert not {"numba", "llvmlite"} & loaded
 
 
 def test_covers_follows_the_row_engine_field():
@@ -175,3 +134,42 @@ def test_covers_follows_the_row_engine_field():
     assert not engines.covers(dataclasses.replace(exact, name="exact-numpy", row_engine=False), 64, "error", "sym6")
     assert engines.covers(dataclasses.replace(exact, name="exact-twin"), 64, "error", "full9")
     assert engines.scope_text().startswith("--method exact or refined on sym6 or full9 tensors")
+
+
+def _same_result(a: hconv.Result, b: hconv.Result) -> None:
+    """Every field the same, bits, types and shapes (NaN equal to NaN)."""
+    assert dataclasses.fields(a) == dataclasses.fields(b)
+    for f in dataclasses.fields(a):
+        x, y = getattr(a, f.name), getattr(b, f.name)
+        assert type(x) is type(y), f.name
+        if isinstance(x, (np.ndarray, np.generic)):
+            assert x.shape == y.shape and np.array_equal(x, y, equal_nan=True), f.name
+        else:
+            assert x == y, f.name
+
+
+@pytest.mark.parametrize("method", [None, "refined"])
+@pytest.mark.parametrize("diagnostics", [None, False])
+def test_convert_plain_call_gives_the_general_paths_result(method, diagnostics, rng, fresh):
+    """Plain calls (float64 arrays, default options) skip the general path's checks: one body by
+    its own C entry, a small stack by another; the Result is the one the general path gives
+    (precision=64 spelled out takes that path)."""
+    from helpers import hard_bodies, physical_bodies, six
+
+    I, H = physical_bodies(rng, 50), rng.normal(size=(50, 3))
+    hard, Hh = hard_bodies(rng)  # rows the compiled engine leaves: the short path must too
+    kw = {"method": method, "diagnostics": diagnostics}
+    for h, i in [(H[0], I[0]), (H[0], six(I)[0]), (H, I), (H, six(I)), (Hh[0], hard[0]), (Hh, hard), (Hh[5], hard[5])]:
+        _same_result(hconv.convert(h, i, **kw), hconv.convert(h, i, precision=64, **kw))
+    assert hconv.convert(H[0], I[0], **kw).engine == "compiled"
+    assert hconv.convert(Hh[0], hard[0], **kw).status == "invalid_input"  # a NaN: the numpy engine's row
+
+
+def test_convert_plain_call_follows_the_environment(fresh, monkeypatch):
+    h, i = np.array([1.0, 2.0, 3.0]), np.diag([1.0, 2.0, 3.0])
+    monkeypatch.setenv("HCONV_ENGINE", "numpy")
+    assert hconv.convert(h, i).engine == "numpy" and hconv.convert(h[None], i[None]).engine == "numpy"
+    assert hconv.convert(h, i, engine="compiled").engine == "compiled"
+    monkeypatch.setenv("HCONV_ENGINE", "gpu")
+    with pytest.raises(UsageError, match="HCONV_ENGINE must be one of auto, numpy, compiled, got 'gpu'"):
+        hconv.convert(h, i)

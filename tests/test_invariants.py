@@ -167,8 +167,8 @@ def test_convert_interrupted_leaves_no_output_and_no_temporary(big_file, tmp_pat
     spools = lambda: {p.name for p in tmp.iterdir() if p.name.startswith("hconv-stdout-")}  # noqa: E731
     before = spools()
     # As from a terminal: Ctrl-C and SIGQUIT at their defaults. A child inherits an ignored signal,
-    # and under HCONV_ENGINE=numba this process was caught with both ignored (the mark of a C
-    # system() call running in another thread), so the child never saw the SIGINT and finished.
+    # and under HCONV_ENGINE=numba (an engine hconv had then) this process was caught with both
+    # ignored (the mark of a C system() call running in another thread), so the child never saw the SIGINT and finished.
     # The child stops as its first batch is written (helpers.StopAt), more to come: the signal
     # lands mid-conversion however slow the machine, with a file to remove.
     stop = StopAt(tmp_path.parent / f"{tmp_path.name}-hook", "hconv.tables.output:Output.write")

@@ -189,11 +189,12 @@ def test_diagnosis_tables_explain_a_hypothesis_with_no_omega_on_any_row(tmp_path
 
 @pytest.mark.parametrize(
     "asked, ran, told",
-    [("numba", {"numpy": 10}, True), ("python", {"numpy": 10}, True), ("numba", {"numba": 10}, False)]
-    + [("numba", {"numba": 6, "numpy": 4}, False), ("auto", {"numpy": 10}, False), ("numpy", {"numpy": 10}, False)],
+    [("compiled", {"numpy": 10}, True), ("compiled", {"compiled": 10}, False)]
+    + [("compiled", {"compiled": 6, "numpy": 4}, False), ("auto", {"numpy": 10}, False)]
+    + [("numpy", {"numpy": 10}, False)],
 )
 def test_summary_says_when_the_engine_asked_for_converted_no_row(asked, ran, told):
-    """Before, --engine numba --method lapack said only "engine numpy" in the head."""
+    """Before, --engine compiled --method lapack said only "engine numpy" in the head."""
     tally = Tally("lapack", "rad/s", rows=10, seconds=0.5)
     tally.engines.update(ran)
     console = pipe()

@@ -135,7 +135,7 @@ def test_output_removes_the_temporary_file_of_a_killed_run_and_says_so(left, tmp
     out = tmp_path / "out.parquet"
     if left == "output":  # caught at work: stopped as it writes its first batch (helpers.StopAt)
         _scene_parquet(tmp_path / "big.parquet", 500)
-        args = ["convert", str(tmp_path / "big.parquet"), str(out), "--engine", "python", "--threads", "1"]
+        args = ["convert", str(tmp_path / "big.parquet"), str(out), "--engine", "numpy", "--threads", "1"]
         stop = StopAt(tmp_path.parent / f"{tmp_path.name}-hook", "hconv.tables.output:Output.write")
         proc = _hconv(*args, tmpdir=spools, stop=stop)
         assert stop.reached(), proc.communicate()[1].decode()

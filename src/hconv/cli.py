@@ -528,21 +528,13 @@ def bench_cmd(
 @app.command("engines")
 @friendly
 def engines_cmd(
-    compile_now: bool = typer.Option(
-        False, "--compile", help="compile the numba engine now (once per machine), so that auto can use it"
-    ),
+    compile_now: bool = typer.Option(False, "--compile", hidden=True, help="nothing to do: kept for old instructions"),
 ) -> None:
-    """List the engines that convert rows, and whether the compiled one is installed and compiled."""
+    """List the engines that convert rows, and what auto picks."""
     from hconv.solve import engines
 
-    if compile_now:
-        if not engines.numba_installed():
-            raise UsageError(f"--compile needs numba: {engines.NUMBA_FIX}")
-        from hconv.solve import compiled
-
-        seconds, compiled_now = compiled.warm()
-        done = "compiled the numba engine" if compiled_now else "loaded the numba engine from numba's cache"
-        print(f"{done} in {seconds:.1f} s")
+    if compile_now:  # the compiled engine is built when hconv is installed
+        print("nothing to compile: the compiled engine is built when hconv is installed")
     _listing(engines.listing())
 
 
@@ -550,10 +542,11 @@ def _listing(entries: list[tuple[str, ...]]) -> None:
     """Print ``(name, paragraph, ...)`` entries as a name column beside paragraphs wrapped at
     spaces to 80 columns, or to a narrower terminal, so that no line is cut or runs over. A
     no-break space keeps a number with its unit."""
+    width = max(len(name) for name, *_ in entries) + 2
     for name, *paragraphs in entries:
         for k, text in enumerate(paragraphs):
-            first = f"{name:<8}" if k == 0 else " " * 8
-            print(_fill(text, sys.stdout, " " * 8, first))
+            first = f"{name:<{width}}" if k == 0 else " " * width
+            print(_fill(text, sys.stdout, " " * width, first))
 
 
 @app.command("methods")

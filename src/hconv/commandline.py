@@ -156,7 +156,7 @@ JOB_OPTIONS = {
             "auto",
             "--engine",
             metavar="ENGINE",
-            help="auto (for files: numpy; see hconv engines), numpy, numba (pip install 'hconv\\[fast]') or python",
+            help="auto (for files: numpy; see hconv engines), compiled or numpy (the reference)",
         ),
     ),
     "quat_order": (

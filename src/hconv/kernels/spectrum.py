@@ -71,13 +71,13 @@ def _largest_root(I: Sym3) -> tuple[np.ndarray, np.ndarray]:
     rounding (tests/test_spectrum.py, against mpmath), where acos and cos cost several times more,
     compiled or not (docs/measurements.md). Near r = −1 (the two largest roots meet) the answer is
     ill-conditioned in r itself: the error grows to about p·eps / √(1 − r²), capped at p·√eps.
-    :func:`hconv.solve.rows.largest_root` is the same arithmetic for one row.
+    The compiled engine's ``largest_root`` (src/hconv/solve/rowcode.c) is the same arithmetic for one
+    row.
     """
     # Beyond ROOT_RANGE, scaled by a power of two near the largest entry (exact), so that squares
     # and the determinant neither overflow nor underflow; the exponent is clamped so that s and
     # 1/s stay finite for entries near 1e308 and for subnormal ones. Within it, not scaled: the
-    # row engines compute the same bits without a call to frexp, which stops compiled loops
-    # from running several rows at once.
+    # compiled engine computes the same bits without a call to frexp.
     big = max_abs(I)
     s = np.ldexp(1.0, np.clip(np.frexp(np.where(big > 0, big, 1.0))[1], -1000, 1000))
     s[(big >= 1.0 / ROOT_RANGE) & (big <= ROOT_RANGE)] = 1.0
@@ -91,7 +91,7 @@ def _largest_root(I: Sym3) -> tuple[np.ndarray, np.ndarray]:
 def largest_root(I: Sym3) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_largest_root` for tensors whose entries all lie within ROOT_RANGE (not rescaled):
     the largest moment and its error bound, ``(N,)`` each. No call to ``frexp`` or a reduction:
-    the arithmetic :func:`hconv.solve.rows.largest_root` does for one row."""
+    the arithmetic the compiled engine's ``largest_root`` (src/hconv/solve/rowcode.c) does for one row."""
     a, b, c, d, e, f = I
     q = (a + b + c) * (1.0 / 3.0)
     aq, bq, cq = a - q, b - q, c - q

@@ -1,12 +1,11 @@
 """The numpy engine: :func:`hconv.solve.convert.convert_columns`'s rows converted in blocks, with
 every status, ``cond``, the residual and the degenerate rows' pseudo-inverse.
 
-A run the row engines cover goes by :mod:`hconv.solve.vectorrows` (the row code's arithmetic, a
-block at a time); every other run, and the rows that module leaves, by :func:`_convert_block`,
-the general block converter, which handles every method and option. A call from the main thread
+Every block goes by :func:`_convert_block`, which handles every method and option: this engine is
+the reference the compiled engine (:mod:`hconv.solve.compiled`) is tested against. A call from the main thread
 shares its blocks among the cores (:func:`block_threads`). docs/engines.md has the why and the
 figures. The ``ill_conditioned`` bound (:func:`error_k`, :func:`ill_conditioned_above`) is this
-engine's, and the row engines take theirs from it.
+engine's, and the compiled engine takes its from it.
 """
 
 from __future__ import annotations
@@ -21,13 +20,10 @@ from hconv.kernels import frames, linsolve
 from hconv.kernels.inertia import Sym3, max_abs, pinv_moments, principal_frame
 from hconv.kernels.metrics import relative_error
 from hconv.kernels.spectrum import eigenvalues
-from hconv.solve import engines, forms, methods, status, vectorrows
+from hconv.solve import engines, forms, methods, status
 
 #: Rows per kernel block: small enough that a block's temporaries stay in cache.
 BLOCK_ROWS = 16384
-#: The numpy engine converts the runs the row engines cover by :mod:`hconv.solve.vectorrows`
-#: (False: every row by the general block converter, which tests compare it with).
-COMMON_PATH = True
 #: Rows per block when a call's blocks run on threads: fewer numpy calls than BLOCK_ROWS, so
 #: less waiting on the GIL, which each call takes between its operations (docs/engines.md).
 THREADED_BLOCK_ROWS = 65536
@@ -64,25 +60,17 @@ def convert_blocks(
     code: np.ndarray,
     residual: np.ndarray | None,
     deg: Degenerate | None,
-    covered: bool,
 ) -> None:
-    """Every block of rows: by :mod:`hconv.solve.vectorrows` when the run is ``covered`` (the
-    rows it leaves by :func:`_convert_block`), else by :func:`_convert_block`; on
+    """Every block of rows, by :func:`_convert_block`, on
     :func:`block_threads` threads (numpy lets go of the GIL inside each operation on a block, so
     the blocks of one call share the cores)."""
-    common = covered and COMMON_PATH
     threads = block_threads(-(-n // THREADED_BLOCK_ROWS))
     size = BLOCK_ROWS if threads == 1 else THREADED_BLOCK_ROWS
-    cond_limit = ill_conditioned_above(opts.m, opts.extra_k)
 
     def one(lo: int) -> None:
         sl = slice(lo, min(n, lo + size))
         # every row that would warn gets a status instead; set here, as errstate is per thread
         with np.errstate(all="ignore"):
-            if common:
-                res = None if residual is None else residual[sl]
-                _convert_common(opts, form, I[:, sl], H[:, sl], w[sl], cond[sl], code[sl], res, cond_limit)
-                return
             _convert_block(
                 opts,
                 *form.as_sym3(I[:, sl]),
@@ -116,38 +104,6 @@ def block_threads(blocks: int) -> int:
     if blocks < 2 or threading.current_thread() is not threading.main_thread():
         return 1
     return max(1, min(blocks, MAX_BLOCK_THREADS, engines.available_cores()))
-
-
-def _convert_common(
-    opts: Options,
-    form: forms.Form,
-    I: np.ndarray,
-    H: np.ndarray,
-    w_out: np.ndarray,
-    cond_out: np.ndarray,
-    code_out: np.ndarray,
-    res_out: np.ndarray | None,
-    cond_limit: float,
-) -> None:
-    """One block of a run the row engines cover: :mod:`hconv.solve.vectorrows` converts it, and
-    the general :func:`_convert_block` the rows that module leaves."""
-    sym, asym = form.as_sym3(I)
-    Hc = np.ascontiguousarray(H)
-    b = vectorrows.convert_block(sym, asym, Hc, opts.m.refines, res_out is not None, cond_limit)
-    w_out[:] = b.w.T
-    cond_out[:] = b.cond
-    code_out[:] = b.code
-    if res_out is not None:
-        res_out[:] = b.residual
-    rest = np.flatnonzero(b.fallback)
-    if rest.size:
-        k = rest.size
-        w, cond, code = np.empty((k, 3)), np.empty(k), np.empty(k, dtype=np.uint8)
-        res = None if res_out is None else np.empty(k)
-        _convert_block(opts, sym.take(rest), asym[rest], Hc[:, rest], None, w, cond, code, res, None)
-        w_out[rest], cond_out[rest], code_out[rest] = w, cond, code
-        if res_out is not None:
-            res_out[rest] = res
 
 
 @dataclass(frozen=True)

@@ -1,98 +1,168 @@
-"""The numba engine: :mod:`hconv.solve.rows` compiled, its row loop shared between the cores.
+"""The compiled engine: hconv's row code in C (``src/hconv/solve/rowcode.c``, built when hconv is
+installed), one fused pass per row, its blocks of rows on every core.
 
-Importing this module imports numba (about half a second), so it is imported only where the
-compiled engine runs, after :func:`hconv.solve.engines.resolve` has chosen it. The row
-code stays plain Python in :mod:`hconv.solve.rows`; here each of its functions is compiled with
-its references to the others pointing at their compiled versions. Compiled code is cached on
-disk (numba's ``cache=True``: beside the module, or in a user cache directory where that is
-read-only), so only the first run on a machine compiles; docs/engines.md has the cold and warm
-start as measured.
+It covers the common case and says so per row: the methods registered with ``row_engine``
+(``exact``, and ``refined``) on symmetric, finite, positive definite tensors of six or nine
+numbers (:data:`hconv.solve.engines.FORMS`), in float64, with ``degenerate="error"`` at its default threshold
+(:func:`hconv.solve.engines.covers`). Every other row (not finite, not symmetric, not positive
+definite, principal moments too close for the closed form to decide, magnitudes beyond the safe
+range of the double-double residual, ω not finite or subnormal) is marked ``fallback``, and its
+caller converts it with the numpy engine, which handles them all. The statuses this engine sets
+itself are ``ok``, ``singular``, ``not_physical``, ``ill_conditioned`` and ``inaccurate``.
+
+Every operation is the numpy engine's (:mod:`hconv.kernels.linsolve`, :mod:`hconv.kernels.spectrum`,
+:mod:`hconv.kernels.metrics`, :mod:`hconv.solve.blocks`), in the same order, so ω of ``exact``,
+``cond`` and every status are the same bits. One thing differs by design: the refinement decides
+when to stop row by row, where the numpy engine decides per block of rows, so ``refined``'s ω and
+the ``residual`` can differ in the last bits (both within one rounding of I⁻¹H; docs/engines.md).
+
+The constants the C code uses are read here from the modules that own them and handed to it once
+(:func:`_configure`), so that each is stated in one place.
+
+Shapes: I ``(k, N)`` in its form's value order (six numbers or nine row-major), H ``(3, N)``
+[kg·m²/s], any strides; ω ``(N, 3)`` [rad/s], ``cond``, ``code``, ``residual``, ``fallback``
+``(N,)``.
 """
 
 from __future__ import annotations
 
-import json
+import math
 import os
 import threading
-import time
-import types
-from collections.abc import Callable
-from pathlib import Path
-from typing import Any, Literal
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
 
-import numba
 import numpy as np
 
-from hconv.solve import engines, rows
+from hconv.kernels.eft import splitter
+from hconv.kernels.linsolve import MAX_REFINE_STEPS, STOP_TOL
+from hconv.kernels.spectrum import ROOT_NEWTON_STEPS, ROOT_RANGE, ROOT_START
+from hconv.solve import rowcode  # the C extension (setup.py)
+from hconv.solve.engines import available_cores
+from hconv.solve.status import CODE, ILL_CONDITIONED_TOL, SINGULAR_RTOL_EPS, SYMMETRY_RTOL, TRIANGLE_RTOL
+
+#: Rows per thread below which a call stays on its caller's thread (handing rows to another
+#: thread would cost more than it saves).
+BLOCK_ROWS = 4096
+
+_EPS = float(np.finfo(np.float64).eps)
+#: The status codes this engine sets, status.py's. The C code writes them in the order of
+#: status.PRECEDENCE (a later write wins), and inaccurate, after the other three there, takes a
+#: row only from ok.
+OWN_CODES = {name: CODE[name] for name in ("ok", "singular", "not_physical", "ill_conditioned", "inaccurate")}
 
 
-def _compile() -> dict[str, Any]:
-    space = dict(vars(rows))
-    space["prange"] = numba.prange
-    for name in rows.COMPILED:
-        f = getattr(rows, name)
-        g = types.FunctionType(f.__code__, space, name, f.__defaults__, f.__closure__)
-        g.__module__, g.__qualname__ = f.__module__, f.__qualname__
-        # error_model="numpy": a division by zero gives inf or NaN, as in the numpy engine,
-        # instead of raising; fastmath stays off, so every operation rounds as written.
-        # The arithmetic is inlined where it is called (numba's inline="always"), so that a loop
-        # over rows is one body the compiler can run several rows of at once.
-        inline: Literal["always", "never"] = "always" if name in rows.INLINE else "never"
-        space[name] = numba.njit(
-            cache=True, nogil=True, error_model="numpy", parallel=name == "convert_rows", inline=inline
-        )(g)
-    return space
+def constants() -> dict[str, float]:
+    """What the C code computes with, from the modules that state each."""
+    tiny = _EPS * _EPS
+    s0, s1, s2, s3, s4 = ROOT_START
+    return {
+        "SPLIT": float(splitter(np.float64)),
+        # a row is singular when its smallest |moment| is at most this times its largest
+        "SINGULAR_LIMIT": SINGULAR_RTOL_EPS * _EPS,
+        # ω below this magnitude is on the grid of subnormal numbers (status inaccurate)
+        "GRID": float(np.finfo(np.float64).smallest_subnormal) / ILL_CONDITIONED_TOL,
+        # the double-double residual's safe range, hconv.kernels.linsolve.in_safe_range's
+        "SAFE": float(2.0 ** (np.finfo(np.float64).maxexp // 2.5)),
+        # a correction (relative, squared) at or below TINY has nothing left to find; one
+        # predicted at or below STOP ends the refinement of its row (linsolve._refine's rule)
+        "TINY": tiny,
+        "STOP": STOP_TOL * STOP_TOL * tiny,
+        **{f"S{k}": float(v) for k, v in enumerate((s0, s1, s2, s3, s4))},
+        "ROOT_NEWTON_STEPS": float(ROOT_NEWTON_STEPS),
+        "ROOT_RANGE": float(ROOT_RANGE),
+        "MAX_REFINE_STEPS": float(MAX_REFINE_STEPS),
+        "SYMMETRY_RTOL": SYMMETRY_RTOL,
+        "TRIANGLE_RTOL": TRIANGLE_RTOL,
+        "ILL_CONDITIONED_TOL": ILL_CONDITIONED_TOL,
+        "EPS": _EPS,
+        "SQRT_EPS": math.sqrt(_EPS),
+        "MAX": float(np.finfo(np.float64).max),
+        **{name.upper(): float(code) for name, code in OWN_CODES.items()},
+    }
 
 
-_convert_rows: Callable[..., Any] = _compile()["convert_rows"]
-_marked = False
-#: One parallel loop at a time: it already runs on every core, and numba's fallback threading
-#: layer (workqueue, where neither OpenMP nor TBB is found) must not be entered from two threads,
-#: as the file pipeline's batch threads would. The loop releases the GIL, so reading and writing
-#: go on meanwhile.
-_one_at_a_time = threading.Lock()
+def _configure() -> None:
+    rowcode.configure(constants())
 
 
-def convert_rows(*args: Any) -> None:
-    """:func:`hconv.solve.rows.convert_rows`, compiled; its arguments."""
-    with _one_at_a_time:
-        _convert_rows(*args)
+_configure()
+_pool: ThreadPoolExecutor | None = None
+_pool_threads = 0
+_pool_pid = 0
+_pool_lock = threading.Lock()
 
 
-def mark() -> None:
-    """Note, for :func:`hconv.solve.engines.compiled_ready`, that numba's cache now holds the row
-    code: the marker lists the cache's index files, so that it stops counting once they go."""
-    global _marked
-    if _marked:
-        return
-    _marked = True
-    path = engines.marker_path()
-    cache = Path(_convert_rows.stats.cache_path)  # type: ignore[attr-defined]
-    index = sorted(str(p) for p in cache.glob("rows.convert_rows-*.nbi"))
-    if path.exists() or not index:  # no index: numba could not write its cache anywhere
-        return
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.name}.{os.getpid()}")
-        tmp.write_text(json.dumps({"index": index}))
-        os.replace(tmp, path)
-    except OSError:  # a read-only home: auto then keeps to numpy unless numba is asked for
-        return
-    engines.forget_ready()
+def _threads(n: int) -> int:
+    """Threads for ``n`` rows: one per core (a block each at least) from the main thread; 1 from
+    any other thread, which is already part of its caller's parallelism (the file pipeline's
+    batch threads, a Dask worker's task)."""
+    blocks = -(-n // BLOCK_ROWS)
+    if blocks < 2 or threading.current_thread() is not threading.main_thread():
+        return 1
+    return max(1, min(blocks, available_cores()))
 
 
-def warm() -> tuple[float, bool]:
-    """Compile (or load from numba's cache) the row code for the array layouts hconv passes it:
-    column-major stacks from ``hconv.convert``, row-major blocks from tables. Returns the seconds
-    taken and whether anything was compiled (False: all of it came from the cache)."""
-    start = time.perf_counter()
-    stats = _convert_rows.stats  # type: ignore[attr-defined]
-    misses = sum(stats.cache_misses.values())
-    n = 2
-    I = np.tile(np.array([2.0, 0.0, 0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 4.0]), (n, 1))
-    H = np.ones((n, 3))
-    for I_k, H_k in ((I.T, H.T), (np.ascontiguousarray(I.T), np.ascontiguousarray(H.T))):
-        outputs = (np.empty((n, 3)), np.empty(n), np.empty(n, np.uint8), np.empty(n), np.zeros(n, bool))
-        convert_rows(I_k, True, H_k, False, True, np.inf, *outputs)
-    mark()
-    return time.perf_counter() - start, sum(stats.cache_misses.values()) > misses
+def _shared_pool(threads: int) -> ThreadPoolExecutor:
+    """One pool for the process, started on the first call that needs it (a pool per call would
+    start threads every time), and again in a process forked from it (a multiprocessing or Dask
+    worker), which inherits the pool but not its threads."""
+    global _pool, _pool_threads, _pool_pid
+    with _pool_lock:
+        if _pool is None or _pool_threads < threads or _pool_pid != os.getpid():
+            _pool = ThreadPoolExecutor(threads, thread_name_prefix="hconv-rows")
+            _pool_threads, _pool_pid = threads, os.getpid()
+        return _pool
+
+
+def one(
+    I: np.ndarray, nine: bool, H: np.ndarray, refined: bool, diagnostics: bool, cond_limit: float
+) -> tuple[np.ndarray, Any, Any, Any, bool] | None:
+    """One body, ``I`` ``(3, 3)`` or ``(6,)`` and ``H`` ``(3,)`` contiguous float64, in the caller's
+    thread: ``(w (3,), cond, status code, residual or None, fallback)``, numpy scalars as a
+    stacked Result's rows hold them, or None for arrays of another layout."""
+    return rowcode.one(I, nine, H, refined, diagnostics, cond_limit)
+
+
+def stack(
+    I: np.ndarray, H: np.ndarray, refined: bool, diagnostics: bool, cond_limit: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None] | None:
+    """A small stack as numpy users hold it, ``I`` ``(N, 3, 3)`` or ``(N, 6)`` and ``H``
+    ``(N, 3)`` float64, on the caller's thread into new arrays: ``(w (N, 3), cond, status codes,
+    residual or None)``; None when a row is left to the numpy engine, or for another layout."""
+    return rowcode.stack(I, H, refined, diagnostics, cond_limit)
+
+
+def convert_rows(
+    I: np.ndarray,
+    nine: bool,
+    H: np.ndarray,
+    refined: bool,
+    diagnostics: bool,
+    cond_limit: float,
+    w: np.ndarray,
+    cond: np.ndarray,
+    code: np.ndarray,
+    residual: np.ndarray,
+    fallback: np.ndarray,
+) -> int:
+    """Every row of ``I`` ``(6, N)`` or, with ``nine``, ``(9, N)`` row-major, and ``H`` ``(3, N)``,
+    into ``w`` ``(N, 3)``, ``cond``, ``code`` (uint8), ``residual`` (written only with
+    ``diagnostics``; else any length) and ``fallback`` (bool) ``(N,)``, which marks the rows
+    left for the numpy engine; returns how many those are. Blocks of rows run on every core, the
+    caller's thread taking one, each without the GIL; the bits do not depend on the blocks or the
+    threads (rows are independent)."""
+    n = H.shape[1]
+    args = (I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback)
+    threads = _threads(n)
+    if threads == 1:
+        return rowcode.convert(*args, 0, n)
+    # one block per thread when they are few; more, of at least BLOCK_ROWS, for large calls, so
+    # that a slow core (a shared machine) holds up the others by one block at most
+    parts = threads if n < 16 * threads * BLOCK_ROWS else 4 * threads
+    size = -(-n // parts)
+    starts = range(0, n, size)
+    pool = _shared_pool(threads - 1)
+    futures = [pool.submit(rowcode.convert, *args, lo, min(n, lo + size)) for lo in starts[1:]]
+    lost = rowcode.convert(*args, 0, min(n, size))
+    return lost + sum(f.result() for f in futures)  # re-raises a block's exception here

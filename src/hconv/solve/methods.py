@@ -46,17 +46,17 @@ class Method:
     #: not grow with cond before I is singular.
     error_k: dict | None = None
     #: exact family only: the answer is refined with a double-double residual to within one
-    #: rounding of I⁻¹H (the row engines' ``refined=True``)
+    #: rounding of I⁻¹H (the compiled engine's ``refined``)
     refines: bool = False
-    #: the row engines (numba, python, and the numpy engine's common path, hconv.solve.engines)
-    #: compute this method themselves; every other method is the numpy engine's alone
+    #: the compiled engine (hconv.solve.engines, hconv.solve.compiled) computes this method
+    #: itself; every other method is the numpy engine's alone
     row_engine: bool = False
     #: the method reads only the diagonal I_ii of the tensor as given: its error grows with the
     #: products of inertia (``hconv compare`` lists its worst rows against them)
     ignores_products: bool = False
 
     def __post_init__(self) -> None:
-        # the row engines and the refinement compute I⁻¹H: only an exact method can have them
+        # the compiled engine and the refinement compute I⁻¹H: only an exact method can have them
         if (self.refines or self.row_engine) and not self.exact:
             raise ValueError(f"method {self.name!r}: refines and row_engine need exact=True")
 

@@ -109,7 +109,7 @@ class Options:
     precision: int = 64
     diagnostics: bool = True  #: False skips the residual, the costliest diagnostic
     conventions: Conventions = field(default_factory=Conventions)
-    engine: str = "auto"  #: auto, numpy, numba or python (hconv.solve.engines)
+    engine: str = "auto"  #: auto, compiled or numpy (hconv.solve.engines)
 
     def __post_init__(self) -> None:
         from hconv.solve import engines  # engines reads this module's choices

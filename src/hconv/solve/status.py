@@ -14,9 +14,9 @@ import functools
 import numpy as np
 from numpy.typing import DTypeLike
 
-#: Every status and its code, pinned: a code is what Result.status_code, the row engines'
-#: compiled constants (numba's cache keys on rows.py, not on this file) and users' stored
-#: outputs hold, so it is never renumbered. docs/input.md lists the same numbers.
+#: Every status and its code, pinned: a code is what Result.status_code, the compiled engine
+#: (hconv.solve.compiled hands it the codes it sets) and users' stored outputs hold, so it is
+#: never renumbered. docs/input.md lists the same numbers.
 CODE: dict[str, int] = {
     "ok": 0,
     # NaN or Inf in a value used, a value beyond float32 in --precision 32, or mass <= 0 with I != 0
@@ -40,8 +40,8 @@ CODE: dict[str, int] = {
 #: so that a code indexes this tuple, and Arrow's dictionary of the status column is this tuple).
 STATUSES: tuple[str, ...] = tuple(sorted(CODE, key=CODE.__getitem__))
 #: Where several statuses apply to a row, the earliest here wins; ``ok`` is what no other holds.
-#: The row engines set ok, singular, not_physical, ill_conditioned and inaccurate, and rely on
-#: inaccurate coming after the other three (tests/test_rows.py checks).
+#: The compiled engine sets ok, singular, not_physical, ill_conditioned and inaccurate, and relies
+#: on inaccurate coming after the other three (tests/test_compiled.py checks).
 PRECEDENCE: tuple[str, ...] = (
     "invalid_input",
     "not_symmetric",

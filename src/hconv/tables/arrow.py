@@ -189,7 +189,7 @@ def convert_batch(
     data: pa.Table, job: Job, plan: layout.Layout | None = None, source: str = "table", first_row: int = 0
 ) -> tuple[pa.Table, str]:
     """:func:`convert_table` on a checked Table and Job, and the engine that converted it
-    (``numpy``, ``numba`` or ``python``), which the file pipeline reports. ``first_row``: where
+    (``numpy`` or ``compiled``), which the file pipeline reports. ``first_row``: where
     ``data`` starts in its file, so that an error names the file's row."""
     if plan is None:
         plan = layout.plan(data.schema, job, source)

@@ -1,0 +1,28 @@
+# The compiled engine's C code (rowcode.c): what hconv.solve.compiled calls.
+from typing import Any
+
+import numpy as np
+
+def configure(constants: dict[str, float], /) -> None: ...
+def one(
+    I: np.ndarray, nine: bool, H: np.ndarray, refined: bool, diagnostics: bool, cond_limit: float, /
+) -> tuple[np.ndarray, Any, Any, Any, bool] | None: ...
+def stack(
+    I: np.ndarray, H: np.ndarray, refined: bool, diagnostics: bool, cond_limit: float, /
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None] | None: ...
+def convert(
+    I: np.ndarray,
+    nine: bool,
+    H: np.ndarray,
+    refined: bool,
+    diagnostics: bool,
+    cond_limit: float,
+    w: np.ndarray,
+    cond: np.ndarray,
+    code: np.ndarray,
+    residual: np.ndarray,
+    fallback: np.ndarray,
+    start: int,
+    stop: int,
+    /,
+) -> int: ...
