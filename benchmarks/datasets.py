@@ -3,6 +3,14 @@
 server mode, the ``test-s3`` extra), if installed.
 
     python benchmarks/datasets.py --rows 2000000 --s3-rows 400000 --repeats 3
+    python benchmarks/datasets.py --small-files            # issue 28's targets, one run each
+    python benchmarks/datasets.py --small-files --profile  # and where a small file's time goes
+
+``--small-files`` converts the same 2M rows as one Parquet file, as 40 files of 50k rows and as
+4,000 files of 500 rows, and the 4,000 files again with ``--cluster local --workers 2``; one run
+each, and prints each ratio against its target (wall times of the real command). ``--scale``
+shrinks the rows (and the files' count with them) for a quick look; the targets are measured at
+``--scale 1``.
 
 Each figure is the median of ``--repeats`` runs of the real command, in a fresh process: the wall
 time (with the command's start, about half a second) and the time the summary reports (from the
@@ -14,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import os
 import re
 import shutil
@@ -24,6 +33,7 @@ import sys
 import tempfile
 import time
 import urllib.request
+import warnings
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -154,16 +164,123 @@ def s3(work: Path, rows: int, repeats: int) -> None:
             )
 
 
+#: issue 28's targets: (what, against what, the most its wall time may be, as a ratio)
+SMALL_TARGETS = (
+    ("40 files", "1 file", 1.1),
+    ("4000 files", "1 file", 2.0),
+    ("4000 files, --cluster local --workers 2", "4000 files", 1.3),
+)
+
+
+def small_files(work: Path, scale: float, profile: bool) -> None:
+    """The same rows as one file, as 40 files and as 4,000 (and those on a local cluster of 2
+    workers): one run each, each ratio against its target."""
+    rows = int(2_000_000 * scale)
+    shapes = {"1 file": 1, "40 files": 40, "4000 files": max(1, int(4000 * scale))}
+    t0 = time.perf_counter()
+    one = work / "one.parquet"
+    pq.write_table(pa.table(make_scene(rows, seed=1, cond_max=1e6)), one)
+    for files in shapes.values():
+        if files > 1:
+            write_dataset(work / f"s{files}", rows, files)
+    if scale != 1:
+        print(f"scaled by {scale}: '4000 files' is {shapes['4000 files']} files; the targets hold at --scale 1")
+    print(f"small files: {rows:,} rows; datasets written in {time.perf_counter() - t0:.1f} s; one run each, wall time")
+    walls = {}
+    for name, files in shapes.items():
+        src = str(one) if files == 1 else str(work / f"s{files}")
+        walls[name], reported = run([src, str(work / (f"out-{files}" + (".parquet" if files == 1 else "")))])
+        print(f"  {name:>40}: wall {walls[name]:6.2f} s, reported {reported:6.2f} s")
+    files = shapes["4000 files"]
+    name = "4000 files, --cluster local --workers 2"
+    walls[name], reported = run(
+        [str(work / f"s{files}"), str(work / "out-cluster"), "--cluster", "local", "--workers", "2"]
+    )
+    print(f"  {name:>40}: wall {walls[name]:6.2f} s, reported {reported:6.2f} s")
+    for what, against, target in SMALL_TARGETS:
+        ratio = walls[what] / walls[against]
+        print(f"  {what} / {against}: {ratio:.2f}x (target <= {target}x: {'met' if ratio <= target else 'NOT met'})")
+    if profile:
+        profile_small(work / f"s{files}", work / "out-profile")
+    model(work / f"s{files}", one)
+
+
+def model(small: Path, one: Path) -> None:
+    """The scaling model's inputs (docs/scaling.md): the driver's cost per file (listing and
+    planning; the manifest's rewrite), a worker's rows per second on one thread, and Dask's own
+    cost per task on a local cluster of 2 workers."""
+    import distributed
+
+    from hconv.tables import manifest, pipeline, planning
+    from hconv.tables.job import Job
+
+    t0 = time.perf_counter()
+    plan = planning.plan_dataset(str(small), str(small) + "-model-out", job=Job())
+    listing = time.perf_counter() - t0
+    n = len(plan.inputs)
+    record = manifest.FileRecord(
+        "a/b.parquet", "a/b.parquet", 1, 1, None, 1, 500, {"ok": 500}, 1e-12, 3, {"numpy": 500}, 0.1
+    )
+    records = {f.rel: dataclasses.replace(record, input=f.rel, output=f.rel) for f in plan.inputs}
+    t0 = time.perf_counter()
+    manifest.write_manifest(plan, records, {}, set(records), t0)
+    rewrite = time.perf_counter() - t0
+    shutil.rmtree(str(small) + "-model-out", ignore_errors=True)
+    part = one.parent / "model-400k.parquet"
+    sliced = pq.read_table(one).slice(0, 400_000)
+    pq.write_table(sliced, part)
+    t0 = time.perf_counter()
+    pipeline.convert_file(str(part), str(one.parent / "model-out.parquet"), threads=1, force=True)
+    rate = sliced.num_rows / (time.perf_counter() - t0)
+    with warnings.catch_warnings():  # "Port 8787 is already in use": no dashboard is wanted
+        warnings.simplefilter("ignore", UserWarning)
+        lc = distributed.LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None, silence_logs=40)
+    with lc, distributed.Client(lc) as client:
+        client.gather(client.map(abs, range(200), pure=False))
+        t0 = time.perf_counter()
+        client.gather(client.map(abs, range(2000), pure=False))
+        per_task = (time.perf_counter() - t0) / 2000
+    print("scaling model inputs:")
+    print(f"  driver: listing and planning {n} files {listing:.2f} s ({listing / n * 1e3:.2f} ms a file)")
+    each = rewrite / n * 1e6
+    print(f"  driver: the manifest rewritten with {n} records {rewrite * 1e3:.0f} ms ({each:.0f} µs a record)")
+    print(f"  worker: {rate:,.0f} rows/s on one thread ({sliced.num_rows:,} rows, exact)")
+    print(f"  Dask: {per_task * 1e3:.2f} ms a no-op task (2,000 tasks, local cluster of 2 workers)")
+
+
+def profile_small(src: Path, dst: Path) -> None:
+    """cProfile of convert_dataset over ``src`` in this process: the functions of most own time."""
+    import cProfile
+    import pstats
+
+    import hconv
+
+    hconv.convert_dataset(str(src), str(dst) + "-warm", force=True)  # imports and first-call costs
+    prof = cProfile.Profile()
+    t0 = time.perf_counter()
+    prof.enable()
+    hconv.convert_dataset(str(src), str(dst), force=True)
+    prof.disable()
+    print(f"profile of convert_dataset over {src.name} (in this process): {time.perf_counter() - t0:.2f} s")
+    pstats.Stats(prof).sort_stats("tottime").print_stats(25)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rows", type=int, default=2_000_000)
     ap.add_argument("--s3-rows", type=int, default=400_000)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--dir", default=None, help="where to write the datasets (default: a temporary directory)")
+    ap.add_argument("--small-files", action="store_true", help="issue 28's targets: 1, 40 and 4,000 files")
+    ap.add_argument("--scale", type=float, default=1.0, help="--small-files: this share of the rows and files")
+    ap.add_argument("--profile", action="store_true", help="--small-files: cProfile the 4,000 files in-process")
     a = ap.parse_args()
     leftovers.remove_stale_folders(print, a.dir)  # of runs of this or hconv bench killed outright
     work = Path(tempfile.mkdtemp(prefix=leftovers.folder_prefix("datasets-"), dir=a.dir))
     try:
+        if a.small_files:
+            small_files(work, a.scale, a.profile)
+            return
         local(work, a.rows, a.repeats)
         s3(work, a.s3_rows, a.repeats)
     finally:

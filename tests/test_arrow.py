@@ -11,6 +11,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 import pytest
+from helpers import need, w_of
 
 import hconv
 from hconv.errors import InputError, UsageError
@@ -339,3 +340,58 @@ def test_convert_table_reads_struct_columns_and_output_schema_agrees(rng):
     M = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
     w = np.stack([got.column(c).to_numpy() for c in ("wx", "wy", "wz")], 1)
     np.testing.assert_allclose(w, np.linalg.solve(M, H.T).T, rtol=1e-14)
+
+
+def _scene() -> pa.Table:
+    return pq.read_table(EXAMPLES / "scene.parquet")
+
+
+@pytest.mark.parametrize("kind", ["pandas", "pandas-indexed", "polars", "duckdb", "reader", "batch"])
+def test_convert_table_takes_tables_that_speak_arrow_and_gives_back_their_kind(kind):
+    """Before: 'convert_table takes a pyarrow Table or RecordBatch, got DataFrame'."""
+    t = _scene()
+    ref = hconv.convert_table(t)
+    if kind.startswith("pandas"):
+        pd = need("pandas")
+        frame = t.to_pandas()
+        if kind == "pandas-indexed":
+            frame.index = pd.Index([f"r{k}" for k in range(len(frame))], name="row")
+        got = hconv.convert_table(frame)
+        assert isinstance(got, pd.DataFrame)
+        assert list(got.index) == list(frame.index)  # the frame's index kept
+        w = got[["wx", "wy", "wz"]].to_numpy()
+        assert list(got["status"].astype(str)) == ref.column("status").to_pylist()
+    elif kind == "polars":
+        pl = need("polars")
+        got = hconv.convert_table(pl.from_arrow(t))
+        assert isinstance(got, pl.DataFrame)
+        w = got.select(["wx", "wy", "wz"]).to_numpy()
+        assert got["status"].cast(pl.String).to_list() == ref.column("status").to_pylist()
+    elif kind == "duckdb":
+        duckdb = need("duckdb")
+        con = duckdb.connect()
+        con.register("scene", t)
+        got = hconv.convert_table(con.sql("select * from scene"))
+        assert isinstance(got, pa.Table)
+        w = w_of(got)
+    else:
+        data = pa.RecordBatchReader.from_batches(t.schema, t.to_batches()) if kind == "reader" else t.to_batches()[0]
+        got = hconv.convert_table(data)
+        assert isinstance(got, pa.Table)
+        w = w_of(got)
+        ref = hconv.convert_table(pa.Table.from_batches([data])) if kind == "batch" else ref
+    assert np.array_equal(w, w_of(ref), equal_nan=True)  # the same bits as from the pyarrow Table
+
+
+@pytest.mark.parametrize(
+    "make, says",
+    [
+        (lambda: need("polars").LazyFrame({"Hx": [1.0]}), r"got LazyFrame \(call \.collect\(\) first\)"),
+        (lambda: need("polars").Series("Hx", [1.0]), r"polars.Series gives Arrow data that is not one"),
+        (lambda: [1, 2], r"got list; or any table that speaks Arrow"),
+    ],
+)
+def test_convert_table_refuses_what_is_not_a_table_in_one_line(make, says):
+    with pytest.raises(UsageError, match=says) as info:
+        hconv.convert_table(make())
+    assert "\n" not in str(info.value)

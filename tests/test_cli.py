@@ -276,7 +276,10 @@ def test_convert_missing_input_file(tmp_path, capsys):
 
 def test_convert_unknown_extension_is_usage_error(tmp_path, capsys):
     proc = hconv_inprocess("convert", str(EXAMPLES / "scene.csv"), str(tmp_path / "out.txt"), capsys=capsys)
-    assert_one_line_error(proc, 2, "out.txt", ".csv or .parquet", "--to")
+    # the formats hconv writes, by name: "name it .csv or .parquet" was wrong advice for a file of another format
+    assert_one_line_error(
+        proc, 2, "out.txt", "hconv writes CSV (.csv, .tsv, .tab), Parquet (.parquet, .pq) or Arrow IPC", "--to"
+    )
 
 
 def test_convert_output_directory_missing(tmp_path, capsys):

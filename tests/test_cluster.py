@@ -460,3 +460,30 @@ def test_convert_dataset_on_a_client_leaves_it_open(scheduler, tmp_path):
         assert result.ran_on == f"the Dask scheduler at {scheduler}, 2 workers" and result.complete
         assert client.status == "running"  # the caller's client: used, not closed
     _same_as_one_process(tmp_path / "out", data, tmp_path)
+
+
+def _task(rel: str, size: int):
+    from hconv.tables.planning import Task
+    from hconv.tables.storage import Listed
+
+    return Task(Listed(rel, size, None), rel, "parquet", "parquet", False)
+
+
+def test_batches_pack_small_files_in_order_and_leave_a_large_one_alone():
+    """Small files go to a task together until it carries the limit's bytes; a file of the limit
+    or more is a task alone (it may be split into parts); the order is the plan's."""
+    from hconv.tables import cluster
+
+    sizes = [30, 30, 30, 100, 10, 50, 50, 5]
+    tasks = [_task(f"f{k}", s) for k, s in enumerate(sizes)]
+    groups = [[t.input.rel for t in g] for g in cluster._batches(tasks, 60)]
+    assert groups == [["f0", "f1"], ["f2"], ["f3"], ["f4", "f5"], ["f6", "f7"]]
+    assert [t for g in cluster._batches(tasks, 60) for t in g] == tasks
+
+
+def test_batch_bytes_gives_each_worker_several_tasks_up_to_task_bytes():
+    from hconv.tables import cluster
+
+    small = [_task(f"f{k}", 1000) for k in range(4000)]  # 4 MB in all
+    assert cluster.batch_bytes(small, 2) == 4_000_000 // (2 * cluster.TASKS_PER_WORKER)
+    assert cluster.batch_bytes([_task("big", 10 * cluster.TASK_BYTES)] * 100, 2) == cluster.TASK_BYTES

@@ -54,6 +54,12 @@ ERRORS = {  # file: (exit code, words the one-line message must hold)
     "string_column.parquet": (3, "column 'Hx' has type string"),
     "bool_column.parquet": (3, "column 'Hx' has type bool"),
     "duplicate_column.parquet": (3, "'Hx' appears more than once"),
+    "truncated.arrow": (3, "record batch 1 (after data row 0) cannot be read"),
+    "empty.arrow": (3, "the file is empty"),
+    "parquet_named_arrow.arrow": (3, "is a Parquet file, not Arrow IPC"),
+    "bad_line.jsonl": (3, "line 2 is not valid JSON"),
+    "json_array.jsonl": (3, "is one JSON array, not JSON lines"),
+    "not_objects.ndjson": (3, "line 1 is a JSON list, not an object"),
 }
 
 #: The factor to SI of the inertia a file's units row gives (1 g·cm² = 1e-7 kg·m², exactly by definition)
@@ -143,8 +149,8 @@ def test_convert_bad_output_path_is_one_clear_line(case, tmp_path, capsys, monke
         "is_a_directory": tmp_path / "dir.csv",
         "unwritable_directory": tmp_path / "out.csv",
     }[case]
-    if case == "is_a_directory":
-        dst.mkdir()
+    if case == "is_a_directory":  # a directory as OUT takes the input's name: a directory by that name there
+        (dst / "in.csv").mkdir(parents=True)
     if case == "unwritable_directory":  # root ignores directory permissions, so refuse like the OS would
         import tempfile
 

@@ -634,7 +634,9 @@ def test_convert_dataset_store_that_cannot_be_reached_names_the_output(dst, tmp_
 
 def test_convert_dataset_stops_on_a_full_disk_naming_the_file(tmp_path, capsys, monkeypatch):
     """The disk fills while the second file is written: that file is named (not ``output:``), the
-    run stops there (no other file could be written either), the manifest lists the first."""
+    run stops there (no other file could be written either), the manifest lists the first. One
+    thread, so that the second Parquet write is the second file's; the file under way when the
+    run stops (on the pool, :func:`hconv.tables.runners.in_process`) finishes, and is listed."""
     import errno
 
     from hconv.tables import parquetio
@@ -650,16 +652,18 @@ def test_convert_dataset_stops_on_a_full_disk_naming_the_file(tmp_path, capsys, 
         real(self, table)
 
     monkeypatch.setattr(parquetio.ParquetWriter, "write", fills)
-    code, err = _hconv("convert", "data", "out", "-q", capsys=capsys)
+    code, err = _hconv("convert", "data", "out", "-q", "--threads", "1", capsys=capsys)
     assert code == 4, err
+    listed = [f["output"] for f in _manifest(tmp_path / "out")["files"]]
+    # the file under way when the run stopped (a CSV one: its writer is not the one made to fail) finished
+    assert listed in ([PARTS[0]], [PARTS[0], "date=2026-01-02/extra.csv"]), listed
     assert err.splitlines() == [
         f"hconv: error: out/{PARTS[1]}: could not be written (No space left on device); nothing was written",
-        f"hconv: error: stopped: no room left for out/{PARTS[1]} (named above); 1 of 4 files are converted and "
-        f"listed in out/{MANIFEST}, which says complete: false; make room and run the same command again to "
-        "convert the rest",
+        f"hconv: error: stopped: no room left for out/{PARTS[1]} (named above); {len(listed)} of 4 files are "
+        f"converted and listed in out/{MANIFEST}, which says complete: false; make room and run the same command "
+        "again to convert the rest",
     ]
-    assert len(calls) == 2 and _files(tmp_path / "out") == {PARTS[0], MANIFEST}
-    assert [f["output"] for f in _manifest(tmp_path / "out")["files"]] == [PARTS[0]]
+    assert len(calls) in (2, 3) and _files(tmp_path / "out") == {*listed, MANIFEST}  # 3: a Parquet file under way
 
 
 def test_convert_dataset_whose_manifest_cannot_be_written_leaves_no_out(tmp_path, capsys, monkeypatch):
@@ -680,3 +684,133 @@ def test_convert_dataset_whose_manifest_cannot_be_written_leaves_no_out(tmp_path
     (tmp_path / "out").mkdir()  # an OUT that was there stays
     code, err = _hconv("convert", "data", "out", "-q", capsys=capsys)
     assert code == 4 and (tmp_path / "out").is_dir() and _files(tmp_path / "out") == set()
+
+
+def test_convert_dataset_small_files_share_a_pool_of_threads_and_start_none(tmp_path, monkeypatch):
+    """Small files convert side by side on the run's pool (at most --threads threads, reused
+    across files, not this thread) and start no threads of their own; a large one streams on
+    this thread with its batch writer, as one file does. Each output is its single conversion."""
+    import threading
+
+    from hconv.tables import onefile, runners
+
+    data = tmp_path / "data"
+    for k in range(9):
+        _write(data / f"day={k % 3}" / f"part-{k}.parquet", 200 if k == 0 else 40 + k, seed=k)
+    big = data / "day=0" / "part-0.parquet"
+    monkeypatch.setattr(runners, "SMALL_FILE_BYTES", big.stat().st_size)  # part-0 alone is "large"
+    where, writers = {}, []
+    real_convert, real_enter = onefile.convert_one, pipeline.BackgroundWriter.__enter__
+
+    def convert_one(task, *args, **kw):
+        where[task.input.rel] = threading.current_thread()
+        return real_convert(task, *args, **kw)
+
+    def enter(self):
+        writers.append(threading.current_thread())
+        return real_enter(self)
+
+    monkeypatch.setattr(runners, "convert_one", convert_one)
+    monkeypatch.setattr(pipeline.BackgroundWriter, "__enter__", enter)
+    run = hconv.convert_dataset(str(data), str(tmp_path / "out"), threads=2)
+    assert run.complete and len(run.files) == 9
+    small = {t for rel, t in where.items() if rel != "day=0/part-0.parquet"}
+    assert len(small) <= 2 and threading.main_thread() not in small
+    assert all(t.name.startswith("hconv-file") for t in small)
+    assert where["day=0/part-0.parquet"] is threading.main_thread()
+    assert writers == [threading.main_thread()]  # the large file's writer only
+    for rel in where:
+        assert (tmp_path / "out" / rel).read_bytes() == _single(data / rel, tmp_path), rel
+
+
+def test_convert_dataset_lists_outputs_only_once_flushed_a_group_at_a_time(tmp_path, monkeypatch):
+    """Small files' outputs are not flushed one by one: each group of them is made durable
+    (hconv.tables.manifest.make_durable) before the manifest written next lists any of them."""
+    from hconv.tables import manifest, onefile
+
+    data = tmp_path / "data"
+    for k in range(6):
+        _write(data / f"part-{k}.parquet", 30, seed=k)
+    durable: set[str] = set()
+    flushed_one_by_one = []
+    real_durable, real_write = manifest.make_durable, manifest.storage.write_bytes
+
+    def make_durable(paths):
+        real_durable(paths)
+        durable.update(os.path.basename(p) for p in paths)
+
+    def write_bytes(where, rel, payload):
+        listed = {f["output"] for f in json.loads(payload)["files"]}
+        assert listed <= durable, listed - durable  # listed before it was flushed
+        real_write(where, rel, payload)
+
+    monkeypatch.setattr(manifest, "make_durable", make_durable)
+    monkeypatch.setattr(manifest.storage, "write_bytes", write_bytes)
+    monkeypatch.setattr(onefile, "flushed", lambda *a: flushed_one_by_one.append(a))
+    run = hconv.convert_dataset(str(data), str(tmp_path / "out"))
+    assert run.complete and durable == {f"part-{k}.parquet" for k in range(6)} and flushed_one_by_one == []
+
+
+def test_convert_dataset_lists_the_small_files_before_a_large_one_starts(tmp_path, monkeypatch):
+    """A large file converts for long: the group of small files before it is committed (flushed
+    and listed in the manifest) before it starts, not after."""
+    from hconv.tables import runners
+
+    data = tmp_path / "data"
+    for k in range(4):
+        _write(data / f"a-{k}.parquet", 30, seed=k)
+    _write(data / "z-big.parquet", 400, seed=9)
+    monkeypatch.setattr(runners, "SMALL_FILE_BYTES", (data / "z-big.parquet").stat().st_size)
+    listed_at_start = []
+    real = runners.convert_one
+
+    def convert_one(task, *args, **kw):
+        if task.input.rel == "z-big.parquet":
+            listed_at_start.extend(f["output"] for f in _manifest(tmp_path / "out")["files"])
+        return real(task, *args, **kw)
+
+    monkeypatch.setattr(runners, "convert_one", convert_one)
+    assert hconv.convert_dataset(str(data), str(tmp_path / "out")).complete
+    assert sorted(listed_at_start) == [f"a-{k}.parquet" for k in range(4)]
+
+
+def test_convert_dataset_of_arrow_and_json_lines_files(tmp_path):
+    """Before: a directory of .feather and .jsonl files 'holds no file with a .csv, .parquet or .pq name'."""
+    import pyarrow.feather as feather
+
+    src = tmp_path / "in"
+    t = pa.table(make_scene(50, seed=3))
+    (src / "a").mkdir(parents=True)
+    feather.write_feather(t, src / "a" / "one.feather")
+    (src / "two.jsonl").write_text("".join(json.dumps(r) + "\n" for r in t.to_pylist()))
+    with pytest.raises(
+        hconv.errors.UsageError, match=r"two.jsonl: is JSON lines, which hconv reads but does not write"
+    ):
+        hconv.convert_dataset(src, tmp_path / "out")
+    res = hconv.convert_dataset(src, tmp_path / "out", dst_format="arrow")
+    assert res.complete and sorted(res.converted) == ["a/one.feather", "two.jsonl"]
+    assert _files(tmp_path / "out") == {"a/one.feather", "two.arrow", MANIFEST}  # Feather is Arrow: its name kept
+    ref = hconv.convert_table(t)
+    for rel in ("a/one.feather", "two.arrow"):
+        got = pa.ipc.open_file(str(tmp_path / "out" / rel)).read_all()
+        assert got.column("wx").to_pylist() == ref.column("wx").to_pylist()
+
+
+def test_convert_dataset_takes_a_pyarrow_dataset_of_files(tmp_path):
+    """Before: convert_dataset(pyarrow.dataset.dataset(...)) raised a raw TypeError from os.fspath."""
+    import pyarrow.dataset as pads
+
+    src = _dataset(tmp_path / "in")
+    parquet = pads.dataset(src, format="parquet", exclude_invalid_files=True, partitioning="hive")
+    whole = pads.dataset(str(tmp_path / "in" / "date=2026-01-01"), format="parquet")
+    res = hconv.convert_dataset(whole, tmp_path / "out")
+    assert res.complete and res.total == len(whole.files)
+    assert res.rows_converted == whole.count_rows()
+    with pytest.raises(hconv.errors.UsageError, match=r"^convert_dataset: the pyarrow dataset holds \d+ of the files"):
+        hconv.convert_dataset(parquet, tmp_path / "out2")  # not the CSV beside them
+    with pytest.raises(
+        hconv.errors.UsageError, match=r"in memory has no files; .*convert_table\(dataset.to_table\(\)\)"
+    ):
+        hconv.convert_dataset(pads.dataset(pa.table({"Hx": [1.0]})), tmp_path / "out3")
+    with pytest.raises(hconv.errors.UsageError, match=r"^convert_dataset takes a directory, .* got dict"):
+        hconv.convert_dataset({"Hx": [1.0]}, tmp_path / "out4")

@@ -56,11 +56,28 @@ def test_resolve_environment_sets_what_auto_means(fresh, monkeypatch):
         _auto(10)
 
 
-def test_for_files_auto_is_numpy_unless_the_environment_says(fresh, monkeypatch):
-    assert engines.for_files("auto") == "numpy"
-    assert engines.for_files("compiled") == "compiled"  # asked for by name: as asked
-    monkeypatch.setenv("HCONV_ENGINE", "compiled")
-    assert engines.for_files("auto") == "compiled"
+def test_convert_file_auto_runs_the_engine_a_library_call_runs(fresh, tmp_path, monkeypatch):
+    """A file converts on the engine hconv.convert uses for the same rows, so that hconv convert
+    and a DataFrame through convert_table give the same bits (docs/recipes.md's engines)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    monkeypatch.delenv("HCONV_ENGINE", raising=False)
+    rng = np.random.default_rng(7)
+    n = 500
+    A = rng.normal(size=(n, 3, 3))
+    I = A @ A.transpose(0, 2, 1) + 0.1 * np.eye(3)
+    H = rng.normal(size=(n, 3))
+    cols = {"Hx": H[:, 0], "Hy": H[:, 1], "Hz": H[:, 2]}
+    for name, (i, j) in zip(
+        ("Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz"), ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
+    ):
+        cols[name] = I[:, i, j]
+    pq.write_table(pa.table(cols), tmp_path / "in.parquet")
+    summary = hconv.convert_file(str(tmp_path / "in.parquet"), str(tmp_path / "out.parquet"))
+    assert summary.engines == {"compiled": n}
+    table = hconv.convert_table(pa.table(cols))
+    assert pq.read_table(tmp_path / "out.parquet").equals(table.replace_schema_metadata(None), check_metadata=False)
 
 
 @pytest.mark.parametrize("gone", ["numba", "python"])

@@ -225,7 +225,9 @@ def test_interrupt_convert_file_at_any_moment_exits_0_complete_or_130_with_no_ou
     assert all(c == 0 for p, c in outcomes if p in ("committed", "returned", "exit", "shutdown")), outcomes
 
 
-PARTS = [f"day={k}/part.parquet" for k in range(3)]
+#: Six files, converted on one thread (--threads 1): the pool takes three ahead of the main thread,
+#: whose points ("file" as each is recorded) then fall while files remain to be converted.
+PARTS = [f"day={k}/part.parquet" for k in range(6)]
 
 
 def _dataset(work: Path) -> None:
@@ -262,8 +264,9 @@ def test_interrupt_convert_dataset_at_any_moment_exits_0_complete_or_130_keeping
         else:  # interrupted before the first file was done: OUT, made by the run, is removed
             assert code == 130 and err == f"hconv: error: {INTERRUPTED}\n", where
 
-    points, outcomes = _sweep(server, tmp_path, _dataset, ["convert", "data", "out", "-q"], SEED + 1, check)
-    assert points.count("file") == 3 and {"manifest", "settled", "returned", "exit", "shutdown"} <= set(points)
+    args = ["convert", "data", "out", "-q", "--threads", "1"]
+    points, outcomes = _sweep(server, tmp_path, _dataset, args, SEED + 1, check)
+    assert points.count("file") == 6 and {"manifest", "settled", "returned", "exit", "shutdown"} <= set(points)
     assert {c for _, c in outcomes} == {0, 130}
     assert all(c == 0 for p, c in outcomes if p in ("settled", "returned", "exit", "shutdown")), outcomes
 

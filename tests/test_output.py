@@ -137,3 +137,118 @@ def test_output_in_a_path_through_a_file_says_it_is_not_a_directory(tmp_path, ca
     (tmp_path / "a.csv").write_bytes(SCENE_CSV.read_bytes())
     code, _, err = run_inprocess("convert", "a.csv", "a.csv/o.parquet", capsys=capsys)
     assert (code, err) == (4, "hconv: error: a.csv/o.parquet: 'a.csv' is not a directory; give a path in a directory\n")
+
+
+_COUNT_ROWS = """
+import os, sys
+
+
+class _Count:
+    def find_spec(self, fullname, path=None, target=None):
+        if fullname != "hconv.tables.pipeline":
+            return None
+        sys.meta_path.remove(self)
+        import importlib.util
+
+        spec = importlib.util.find_spec(fullname)
+        run = spec.loader.exec_module
+
+        def exec_module(module):
+            run(module)
+            fn = module.convert_batch
+
+            def counted(table, *args, **kwargs):
+                out = fn(table, *args, **kwargs)
+                with open(os.environ["HCONV_TEST_COUNT"], "a") as f:
+                    f.write(f"{table.num_rows}\\n")
+                return out
+
+            module.convert_batch = counted
+
+        spec.loader.exec_module = exec_module
+        return spec
+
+
+sys.meta_path.insert(0, _Count())
+"""
+
+
+def test_output_into_a_pipe_stops_when_its_reader_goes_away(tmp_path):
+    """Before: `hconv convert big - --to csv | head -1` converted the whole file into a spool,
+    then found the reader gone. Now rows stream into the pipe, and the reader closing it stops
+    the run at its next write: exit 0, nothing on stderr, and only the batches already in
+    flight converted. The bound is the pipeline's, not a time: one batch being written, two
+    queued for the writer (BackgroundWriter's depth), threads + 1 converting ahead
+    (ordered_map), the one in hand; 20 batches leave room, of 400."""
+    import pyarrow.ipc as ipc
+
+    batch_rows, batches = 500, 400
+    n = batch_rows * batches
+    t = pa.table({"id": pa.array(range(n)), "Hx": pa.array([2.0] * n), "Hy": pa.array([4.0] * n),
+                  "Hz": pa.array([6.0] * n), "I": pa.array([2.0] * n)})  # fmt: skip
+    src = tmp_path / "big.arrow"
+    with ipc.new_file(str(src), t.schema) as w:  # batches of 500 rows, each more than a pipe holds as CSV
+        for b in t.to_batches(max_chunksize=batch_rows):
+            w.write_batch(b)
+    hook = tmp_path / "hook"
+    hook.mkdir()
+    (hook / "sitecustomize.py").write_text(_COUNT_ROWS)
+    count = tmp_path / "converted"
+    env = dict(os.environ, HCONV_TEST_COUNT=str(count))
+    env["PYTHONPATH"] = os.pathsep.join([str(hook), env.get("PYTHONPATH", "")])
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hconv", "convert", str(src), "-", "--to", "csv", "--threads", "2"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        env=env,
+    )
+    assert proc.stdout is not None and proc.stderr is not None
+    header = proc.stdout.readline()
+    proc.stdout.close()  # as `head -1` does
+    err = proc.stderr.read()
+    assert proc.wait(timeout=300) == 0, err
+    assert header.startswith(b"id,Hx,Hy,Hz,I,wx,wy,wz")
+    assert err == b""  # quietly: no error, and no summary claiming rows that no one read
+    converted = sum(int(k) for k in count.read_text().split())
+    assert 0 < converted <= 20 * batch_rows < n
+
+
+def test_output_into_a_pipe_streams_every_row(tmp_path):
+    """A reader that stays gets every row, in order, as from a file."""
+    proc = subprocess.run(
+        [sys.executable, "-m", "hconv", "convert", str(SCENE_CSV), "-", "--to", "csv", "-q"],
+        capture_output=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr
+    code = subprocess.run(
+        [sys.executable, "-m", "hconv", "convert", str(SCENE_CSV), str(tmp_path / "out.csv"), "-q"], timeout=300
+    ).returncode
+    assert code == 0
+    assert proc.stdout == (tmp_path / "out.csv").read_bytes()
+
+
+@pytest.mark.parametrize(
+    "args, name",
+    [((), "s.csv"), (("--to", "parquet"), "s.parquet"), (("--to", "arrow"), "s.arrow"), (("--to", "csv"), "s.csv")],
+)
+def test_output_existing_directory_gets_the_input_name(args, name, tmp_path, capsys, monkeypatch):
+    """Before: `hconv convert s.csv outdir` said to pass --to csv, which then failed 'is a directory'."""
+    monkeypatch.chdir(tmp_path)
+    Path("s.csv").write_bytes(SCENE_CSV.read_bytes())
+    Path("outdir").mkdir()
+    code, _, err = run_inprocess("convert", "s.csv", "outdir", "-q", *args, capsys=capsys)
+    assert code == 0, err
+    assert os.listdir("outdir") == [name]
+    code, _, err = run_inprocess("convert", "s.csv", "outdir", "-q", *args, capsys=capsys)
+    assert code == 4 and err == f"hconv: error: outdir/{name}: already exists; pass --force to overwrite it\n"
+    code, _, err = run_inprocess("convert", "s.csv", "outdir", "-q", "--force", *args, capsys=capsys)
+    assert code == 0, err
+
+
+def test_output_existing_directory_for_stdin_is_refused(tmp_path):
+    from hconv.errors import UsageError
+    from hconv.tables.output import into_directory
+
+    with pytest.raises(UsageError, match=r"is a directory, and stdin has no name to give the output; give OUT"):
+        into_directory("-", str(tmp_path), "csv", None)

@@ -148,3 +148,64 @@ def test_dialect_describe_says_only_what_is_not_plain_csv():
     assert Dialect(delimiter="\t", comment_lines=1, units_row=True).describe() == (
         "read as CSV: tab separated, decimal '.', 1 comment line skipped, units from the row under the header"
     )
+
+
+def _feather(path: Path) -> Path:
+    import pyarrow.feather as feather
+    import pyarrow.parquet as pq
+
+    feather.write_feather(pq.read_table(ROOT / "examples" / "data" / "scene.parquet"), path)
+    return path
+
+
+@pytest.mark.parametrize(
+    "name, args, message",
+    [
+        # Before: "cannot tell the format … name it .csv or .parquet" for every one of these
+        (
+            "in.dat",
+            [],
+            "cannot tell the format of 'in.dat' from its extension; hconv reads CSV (.csv, .tsv, .tab), "
+            "Parquet (.parquet, .pq), "
+            "Arrow IPC (Feather) (.arrow, .feather, .ipc) or JSON lines (.jsonl, .ndjson): pass --from FORMAT "
+            "(csv, parquet, arrow or jsonl) if it is one of them",
+        ),
+        (
+            "in.orc",
+            [],
+            "in.orc: its name says ORC (.orc), which hconv does not read; hconv reads CSV (.csv, .tsv, .tab), Parquet "
+            "(.parquet, .pq), Arrow IPC (Feather) (.arrow, .feather, .ipc) or JSON lines (.jsonl, .ndjson)",
+        ),
+        ("in.json", [], "if it holds one JSON object per line, pass --from jsonl"),
+        # Before: pyarrow's "Parquet magic bytes not found in footer"
+        (
+            "in.feather",
+            ["--from", "parquet"],
+            "in.feather: is an Arrow IPC (Feather) file, as its name says, not Parquet; drop --from parquet",
+        ),  # fmt: skip
+        (
+            "in.bin",
+            ["--from", "parquet"],
+            "in.bin: is an Arrow IPC (Feather) file, not Parquet; to read it as "
+            "that, name it .arrow or pass --from arrow",
+        ),  # fmt: skip
+    ],
+)
+def test_format_of_names_the_formats_hconv_reads(name, args, message, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    _feather(tmp_path / name)
+    code, _, err = run_inprocess("convert", name, "out.csv", *args, capsys=capsys)
+    assert code in (2, 3) and len(err.strip().splitlines()) == 1, err
+    assert message in err
+
+
+def test_format_of_json_lines_out_is_refused_naming_what_hconv_writes(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, _, err = run_inprocess("convert", str(SCENE_CSV), "out.jsonl", capsys=capsys)
+    assert (code, err) == (
+        2,
+        "hconv: error: out.jsonl: hconv reads JSON lines but does not write it; it writes CSV (.csv, .tsv, .tab), "
+        "Parquet "
+        "(.parquet, .pq) or Arrow IPC (Feather) (.arrow, .feather, .ipc): pass --to arrow (or csv, parquet), and "
+        "name OUT for it\n",
+    )

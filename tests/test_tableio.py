@@ -16,6 +16,7 @@ import pyarrow.parquet as pq
 import pytest
 from helpers import StopAt, run_hconv, run_inprocess, terminal_signals
 
+import hconv
 import hconv.errors
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -145,8 +146,8 @@ def test_output_removes_the_temporary_file_of_a_killed_run_and_says_so(left, tmp
         proc.stdin.write(SCENE_CSV.read_bytes())  # type: ignore[union-attr]
         proc.stdin.flush()  # type: ignore[union-attr]
         where = spools
-    else:  # done, and writing to a stdout that nobody reads
-        proc = _hconv("convert", str(SCENE_CSV), "-", "--to", "csv", tmpdir=spools)
+    else:  # done, and writing to a stdout that nobody reads (--strict: all or nothing, so spooled)
+        proc = _hconv("convert", str(SCENE_CSV), "-", "--to", "csv", "--strict", tmpdir=spools)
         where = spools
     temporaries = lambda: [p for p in where.iterdir() if p.name.endswith(".hconv-tmp")]  # noqa: E731
     _wait_for(temporaries, "temporary file", proc)
@@ -709,3 +710,34 @@ def test_open_input_csv_row_cut_by_a_block_end_or_an_open_quote_is_named(
     (tmp_path / "in.csv").write_bytes(b"\n".join(lines))
     code, _, err = run_inprocess("convert", "in.csv", "out.parquet", capsys=capsys)
     assert (code, err.strip()) == (3, f"hconv: error: in.csv: {message}")
+
+
+@pytest.mark.parametrize("fmt", ["arrow-stream", "arrow-file", "jsonl"])
+def test_open_input_stdin_as_arrow_or_json_lines(fmt, tmp_path, monkeypatch):
+    """`… | hconv convert - out --from arrow` (or jsonl): stdin spooled, then read as that format."""
+    import io
+    import json
+
+    import pyarrow.ipc as ipc
+
+    from hconv.tables import pipeline
+
+    t = pq.read_table(ROOT / "examples" / "data" / "scene.parquet")
+    sink = io.BytesIO()
+    if fmt == "jsonl":
+        sink.write("".join(json.dumps(r) + "\n" for r in t.to_pylist()).encode())
+    else:
+        with (ipc.new_stream if fmt == "arrow-stream" else ipc.new_file)(sink, t.schema) as w:
+            w.write_table(t)
+
+    class Stdin:
+        buffer = io.BytesIO(sink.getvalue())
+
+        def isatty(self):
+            return False
+
+    monkeypatch.setattr(sys, "stdin", Stdin())
+    out = tmp_path / "out.parquet"
+    pipeline.convert_file("-", str(out), src_format=fmt.split("-")[0])
+    got = pq.read_table(out)
+    assert got.column("wx").to_pylist() == hconv.convert_table(t).column("wx").to_pylist()

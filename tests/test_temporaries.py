@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -58,3 +59,22 @@ def test_remove_run_temporaries_takes_only_that_runs_files(tmp_path):
     assert temporaries.remove_run_temporaries(str(tmp_path), "abc123") == []  # not recursive
     assert temporaries.remove_run_temporaries(str(tmp_path), "abc123", recursive=True) == [str(ours)]
     assert other_run.exists() and no_run.exists() and not ours.exists()
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="start times come from Linux's /proc")
+def test_temporary_file_sweeps_each_folder_once_while_sweeping_once(tmp_path):
+    """A dataset run makes two temporary files per output; listing the folder for stale ones at
+    each cost more than a small file's conversion: inside sweeping_once a folder is swept once."""
+    pid, start, tag = temporaries._maker().split("-")
+    stale = f".out.csv.{pid}-{int(start) + 1}-{tag}-abcd1234.hconv-tmp"  # its pid, another start: reused
+    made = []
+    with temporaries.sweeping_once():
+        made.append(temporaries.temporary_file(".a.", str(tmp_path)))
+        (tmp_path / stale).write_text("x")  # a run killed after the sweep
+        made.append(temporaries.temporary_file(".b.", str(tmp_path)))
+        assert (tmp_path / stale).exists()
+    made.append(temporaries.temporary_file(".c.", str(tmp_path)))  # outside: swept again
+    assert not (tmp_path / stale).exists()
+    for fd, path in made:
+        os.close(fd)
+        os.unlink(path)

@@ -26,6 +26,7 @@ from hconv.commandline import (
     JOB,
     SCENE,
     Fmt,
+    OutFmt,
     body_forms,
     completes,
     friendly,
@@ -230,7 +231,7 @@ def convert_cmd(
     ),
     job: Job = JOB,  # the run options go here (job_options)
     from_: Fmt | None = typer.Option(None, "--from", help="input format; needed when IN is -"),
-    to: Fmt | None = typer.Option(
+    to: OutFmt | None = typer.Option(
         None, "--to", help="output format; needed when OUT is -; for a dataset, default: each input's own"
     ),
     force: bool = typer.Option(
@@ -385,7 +386,7 @@ def compare_cmd(
         None, metavar="[OUT]", help="also write per-row figures here (.csv or .parquet, - for stdout)"
     ),
     from_: Fmt | None = typer.Option(None, "--from", help="input format; needed when IN is -"),
-    to: Fmt | None = typer.Option(None, "--to", help="output format; needed when OUT is -"),
+    to: OutFmt | None = typer.Option(None, "--to", help="output format; needed when OUT is -"),
     force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
     job: Job = JOB,  # the run options go here (job_options)
 ) -> None:
@@ -414,7 +415,7 @@ def bodies_cmd(
         help="the inertia in OUT: sym6 (Ixx, Iyy, Izz, Ixy, Ixz, Iyz in the body frame; the default) or "
         "principal (I1, I2, I3 and qw, qx, qy, qz: principal axes to body frame)",
     ),
-    to: Fmt | None = typer.Option(None, "--to", help="output format; needed when OUT is -"),
+    to: OutFmt | None = typer.Option(None, "--to", help="output format; needed when OUT is -"),
     force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
     strict: bool = typer.Option(False, "--strict", help="exit 5 when a body is not ok"),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no summary on stderr when writing OUT"),
@@ -476,7 +477,10 @@ def generate_cmd(
         1e3, "--cond-max", help="cond(I) is log-uniform from 1 to this (as the body kind allows)"
     ),
     seed: int = typer.Option(0, "--seed", help="the random draw; the same seed gives the same rows"),
-    to: Fmt | None = typer.Option(None, "--to", help="output format; needed when OUT is -"),
+    # FORMAT, its choices in the help: their list widened the metavar column until --seed's help wrapped
+    to: OutFmt | None = typer.Option(
+        None, "--to", metavar="FORMAT", help="output format, csv, parquet or arrow; needed when OUT is -"
+    ),
     force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
 ) -> None:
     """Write a synthetic scene of physically valid bodies with their known ω (w_true_x, ...)."""

@@ -27,7 +27,7 @@ from hconv.errors import INTERRUPTED, HconvError, UsageError
 from hconv.solve import options
 from hconv.solve.engines import ENGINES
 from hconv.solve.methods import METHODS
-from hconv.tables.formats import FORMATS
+from hconv.tables.formats import FORMATS, WRITES
 
 if TYPE_CHECKING:
     from hconv.tables.job import Job
@@ -58,6 +58,7 @@ def value_of(choice: str | None) -> str | None:
 if TYPE_CHECKING:  # for type checkers the choices are strings; typer needs the Enum at run time
     MethodName = str
     Fmt = str
+    OutFmt = str
     Frame = str
     About = str
     Products = str
@@ -67,6 +68,7 @@ if TYPE_CHECKING:  # for type checkers the choices are strings; typer needs the 
 else:
     MethodName = choice_type("MethodName", METHODS)
     Fmt = choice_type("Fmt", FORMATS)
+    OutFmt = choice_type("OutFmt", WRITES)  # --to: JSON lines is read only
     Frame = choice_type("Frame", options.FRAMES)
     About = choice_type("About", options.ABOUT)
     Products = choice_type("Products", options.PRODUCTS)

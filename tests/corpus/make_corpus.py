@@ -128,6 +128,26 @@ def main() -> None:
         pa.Table.from_arrays([pa.array([1.0])] * 10, names=HEAD.split(",") + ["Hx"]), HERE / "duplicate_column.parquet"
     )
     pq.write_table(pa.table({k: pa.array([], pa.float64()) for k in good(0)}), HERE / "zero_rows.parquet")
+    other_formats()
+
+
+def other_formats() -> None:
+    """Arrow IPC and JSON lines, each wrong in one way."""
+    import pyarrow.ipc as ipc
+
+    sink = pa.BufferOutputStream()
+    with ipc.new_stream(sink, pa.table(good(100)).schema) as w:
+        w.write_table(pa.table(good(100)))
+    whole = sink.getvalue().to_pybytes()
+    text("truncated.arrow", whole[: len(whole) - 200])  # cut inside the record batch
+    text("empty.arrow", b"")
+    buf = pa.BufferOutputStream()
+    pq.write_table(pa.table(good(1)), buf)
+    text("parquet_named_arrow.arrow", buf.getvalue().to_pybytes())
+    line = '{"Hx": 1, "Hy": 2, "Hz": 3, "Ixx": 2, "Iyy": 3, "Izz": 4, "Ixy": -0.5, "Ixz": 0, "Iyz": 0}'
+    text("bad_line.jsonl", line + "\n" + line[:40] + "\n" + line + "\n")
+    text("json_array.jsonl", "[" + line + ", " + line + "]\n")
+    text("not_objects.ndjson", "[1, 2, 3]\n")
 
 
 if __name__ == "__main__":

@@ -9,8 +9,8 @@ compiled  hconv's row code in C (:mod:`hconv.solve.compiled`, built when hconv i
           numpy engine row by row
 numpy     the vectorised converter (:mod:`hconv.solve.blocks`): every method, form, precision and
           mode; the reference the compiled engine is tested against
-auto      the default: ``compiled`` for every run it covers, at every size; ``numpy`` for the
-          rest, and for a file conversion (``hconv convert``: :func:`for_files`). The environment
+auto      the default: ``compiled`` for every run it covers, at every size, files included;
+          ``numpy`` for the rest. The environment
           variable ``HCONV_ENGINE`` (numpy or compiled) makes every ``auto`` that engine: the
           test suite runs once per engine this way
 ========  =========================================================================================
@@ -104,16 +104,6 @@ def resolve_environment() -> str:
     HCONV_ENGINE says otherwise."""
     chosen = _from_environment()
     return "compiled" if chosen == "auto" else chosen
-
-
-def for_files(engine: str) -> str:
-    """The engine a file conversion runs: auto there means numpy, unless HCONV_ENGINE says
-    otherwise (the file pipeline's use of the compiled engine, with reading, converting and
-    writing overlapped, is a step of its own: docs/engines.md)."""
-    if engine != "auto":
-        return engine
-    chosen = _from_environment()
-    return "numpy" if chosen == "auto" else chosen
 
 
 def resolve(

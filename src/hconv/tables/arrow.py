@@ -17,12 +17,13 @@ Polars, pandas, Spark) and for a reader of what such an engine wrote.
 from __future__ import annotations
 
 import os
+from typing import Any
 
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from hconv.errors import InputError, UsageError
+from hconv.errors import InputError, UsageError, first_line
 from hconv.solve import bodies, methods, options, status, units
 from hconv.tables import layout, storage
 from hconv.tables.job import Job
@@ -68,7 +69,7 @@ def output_fields(job: Job) -> list[pa.Field]:
 
 
 def convert_table(
-    data: pa.Table | pa.RecordBatch,
+    data: Any,
     method: str | None = None,
     precision: int | None = None,
     diagnostics: bool | None = None,
@@ -77,8 +78,13 @@ def convert_table(
     job: Job | None = None,
     plan: layout.Layout | None = None,
     prefix: str | None = None,
-) -> pa.Table:
-    """Convert every row of a pyarrow Table or RecordBatch; returns a Table.
+) -> Any:
+    """Convert every row of a table; returns the same kind of table.
+
+    ``data``: a pyarrow Table or RecordBatch, or any object that speaks the Arrow PyCapsule
+    interface (a pandas >= 2.2 or polars DataFrame, a DuckDB relation, a pyarrow
+    RecordBatchReader). A polars DataFrame gives a polars DataFrame, a pandas DataFrame a pandas
+    one with the same index; anything else a pyarrow Table.
 
     The result holds the input columns unchanged, then ω and the diagnostics (see the module
     docstring). ``method`` (default exact), ``precision`` (64) and ``diagnostics`` (True) make
@@ -90,17 +96,51 @@ def convert_table(
     ``source`` names the data in error messages. ``prefix`` goes before the name of every column
     hconv appends (:class:`~hconv.tables.job.Job`'s ``prefix``).
     """
-    if isinstance(data, pa.RecordBatch):
-        data = pa.Table.from_batches([data])
-    if not isinstance(data, pa.Table):
-        raise UsageError(
-            f"convert_table takes a pyarrow Table or RecordBatch, got {type(data).__name__}; "
-            "make one with pyarrow.table(...)"
-        )
+    given = data
+    table = _as_table(data)
     job = options.configure(
         Job, "convert_table", job, method=method, precision=precision, diagnostics=diagnostics, prefix=prefix
     )
-    return convert_batch(data, job, plan, source)[0]
+    return _as_given(convert_batch(table, job, plan, source)[0], given)
+
+
+def _as_table(data: object) -> pa.Table:
+    """``data`` as a pyarrow Table: a Table, a RecordBatch, or any object that speaks the Arrow
+    PyCapsule interface (``__arrow_c_stream__`` or ``__arrow_c_array__``: pandas >= 2.2, polars,
+    DuckDB relations, pyarrow's readers), read without a copy where its library allows."""
+    if isinstance(data, pa.Table):
+        return data
+    if isinstance(data, pa.RecordBatch):
+        return pa.Table.from_batches([data])
+    kind = f"{type(data).__module__.split('.')[0]}.{type(data).__name__}"
+    if hasattr(data, "__arrow_c_stream__") or hasattr(data, "__arrow_c_array__"):
+        try:
+            return pa.table(data)
+        except (pa.ArrowException, TypeError, ValueError) as exc:
+            raise UsageError(
+                f"convert_table takes a table; {kind} gives Arrow data that is not one ({first_line(exc)}): "
+                "pass a DataFrame (a Series is one column: make a frame of H, I and the rest)"
+            ) from None
+    lazy = " (call .collect() first)" if hasattr(data, "collect") else ""
+    raise UsageError(
+        f"convert_table takes a pyarrow Table or RecordBatch, got {type(data).__name__}{lazy}; or any table that "
+        "speaks Arrow: a pandas (2.2 or later) or polars DataFrame, a DuckDB relation"
+    )
+
+
+def _as_given(result: pa.Table, given: object) -> object:
+    """``result`` as the kind of table ``given`` was: a polars or pandas DataFrame for one (its
+    index kept), else the pyarrow Table."""
+    module = type(given).__module__.split(".")[0]
+    if module == "polars" and type(given).__name__ == "DataFrame":
+        import polars
+
+        return polars.from_arrow(result)
+    if module == "pandas" and type(given).__name__ == "DataFrame":
+        frame = result.to_pandas()
+        frame.index = given.index  # type: ignore[attr-defined]
+        return frame
+    return result
 
 
 def output_schema(
@@ -161,7 +201,7 @@ def units_of(source: pa.Schema | str | os.PathLike, *, endpoint_url: str | None 
         try:
             schema = pq.read_schema(src.place.path(f.rel), filesystem=src.place.fs)
         except (OSError, pa.ArrowException) as exc:
-            raise InputError(f"{name}: cannot read its Parquet footer ({storage.first_line(exc)})") from None
+            raise InputError(f"{name}: cannot read its Parquet footer ({first_line(exc)})") from None
         for column, unit in layout.stored_units(schema).items():
             if column not in found:
                 found[column] = (unit, name)

@@ -1,5 +1,6 @@
-"""A dataset's files converted on a Dask cluster: one task per file, each running
-:func:`hconv.tables.onefile.convert_one` on a worker, while the driver (the process that called
+"""A dataset's files converted on a Dask cluster: small files packed into tasks of many files
+(:func:`batch_bytes`), a larger file alone, each running :func:`hconv.tables.onefile.convert_one`
+on a worker, while the driver (the process that called
 :func:`~hconv.tables.dataset.convert_dataset`) collects the records and writes the manifest, as a
 run in one process does. Dask (``distributed``, the ``hconv[dask]`` extra) is imported only here,
 and only when a run asks for a cluster.
@@ -49,8 +50,8 @@ from hconv import errors
 from hconv.errors import HconvError, OutputError, UsageError, first_line, option
 from hconv.solve.engines import available_cores
 from hconv.tables import temporaries
-from hconv.tables.manifest import FileRecord
-from hconv.tables.onefile import convert_one
+from hconv.tables.manifest import FileRecord, GroupCommit, make_durable
+from hconv.tables.onefile import SMALL_FILE_BYTES, convert_one
 from hconv.tables.parts import Part, PartRecord, convert_part, join_parts, remove_parts, split
 from hconv.tables.pipeline import default_threads
 from hconv.tables.planning import Plan, Task
@@ -252,30 +253,34 @@ class Session:
         self.addresses = set(found)
 
     def run(
-        self, plan: Plan, keep: Callable[[FileRecord], None], *, strict: bool, task_rows: int
+        self, plan: Plan, commit: GroupCommit, *, strict: bool, task_rows: int
     ) -> Iterator[tuple[Task, HconvError | None]]:
-        """Submit one task per file to convert, or for a large Parquet file one per part and one
-        joining them (:func:`hconv.tables.parts.split`, ``task_rows``); (task, its error or
-        None) as each file completes, its record handed to ``keep`` first. KeyboardInterrupt
-        stops the tasks (see the module)."""
+        """Submit the files to convert as tasks: small files packed together into tasks of about
+        :func:`batch_bytes` each, a larger file alone, or for a large Parquet file one task per
+        part and one joining them (:func:`hconv.tables.parts.split`, ``task_rows``); (task, its
+        error or None) for each file as its task completes, its record handed to ``commit``
+        first (durable already: the worker flushed its task's outputs). KeyboardInterrupt stops
+        the tasks (see the module)."""
         import distributed
 
         self.dst = plan.dst
         stop = distributed.Event(f"hconv-stop-{self.run_id}", client=self.client)
         args = (plan.src.place, plan.dst, plan.job, strict, self.threads, self.run_id, stop.name, _cli())
-        by_key = {}
-        files = []  # the futures whose results are files' records: a whole file's, a join's
-        for k, task in enumerate(plan.todo):
+        by_key: dict[str, list[Task]] = {}
+        files = []  # the futures whose results are files' records: a batch's, a join's
+        limit = batch_bytes(plan.todo, self.workers)
+        for k, group in enumerate(_batches(plan.todo, limit)):
             key = f"hconv-{self.run_id}-{k}"
-            by_key[key] = task
-            parts = split(task, plan.src.place, task_rows, self.run_id)
+            by_key[key] = group
+            parts = split(group[0], plan.src.place, task_rows, self.run_id) if len(group) == 1 else []
             if not parts:
-                files.append(self.client.submit(_convert_on_worker, task, *args, key=key, pure=False))
+                files.append(self.client.submit(_convert_on_worker, group, *args, key=key, pure=False))
                 continue
+            task = group[0]
             self.split_files += 1
             self.parts += len(parts)
             done = [
-                self.client.submit(_convert_on_worker, task, *args, part=p, key=f"{key}-part-{p.k}", pure=False)
+                self.client.submit(_convert_on_worker, [task], *args, part=p, key=f"{key}-part-{p.k}", pure=False)
                 for p in parts
             ]
             self.futures += done
@@ -288,36 +293,45 @@ class Session:
         handled = set()
         try:
             for future in distributed.as_completed(files, loop=self.client.loop):
-                task = by_key[future.key]
-                outcome = self._outcome(future, task, keep)
+                group = by_key[future.key]
+                outcomes = self._outcomes(future, group, commit)
                 handled.add(future.key)
-                yield task, outcome
+                yield from zip(group, outcomes)
         except KeyboardInterrupt:
             stop.set()
             # every task not handled yet, including those done but still queued in as_completed
             waiting = [f for f in files if f.key not in handled]
             with contextlib.suppress(Exception):  # a worker stops, finishes, or is lost: all fine now
                 for future in distributed.as_completed(waiting, timeout=STOP_WAIT_SECONDS, loop=self.client.loop):
-                    self._outcome(future, by_key[future.key], keep)
+                    self._outcomes(future, by_key[future.key], commit)
             raise
 
     @staticmethod
-    def _outcome(future: Any, task: Task, keep: Callable[[FileRecord], None]) -> HconvError | None:
+    def _outcomes(future: Any, group: list[Task], commit: GroupCommit) -> list[HconvError | None]:
+        """Each file's outcome of a finished task, its record handed to ``commit``."""
         try:
             got = future.result()
         except HconvError as exc:
-            return exc
+            return [exc] * len(group)
         except Exception as exc:  # noqa: BLE001 - Dask's own failures: a worker lost too often (KilledWorker)
             if type(exc).__name__ != "KilledWorker":
                 raise
-            return OutputError(
-                f"{task.input.rel}: not converted: the workers running it died, {first_line(exc)}; "
-                "it may need more memory than a worker has"
-            )
-        if isinstance(got, FileRecord):
-            keep(got)
-            return None
-        return got  # an HconvError, or None: stopped before it was done
+            return [
+                OutputError(
+                    f"{task.input.rel}: not converted: the workers running it died, {first_line(exc)}; "
+                    "it may need more memory than a worker has"
+                )
+                for task in group
+            ]
+        results = got if isinstance(got, list) else [got]
+        outcomes: list[HconvError | None] = []
+        for result in results:
+            if isinstance(result, FileRecord):
+                commit.add(result, None)
+                outcomes.append(None)
+            else:
+                outcomes.append(result)  # an HconvError, or None: stopped before it was done
+        return outcomes
 
     def close(self, own: list[Any]) -> None:
         """Cancel what still waits, close what this session started, and remove the run's
@@ -357,6 +371,43 @@ class _Scratch:
         shutil.rmtree(self.path, ignore_errors=True)
 
 
+#: Small files are packed into tasks of at least this many bytes in all (fewer where the dataset
+#: is too small to give each worker several tasks), so that a task pays for its scheduling
+#: (docs/scaling.md measures a task's cost against a small file's).
+TASK_BYTES = 64 << 20
+#: Tasks per worker that a dataset of small files is cut into at least, so that the last tasks
+#: finish together.
+TASKS_PER_WORKER = 4
+
+
+def batch_bytes(tasks: list[Task], workers: int) -> int:
+    """The bytes of input a task of small files carries: :data:`TASK_BYTES`, or less, so that the
+    dataset makes :data:`TASKS_PER_WORKER` tasks per worker."""
+    total = sum(t.input.size for t in tasks)
+    return max(1, min(TASK_BYTES, total // max(1, TASKS_PER_WORKER * workers)))
+
+
+def _batches(tasks: list[Task], limit: int) -> Iterator[list[Task]]:
+    """``tasks`` in their order, packed into groups of about ``limit`` bytes of input; a file of
+    ``limit`` bytes or more is a group alone (it may be split into parts)."""
+    group: list[Task] = []
+    size = 0
+    for task in tasks:
+        if task.input.size >= limit:
+            if group:
+                yield group
+                group, size = [], 0
+            yield [task]
+            continue
+        group.append(task)
+        size += task.input.size
+        if size >= limit:
+            yield group
+            group, size = [], 0
+    if group:
+        yield group
+
+
 def _cli() -> bool:
     """Whether messages are spelled for the command line, so that a worker's are too."""
     return option("threads") == "--threads"
@@ -381,7 +432,7 @@ class _StopRequestedError(Exception):
 
 
 def _convert_on_worker(
-    task: Task,
+    tasks: list[Task],
     src: Place,
     dst: Place,
     job: Any,
@@ -391,37 +442,80 @@ def _convert_on_worker(
     stop_name: str,
     cli: bool,
     part: Part | None = None,
-) -> FileRecord | PartRecord | HconvError | None:
-    """One file, or one ``part`` of it, on a worker: its record, its error (returned, not raised,
-    so that Dask keeps no traceback for a file hconv names), or None if the run was stopped first."""
+) -> list[FileRecord | HconvError | None] | PartRecord | HconvError | None:
+    """A task's files, or one ``part`` of its one file, on a worker. For files: each one's record
+    or error (returned, not raised, so that Dask keeps no traceback for a file hconv names), or
+    None where the run was stopped first; the outputs flushed to the disk together before the
+    task returns (:func:`hconv.tables.manifest.make_durable`). For a part: its record, error or None."""
     import distributed
 
     stop = distributed.Event(stop_name)
     asked = [time.monotonic()]
 
-    def check(done: int, total: int | None) -> None:
+    def check(done: int = 0, total: int | None = None) -> None:
         if time.monotonic() - asked[0] >= STOP_CHECK_SECONDS:
             asked[0] = time.monotonic()
             if stop.is_set():
                 raise _StopRequestedError
 
     if stop.is_set():
-        return None
+        return None if part is not None else [None] * len(tasks)
     if threads is None:  # the worker's cores, shared among the tasks it runs at once
         threads = max(1, default_threads() // max(1, distributed.get_worker().state.nthreads))
-    # the task may be a second run of one whose worker died after committing: see the module
-    task = dataclasses.replace(task, overwrite=True)
     with errors.command_line() if cli else contextlib.nullcontext():
-        try:
-            if part is not None:
+        if part is not None:
+            # the task may be a second run of one whose worker died after committing: see the module
+            task = dataclasses.replace(tasks[0], overwrite=True)
+            try:
                 return convert_part(
                     task, part, src, dst, job, strict=strict, threads=threads, progress=check, run=run_id
                 )
-            return convert_one(task, src, dst, job, strict=strict, threads=threads, progress=check, run=run_id)
+            except HconvError as exc:
+                return exc
+            except _StopRequestedError:
+                return None
+        with temporaries.sweeping_once():
+            return _convert_files(tasks, src, dst, job, strict, threads, run_id, check)
+
+
+def _convert_files(
+    tasks: list[Task],
+    src: Place,
+    dst: Place,
+    job: Any,
+    strict: bool,
+    threads: int,
+    run_id: str,
+    check: Callable[..., None],
+) -> list[FileRecord | HconvError | None]:
+    """:func:`_convert_on_worker`'s files, one after another; ``check`` raises
+    :class:`_StopRequestedError` once the run is stopped."""
+    results: list[FileRecord | HconvError | None] = []
+    flushing: list[tuple[int, str]] = []  # (place in results, output) of the outputs to flush
+    for task in tasks:
+        task = dataclasses.replace(task, overwrite=True)  # as for a part
+        small = task.input.size < SMALL_FILE_BYTES
+        try:
+            check()
+            record = convert_one(
+                task, src, dst, job, strict=strict, threads=1 if small else threads, progress=check,
+                run=run_id, flush=not small, whole=small,
+            )  # fmt: skip
         except HconvError as exc:
-            return exc
+            results.append(exc)
+            continue
         except _StopRequestedError:
-            return None
+            results += [None] * (len(tasks) - len(results))
+            break
+        if small and dst.local:
+            flushing.append((len(results), dst.path(task.output)))
+        results.append(record)
+    try:
+        make_durable([path for _, path in flushing])
+    except HconvError as exc:  # not durable: not listed, converted again by the next run
+        for k, _ in flushing:
+            results[k] = exc
+    return results
 
 
 def _join_on_worker(

@@ -13,7 +13,9 @@ import dataclasses
 import io
 import os
 import re
+import stat
 from collections.abc import Iterator
+from typing import Any
 
 import numpy as np
 import pyarrow as pa
@@ -527,7 +529,10 @@ class CsvWriter:
 
     def __init__(self, path: str, schema: pa.Schema, delimiter: str = ","):
         self._delimiter, self._path = delimiter, path
-        self._f = pa.OSFile(path, "wb")  # a native file: pyarrow's writer writes into it without Python
+        # a pipe (stdout straight to its reader) cannot seek, which a native file needs: its
+        # rows are formatted into memory first, so that a late refusal has written nothing
+        self._seekable = not os.path.exists(path) or stat.S_ISREG(os.stat(path).st_mode)
+        self._f: Any = pa.OSFile(path, "wb") if self._seekable else open(path, "wb")  # noqa: SIM115 - close() closes it
         wx, self._unit_column = layout.output_name("wx", schema), layout.output_name(UNIT_COLUMN, schema)
         meta = schema.field(wx).metadata or {} if wx in schema.names else {}
         self._unit = meta[b"unit"].decode() if b"unit" in meta else None  # only tables with ω have one
@@ -555,6 +560,15 @@ class CsvWriter:
         # decided on the whole table, so that its slices are written alike
         if any(_empty_beside_null(c) for c in t.columns) or _needs_quoting(t, self._delimiter):
             self._quoted(t)
+            return
+        if not self._seekable:
+            try:
+                sink = pa.BufferOutputStream()
+                pacsv.write_csv(t, sink, self._plain)
+            except pa.ArrowInvalid:  # a value pyarrow would quote after all: quote those values
+                self._quoted(t)
+            else:
+                self._f.write(sink.getvalue())
             return
         at = self._f.tell()
         try:

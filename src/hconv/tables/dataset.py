@@ -41,15 +41,18 @@ from hconv.errors import HconvError, UsageError, option
 from hconv.solve import options
 from hconv.tables import output, runners, storage, temporaries
 from hconv.tables.job import Job
-from hconv.tables.manifest import MANIFEST, FileRecord, manifest_stale, tally_of, write_manifest, written_before
+from hconv.tables.manifest import (
+    MANIFEST,
+    FileRecord,
+    GroupCommit,
+    manifest_stale,
+    tally_of,
+    write_manifest,
+    written_before,
+)
 from hconv.tables.parts import TASK_ROWS, check_task_rows, remove_orphan_parts
 from hconv.tables.pipeline import Tally, check_callback, check_threads
 from hconv.tables.planning import Plan, plan_dataset
-
-#: While files convert, the manifest is rewritten at most this often, so that a run killed
-#: outright (kill -9, a lost machine) loses the record of this much work at most: the next run
-#: converts those files again (the manifest claimed their paths before the run wrote them).
-CHECKPOINT_SECONDS = 10.0
 
 
 def is_dataset(src: str, dst: str) -> bool:
@@ -100,8 +103,57 @@ class DatasetError(HconvError):
         self.result = result
 
 
+def _spec_of(src: object, src_format: str | None) -> tuple[str, str | None]:
+    """The dataset ``src`` as a path spec, and its format: a path (str or PathLike) as it is; a
+    pyarrow ``FileSystemDataset`` of local files as their directory, if they are all the files
+    hconv would read there (its format, unless ``src_format`` says it); UsageError for anything else."""
+    if isinstance(src, (str, os.PathLike)):
+        return os.fspath(src), src_format
+    import pyarrow.dataset as pads
+    import pyarrow.fs as pafs
+
+    pass_path = "pass the directory, a glob or the URI as a str, as hconv convert takes it"
+    if isinstance(src, pads.FileSystemDataset):
+        files = [os.path.abspath(f) for f in src.files]
+        if not isinstance(src.filesystem, pafs.LocalFileSystem):
+            raise UsageError(f"convert_dataset: a pyarrow dataset on {src.filesystem.type_name}: {pass_path}")
+        if not files:
+            raise UsageError(f"convert_dataset: the pyarrow dataset has no files; {pass_path}")
+        fmt = src_format or next(
+            (name for kind, name in _PYARROW_FORMATS if isinstance(src.format, getattr(pads, kind, ()))), None
+        )
+        root = os.path.commonpath(files) if len(files) > 1 else os.path.dirname(files[0])
+        if os.path.isfile(root):
+            root = os.path.dirname(root)
+        listed = {os.path.join(root, f.rel) for f in storage.source(root).files(fmt)}
+        if listed != set(files):
+            raise UsageError(
+                f"convert_dataset: the pyarrow dataset holds {len(files)} of the files in {root} that hconv would "
+                f"read ({len(listed)}); {pass_path}, such as a glob that matches those files"
+            )
+        return root, fmt
+    if isinstance(src, pads.Dataset):
+        raise UsageError(
+            "convert_dataset: a pyarrow dataset in memory has no files; convert it with "
+            "hconv.convert_table(dataset.to_table())"
+        )
+    raise UsageError(
+        f"convert_dataset takes a directory, a glob or a URI (a str or path), or a pyarrow dataset of files, "
+        f"got {type(src).__name__}; for a table in memory, use hconv.convert_table"
+    )
+
+
+#: pyarrow.dataset's file formats, and hconv's name for each (first match wins: Feather is IPC).
+_PYARROW_FORMATS = (
+    ("ParquetFileFormat", "parquet"),
+    ("CsvFileFormat", "csv"),
+    ("IpcFileFormat", "arrow"),
+    ("JsonFileFormat", "jsonl"),
+)
+
+
 def convert_dataset(
-    src: str | os.PathLike[str],
+    src: object,
     dst: str | os.PathLike[str],
     *,
     method: str | None = None,
@@ -122,8 +174,9 @@ def convert_dataset(
     task_rows: int | None = None,
     prefix: str | None = None,
 ) -> DatasetResult:
-    """Convert every file of the dataset ``src`` (a directory, a glob or a URI) into ``dst`` (a
-    directory or prefix), each at its relative path, and write the manifest last; see the module.
+    """Convert every file of the dataset ``src`` (a directory, a glob or a URI, or a pyarrow
+    ``FileSystemDataset`` of all the files of a local directory) into ``dst`` (a directory or
+    prefix), each at its relative path, and write the manifest last; see the module.
 
     The keywords are :func:`~hconv.tables.pipeline.convert_file`'s (``prefix`` among them), plus:
     ``force``: convert every file again, and overwrite outputs the manifest does not list (nothing
@@ -150,7 +203,12 @@ def convert_dataset(
     if task_rows is not None and cluster is None:
         raise UsageError(f"{option('task_rows')} sets how {option('cluster')} splits large files; add that")
     runners.check_cluster(cluster, workers, cluster_timeout)
-    src_path, dst_path = os.fspath(src), os.fspath(dst)
+    src_path, src_format = _spec_of(src, src_format)
+    if not isinstance(dst, (str, os.PathLike)):
+        raise UsageError(
+            f"convert_dataset writes into a directory, a prefix or a URI (a str), got {type(dst).__name__}"
+        )
+    dst_path = os.fspath(dst)
     say = log or (lambda line: None)
     plan = plan_dataset(
         src_path,
@@ -177,8 +235,12 @@ def convert_dataset(
     parts_run = None  #: while parts may exist: this run's tag and driver, in every manifest written
 
     def keep(rec: FileRecord) -> None:
+        if rec.input not in records:  # a todo file is not among the kept ones
+            converted.append(rec.input)
         records[rec.input] = rec
-        converted.append(rec.input)
+
+    # outputs are listed once durable, a group at a time, the manifest rewritten once per group
+    commit = GroupCommit(keep, lambda: write_manifest(plan, records, failed, written, t0, parts_run))
 
     ran_on = None
     split_files = split_parts = 0
@@ -189,19 +251,19 @@ def convert_dataset(
     created = plan.dst.local and not os.path.lexists(plan.dst.root)
     try:
         with contextlib.ExitStack() as stack:
+            stack.enter_context(temporaries.sweeping_once())
             if cluster is not None and plan.todo:
                 # connected (and the workers' hconv checked) before anything is written
                 session = stack.enter_context(runners.on_cluster(cluster, workers, cluster_timeout, threads))
                 ran_on = session.describe()
                 say(f"running on {ran_on}")
-                outcomes = session.run(plan, keep, strict=strict, task_rows=rows)
+                outcomes = session.run(plan, commit, strict=strict, task_rows=rows)
                 if rows:
                     parts_run = {"id": session.run_id, "driver": temporaries.maker()}
             else:
-                outcomes = runners.in_process(plan, keep, strict=strict, threads=threads)
+                outcomes = runners.in_process(plan, commit, strict=strict, threads=threads)
             if plan.todo:
                 write_manifest(plan, records, failed, written, t0, parts_run)
-            last = time.monotonic()
             try:
                 for k, (task, error) in enumerate(outcomes):
                     if error is not None:
@@ -212,10 +274,14 @@ def convert_dataset(
                             break
                     if progress is not None:
                         progress(k + 1, len(plan.todo))
-                    if time.monotonic() - last > CHECKPOINT_SECONDS:
-                        write_manifest(plan, records, failed, written, t0, parts_run)
-                        last = time.monotonic()
+                commit.close()  # the last group; inside the try, so that an interrupt in it is handled below
             except KeyboardInterrupt:
+                # the files under way finish (or stop) and the committed ones join the group,
+                # which is made durable and kept before the manifest below lists them
+                if hasattr(outcomes, "close"):
+                    outcomes.close()
+                with contextlib.suppress(HconvError):  # not flushed: not listed, converted again next run
+                    commit.close()
                 if any(t.input.rel not in records and t.input.rel not in failed for t in plan.todo):
                     if created and not converted:
                         raise  # nothing to keep: OUT is removed below
@@ -229,14 +295,15 @@ def convert_dataset(
             finally:
                 if hasattr(outcomes, "close"):  # stopped early: no further file starts
                     outcomes.close()
+            commit.close()  # a run stopped by a full disk: the files committed meanwhile
             if ran_on is not None:
                 ran_on = session.describe_end()
                 split_files, split_parts = session.split_files, session.parts
         if plan.todo or plan.refused or manifest_stale(plan, records, failed):
             # The last manifest settles the run: from here an interrupt cannot make it exit 130
             # with OUT complete (hconv.interrupts.settle), which a caller would retry and fail.
-            interrupts.point("manifest")
-            with interrupts.held():
+            with interrupts.held():  # an interrupt from the last group's commit on acts after the settle
+                interrupts.point("manifest")
                 write_manifest(plan, records, failed, written, t0)
                 interrupts.settle()
                 interrupts.point("settled")

@@ -21,6 +21,12 @@ from hconv.tables.pipeline import convert_file
 from hconv.tables.planning import Task
 from hconv.tables.storage import Place
 
+#: A file smaller than this (bytes) is converted whole, on one thread, with no threads of its own
+#: (several side by side: :func:`hconv.tables.runners.in_process`); a larger one streams on its
+#: own batch threads, as one file does. A Parquet file this size holds about one batch (65,536
+#: rows) of hconv's inputs.
+SMALL_FILE_BYTES = 8 << 20
+
 
 def convert_one(
     task: Task,
@@ -33,6 +39,8 @@ def convert_one(
     done: Callable[[FileRecord], None] | None = None,
     progress: Callable[[int, int | None], None] | None = None,
     run: str | None = None,
+    flush: bool = True,
+    whole: bool = False,
 ) -> FileRecord:
     """Convert one input file into its output; raises HconvError subclasses naming the file.
     ``progress`` is :func:`hconv.tables.pipeline.convert_file`'s; ``run`` tags the temporary files' names
@@ -43,7 +51,12 @@ def convert_one(
     storage), then committed: renamed into place, or uploaded. The commit and ``done(record)``
     (the caller recording the file for the manifest) happen with interrupts held
     (:class:`hconv.interrupts.held`), so that a Ctrl-C leaves the output either not there or
-    there and recorded, never there and unrecorded."""
+    there and recorded, never there and unrecorded.
+
+    ``flush``: flush the output to the disk before its commit; without it the caller makes it
+    durable later, with others (:class:`hconv.tables.manifest.GroupCommit`), before any manifest
+    lists it. ``whole``: a small file, converted on this thread alone
+    (:func:`hconv.tables.pipeline.convert_file`'s ``whole``)."""
     t0 = time.perf_counter()
     rel = task.input.rel
     name = src.name(rel)
@@ -63,6 +76,7 @@ def convert_one(
             progress=progress,
             name=name,
             dst_name=shown_output(dst, task.output, staged),
+            whole=whole,
         )
         worst = tally.worst_residual
         record = FileRecord(
@@ -71,7 +85,7 @@ def convert_one(
             input_size=task.input.size,
             input_mtime_ns=task.input.mtime_ns,
             input_etag=etag,
-            output_size=flushed(staged, dst.name(task.output)) if dst.local else os.path.getsize(staged),
+            output_size=flushed(staged, dst.name(task.output)) if dst.local and flush else os.path.getsize(staged),
             rows=tally.rows,
             statuses=tally.counts(),
             worst_residual=None if np.isnan(worst) else worst,

@@ -1,7 +1,16 @@
 """Atomic output: batches go to a temporary file next to the output (:mod:`hconv.tables.temporaries`
 names it), renamed into place only when the whole run succeeded, so a failed or interrupted run
 leaves no partial output. With "-" as output the finished file is then copied to stdout. A write
-that fails names the output, its errno kept (a full disk: :data:`NO_ROOM`)."""
+that fails names the output, its errno kept (a full disk: :data:`NO_ROOM`).
+
+One exception, as Unix filters behave: with "-" as output, a stdout that is a pipe, and a run
+that may stream (``stream``: CSV, or Arrow's stream format from a single pass), batches go
+straight into the pipe, so that its reader gets rows at once, and a reader that goes away
+(``| head``) stops the run at its next write (BrokenPipeError, which the command takes quietly).
+A run that fails then has written the rows before the failure; its exit code says so.
+
+An existing directory as OUT for one input file is the file of the input's name in it, as ``cp``
+does (:func:`into_directory`)."""
 
 from __future__ import annotations
 
@@ -17,8 +26,10 @@ import pyarrow as pa
 from hconv import interrupts
 from hconv.errors import OutputError, UsageError, first_line, option
 from hconv.tables.csvio import CsvWriter
+from hconv.tables.formats import EXTENSIONS, NAMES
+from hconv.tables.ipcio import IpcWriter
 from hconv.tables.parquetio import ParquetWriter
-from hconv.tables.sniff import delimiter_by_name
+from hconv.tables.sniff import delimiter_by_name, format_of
 from hconv.tables.temporaries import temporary_file
 
 
@@ -30,18 +41,29 @@ class Output:
     """
 
     def __init__(
-        self, path: str, fmt: str, *, force: bool = False, input_path: str | None = None, shown: str | None = None
+        self,
+        path: str,
+        fmt: str,
+        *,
+        force: bool = False,
+        input_path: str | None = None,
+        shown: str | None = None,
+        stream: bool = False,
     ):
         self.path, self.fmt = path, fmt
         #: the output as messages name it: ``path``, or the file that a dataset's staged ``path`` becomes
         self.shown = shown or ("stdout" if path == "-" else path)
-        self._writer: CsvWriter | ParquetWriter | None = None
+        self._writer: CsvWriter | ParquetWriter | IpcWriter | None = None
         self._tmp: str | None = None
+        self._open = False  #: inside the with block
         self._target = path  #: where the file goes: ``path``, or the file a link at ``path`` names
+        #: batches go straight to stdout, a pipe (the module's docstring); else through a temporary file
+        self.direct = path == "-" and stream and fmt != "parquet" and _stdout_is_pipe()
         if path == "-":
-            if fmt == "parquet" and sys.stdout is not None and sys.stdout.isatty():
+            if fmt != "csv" and sys.stdout is not None and sys.stdout.isatty():
                 raise UsageError(
-                    f"Parquet is binary: redirect stdout (> out.parquet) or use {option('dst_format', 'csv')}"
+                    f"{NAMES[fmt].split(' (')[0]} is binary: redirect stdout (> out{EXTENSIONS[fmt][0]}) "
+                    f"or use {option('dst_format', 'csv')}"
                 )
             if input_path not in (None, "-") and _stdout_is(input_path):  # `>> in.parquet` would append to it
                 raise OutputError("stdout: is the input file (redirected onto it); write the output to another path")
@@ -70,6 +92,9 @@ class Output:
             raise OutputError(f"{path}: already exists; pass {option('force', True)} to overwrite it")
 
     def __enter__(self) -> Output:
+        self._open = True
+        if self.direct:
+            return self
         if self.path == "-":
             fd, self._tmp = temporary_file("hconv-stdout-")
         else:
@@ -95,24 +120,38 @@ class Output:
 
     def write(self, table: pa.Table) -> None:
         """Append a converted table; the first call fixes the output schema."""
-        if self._tmp is None:
+        if not self._open or (self._tmp is None and not self.direct):
             raise ValueError("write to an Output inside its with block")
         try:
             if self._writer is None:
-                if self.fmt == "csv":  # out.tsv gets tabs
-                    self._writer = CsvWriter(self._tmp, table.schema, delimiter_by_name(self.shown) or ",")
-                else:
-                    self._writer = ParquetWriter(self._tmp, table.schema)
+                self._writer = self._new_writer(table.schema)
             self._writer.write(table)
+        except BrokenPipeError:  # stdout's reader went away (`| head`): its choice, not a failure
+            raise
         except OSError as exc:  # a full disk, a quota: the output named, not the temporary file
             raise write_failure(self.shown, exc) from None
 
+    def _new_writer(self, schema: pa.Schema) -> CsvWriter | ParquetWriter | IpcWriter:
+        # Straight to stdout through its path, so that each writer opens a native file as ever
+        # (a pipe opened again by /dev/fd is the same pipe).
+        path = f"/dev/fd/{sys.stdout.fileno()}" if self.direct else self._tmp
+        assert path is not None
+        if self.fmt == "csv":  # out.tsv gets tabs
+            return CsvWriter(path, schema, delimiter_by_name(self.shown) or ",")
+        if self.fmt == "arrow":
+            return IpcWriter(path, schema, stream=self.path == "-")
+        return ParquetWriter(path, schema)
+
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: object) -> None:
+        self._open = False
         try:
             if self._writer is not None:
                 self._writer.close()
             if exc_type is None:
                 self._commit()
+        except BrokenPipeError:
+            if exc_type is None:
+                raise
         except OSError as err:
             if exc_type is None:
                 raise write_failure(self.shown, err) from None
@@ -121,6 +160,9 @@ class Output:
                 os.unlink(self._tmp)
 
     def _commit(self) -> None:
+        if self.direct:
+            interrupts.committed()
+            return
         if self._tmp is None:
             return
         if self.path == "-":
@@ -167,6 +209,29 @@ def _file_kind(mode: int) -> str:
         if test(mode):
             return what
     return "not a file"
+
+
+def _stdout_is_pipe() -> bool:
+    try:
+        return stat.S_ISFIFO(os.fstat(sys.stdout.fileno()).st_mode)
+    except (OSError, ValueError, AttributeError):  # closed, not a file descriptor (a test's capture)
+        return False
+
+
+def into_directory(src: str, dst: str, src_format: str | None, dst_format: str | None) -> str:
+    """OUT for one input file: ``dst`` itself, or where ``dst`` is an existing directory, the file
+    in it named as the input, as ``cp`` names it; with ``dst_format`` another format than the
+    input's, the name takes that format's extension (``s.csv --to parquet``: ``dst/s.parquet``)."""
+    if dst == "-" or not os.path.isdir(dst):
+        return dst
+    if src == "-":
+        raise UsageError(f"{dst}: is a directory, and stdin has no name to give the output; give OUT a file name")
+    name = os.path.basename(src.rstrip(os.sep))
+    if dst_format is not None and dst_format != format_of(src, src_format, "src_format"):
+        stem, ext = os.path.splitext(name)
+        named = any(ext.lower() in exts for exts in EXTENSIONS.values())
+        name = (stem if named else name) + EXTENSIONS[dst_format][0]
+    return os.path.join(dst, name)
 
 
 def _stdout_is(path: str) -> bool:

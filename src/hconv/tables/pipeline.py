@@ -6,7 +6,6 @@ The CLI's ``convert`` is a thin wrapper over :func:`convert_file`.
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import functools
 import itertools
 import queue
@@ -29,7 +28,7 @@ from hconv.tables import csvio, csvtypes, layout
 from hconv.tables.arrow import convert_batch
 from hconv.tables.inputs import Input
 from hconv.tables.job import Job
-from hconv.tables.output import Output
+from hconv.tables.output import Output, into_directory
 from hconv.tables.sniff import format_of
 from hconv.tables.tableio import open_input
 
@@ -219,6 +218,7 @@ def convert_file(
     rows: tuple[int, int] | None = None,
     dst_name: str | None = None,
     prefix: str | None = None,
+    whole: bool = False,
 ) -> Tally:
     """Convert the table in ``src`` into ``dst`` ("-" for stdin/stdout); returns the tally.
 
@@ -236,6 +236,9 @@ def convert_file(
     ``rows``: (start, stop), convert only those rows of a Parquet ``src`` (a part of a file
     converted by one task of a cluster run: :func:`hconv.tables.parts.convert_part`); messages
     name the file's rows, the tally's ``worst_row`` counts from ``start``.
+    ``whole``: a small file, read, converted and written on the calling thread, with no threads
+    of its own (starting and joining them cost more than such a file's conversion; a dataset's
+    pool converts several such files side by side: :mod:`hconv.tables.runners`).
     Raises :class:`hconv.errors.HconvError` subclasses with one-line messages.
     """
     check_threads(threads)
@@ -244,18 +247,22 @@ def convert_file(
     job = options.configure(
         Job, "convert_file", job, method=method, precision=precision, diagnostics=diagnostics, prefix=prefix
     )
-    if engines.for_files(job.engine) != job.engine:
-        job = dataclasses.replace(job, engine=engines.for_files(job.engine))
+    dst = into_directory(src, dst, src_format, dst_format)  # an existing directory: the file in it, as cp
     fin = format_of(src, src_format, "src_format")
     fout = format_of(dst, dst_format, "dst_format")
-    out = Output(dst, fout, force=force, input_path=src, shown=dst_name)  # refuses early, before reading
+    # Straight into a pipe's reader where one pass writes it all: CSV keeps its text, and only
+    # CSV's text columns can make a second pass (csvtypes.Retype); --strict promises nothing written.
+    stream = not strict and (fout == "csv" or fin != "csv")
+    out = Output(dst, fout, force=force, input_path=src, shown=dst_name, stream=stream)  # refuses early
     t0 = time.perf_counter()
     with open_input(src, fin, job, name, rows) as inp:
         if fout == "csv":
             csvio.check_csv_columns(inp.schema, inp.name)  # before converting anything
         # CSV's text columns get types in Parquet, the first block's (csvtypes); CSV keeps them as they were
         typed = fout != "csv" and bool(inp.text) and not job.keep_text
-        run = functools.partial(_convert, job=job, strict=strict, threads=threads, progress=progress)
+        run = functools.partial(
+            _convert, job=job, strict=strict, threads=1 if whole else threads, progress=progress, whole=whole
+        )
         try:
             tally = run(inp, out, types=None if typed else {})
         except csvtypes.Retype:  # a later block does not fit them: type from every block, then again
@@ -278,6 +285,7 @@ def _convert(
     strict: bool,
     threads: int,
     progress: Callable[[int, int | None], None] | None,
+    whole: bool = False,
 ) -> Tally:
     """One pass of :func:`convert_file`: every batch of ``inp`` into ``out``. ``types``: the
     types of ``inp``'s text columns (None: the first batch's; :class:`~hconv.tables.csvtypes.Retype`
@@ -304,17 +312,39 @@ def _convert(
         tally.read_as = inp.dialect.describe()
     if progress is not None:  # the size, before the first batch takes its time
         progress(0, inp.total)
-    with out, BackgroundWriter(out) as writer, contextlib.closing(results):
-        for table, engine in results:
-            if strict:
-                _check_strict(table, inp.first_row + tally.rows, inp.name)
-            writer.write(table)
-            tally.add(table, engine)
-            if progress is not None:  # the rows converted, not how far the reader has got ahead of them
-                progress(inp.reached(tally.rows), inp.total)
-        if tally.rows == 0:  # a header and no rows is a valid empty table
-            writer.write(convert_batch(inp.schema.empty_table(), job, inp.plan, inp.name)[0])
+    writing = contextlib.nullcontext(_Direct(out)) if whole else BackgroundWriter(out)
+    with out, writing as writer, contextlib.closing(results):
+        _write_all(inp, results, writer, tally, job=job, strict=strict, progress=progress)
     return tally
+
+
+class _Direct:
+    """A :class:`BackgroundWriter`'s ``write`` on the calling thread (a small file: ``whole``)."""
+
+    def __init__(self, out: Output):
+        self.write = out.write
+
+
+def _write_all(
+    inp: Input,
+    results: Iterator[tuple[pa.Table, str]],
+    writer: BackgroundWriter | _Direct,
+    tally: Tally,
+    *,
+    job: Job,
+    strict: bool,
+    progress: Callable[[int, int | None], None] | None,
+) -> None:
+    """Each converted table of ``inp`` written and tallied, in order."""
+    for table, engine in results:
+        if strict:
+            _check_strict(table, inp.first_row + tally.rows, inp.name)
+        writer.write(table)
+        tally.add(table, engine)
+        if progress is not None:  # the rows converted, not how far the reader has got ahead of them
+            progress(inp.reached(tally.rows), inp.total)
+    if tally.rows == 0:  # a header and no rows is a valid empty table
+        writer.write(convert_batch(inp.schema.empty_table(), job, inp.plan, inp.name)[0])
 
 
 def _numbered(batches: Iterable[pa.RecordBatch], first: int = 0) -> Iterator[tuple[int, pa.RecordBatch]]:

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 from hconv.errors import HconvError, OutputError, UsageError, option
 from hconv.tables import storage
-from hconv.tables.formats import EXTENSIONS, FORMATS
+from hconv.tables.formats import EXTENSIONS, FORMATS, NAMES, WRITES, choices
 from hconv.tables.job import Job
 from hconv.tables.manifest import MANIFEST, FileRecord, job_identity, read_manifest
 from hconv.tables.storage import Listed, Place, Source
@@ -54,6 +54,11 @@ class Plan:
 
 
 def _output_rel(rel: str, fmt_in: str, dst_format: str | None) -> tuple[str, str]:
+    if dst_format is None and fmt_in in NAMES and fmt_in not in WRITES:  # JSON lines is read only
+        raise UsageError(
+            f"{rel}: is {NAMES[fmt_in]}, which hconv reads but does not write; pass "
+            f"{option('dst_format', 'FORMAT')} ({choices(WRITES)}) for the dataset's outputs"
+        )
     if dst_format is None or dst_format == fmt_in:
         return rel, fmt_in
     stem, ext = os.path.splitext(rel)
@@ -82,6 +87,8 @@ def plan_dataset(
     for flag, fmt in (("src_format", src_format), ("dst_format", dst_format)):
         if fmt is not None and fmt not in FORMATS:
             raise UsageError(f"{option(flag)} must be {' or '.join(FORMATS)}, got {fmt!r}")
+    if dst_format is not None and dst_format not in WRITES:
+        raise UsageError(f"{option('dst_format')}: hconv does not write {NAMES[dst_format]}; give {choices(WRITES)}")
     if dst == "-":
         raise UsageError("a dataset is written into a directory or prefix, not to stdout ('-')")
     if endpoint_url and not any(s.lower().startswith("s3://") for s in (src, dst)):

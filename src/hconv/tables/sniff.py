@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from hconv.errors import InputError, OutputError, UsageError, option
-from hconv.tables.formats import EXTENSIONS, FORMATS
+from hconv.tables.formats import EXTENSIONS, FOREIGN, FORMATS, NAMES, WRITES, choices, listing
 from hconv.tables.inputs import unreadable
 from hconv.tables.job import DELIMITERS
 
@@ -29,18 +29,27 @@ def format_of(path: str, given: str | None, flag: str) -> str:
         raise UsageError(f"the {which} path is empty (''); give a file path, or - for {std}")
     if given:
         if given not in FORMATS:
-            raise UsageError(f"{option(flag)} must be {' or '.join(FORMATS)}, got {given!r}")
+            raise UsageError(f"{option(flag)} must be {choices(FORMATS)}, got {given!r}")
+        if flag == "dst_format":
+            _check_writes(given, flag)
         named = _named_format(path) if path != "-" else None
         if named not in (None, given):  # out.csv with --to parquet: one of the two is a mistake
             base = path[: -len(Path(path).suffix)]
+            if flag == "src_format" and _head_format(path) == named:  # the bytes side with the name
+                raise UsageError(
+                    f"{path}: is {_AN[named]} {NAMES[named]} file, as its name says, not {NAMES[given]}; "
+                    f"drop {option(flag, given)}"
+                )
             raise UsageError(
-                f"{path}: the name says {_FORMAT_NAMES[named]} but {option(flag, given)} says "
-                f"{_FORMAT_NAMES[given]}; name it {base}{EXTENSIONS[given][0]}, or drop {option(flag)}"
+                f"{path}: the name says {NAMES[named]} but {option(flag, given)} says "
+                f"{NAMES[given]}; name it {base}{EXTENSIONS[given][0]}, or drop {option(flag)}"
             )
         return given
     if path == "-":
+        fmts = FORMATS if flag == "src_format" else WRITES
         raise UsageError(
-            f"'-' has no extension to tell the format; pass {option(flag, 'csv')} or {option(flag, 'parquet')}"
+            f"'-' has no extension to tell the format (one of {choices(fmts)}); "
+            f"pass {option(flag, 'csv')} or {option(flag, 'parquet')}"
         )
     suffix = Path(path).suffix.lower()
     fmt = _named_format(path)
@@ -48,14 +57,37 @@ def format_of(path: str, given: str | None, flag: str) -> str:
         if flag == "src_format":
             input_kind(path)  # a path that is missing or a directory: say so, not that its name has no format
         _refuse_compressed_name(path, suffix, flag)
+        fmts = FORMATS if flag == "src_format" else WRITES
+        verb = "reads" if flag == "src_format" else "writes"
+        if suffix in FOREIGN:
+            raise UsageError(
+                f"{path}: its name says {FOREIGN[suffix]} ({suffix}), which hconv does not {verb[:-1]}; "
+                f"hconv {verb} {listing(fmts)}" + (_JSON_LINES if suffix == ".json" and flag == "src_format" else "")
+            )
         raise UsageError(
-            f"cannot tell the format of {path!r} from its extension; "
-            f"name it .csv or .parquet, or pass {option(flag, 'csv')} or {option(flag, 'parquet')}"
+            f"cannot tell the format of {path!r} from its extension; hconv {verb} {listing(fmts)}: "
+            f"pass {option(flag, 'FORMAT')} ({choices(fmts)}) if it is one of them"
         )
+    if flag == "dst_format":
+        _check_writes(fmt, flag, path)
     return fmt
 
 
-_FORMAT_NAMES = {"csv": "CSV", "parquet": "Parquet"}
+_JSON_LINES = (
+    "; if it holds one JSON object per line, pass --from jsonl; if it is one array of objects, "
+    "write them a line each first: jq -c '.[]' in.json > in.jsonl"
+)
+
+
+def _check_writes(fmt: str, flag: str, path: str | None = None) -> None:
+    """UsageError for an output format hconv reads but does not write (JSON lines)."""
+    if fmt in WRITES:
+        return
+    where = f"{path}: " if path else ""
+    raise UsageError(
+        f"{where}hconv reads {NAMES[fmt]} but does not write it; it writes {listing(WRITES)}: "
+        f"pass {option(flag, 'arrow')} (or csv, parquet)" + (", and name OUT for it" if path else "")
+    )
 
 
 def _named_format(path: str) -> str | None:
@@ -85,7 +117,7 @@ def _refuse_compressed_name(path: str, suffix: str, flag: str) -> None:
     if packed is None or not any(Path(plain).suffix.lower() in exts for exts in EXTENSIONS.values()):
         return
     what, _, _, unpack, pack = packed
-    kind = _FORMAT_NAMES[_named_format(plain) or "csv"]
+    kind = NAMES[_named_format(plain) or "csv"]
     if flag == "src_format":
         raise InputError(
             f"{path}: is {_packed(what)}; hconv reads uncompressed {kind}, so decompress it first: "
@@ -116,7 +148,11 @@ def what_it_is(head: bytes, path: str, name: str, fmt: str) -> str | None:
     """What a file that is not plain ``fmt`` is instead, from its first bytes, and how to make it
     readable: a compressed file, a spreadsheet or UTF-16 text. None if it is none of these."""
     piped = path != name  # stdin, or a pipe given by name: the fix goes into the pipe
-    kind = "CSV" if fmt == "csv" else "Parquet"
+    kind = NAMES.get(fmt, fmt)
+    other = table_format(head)
+    if other is not None and other != fmt and (fmt, other) != ("csv", "parquet"):  # csvio names Parquet itself
+        how = f"pass {option('src_format', other)}" if piped else rename_or_pass(name, other)
+        return f"is {_AN[other]} {NAMES[other]} file, not {kind}; to read it as that, {how}"
 
     def fix(command: str, suffixes: tuple, tag: str) -> str:
         if piped:
@@ -160,6 +196,31 @@ def what_it_is(head: bytes, path: str, name: str, fmt: str) -> str | None:
             f"is {encoding} text; hconv reads UTF-8, so convert it {fix(f'iconv -f {encoding} -t UTF-8', (), '-utf8')}"
         )
     return None
+
+
+_AN = {"csv": "a", "parquet": "a", "arrow": "an", "jsonl": "a"}
+
+
+def table_format(head: bytes) -> str | None:
+    """The binary table format that ``head``, a file's first bytes, starts with: ``parquet``
+    (``PAR1``), ``arrow`` (the IPC file format's ``ARROW1``, or a stream's first message: the
+    continuation marker then a little-endian length), or None."""
+    if head.startswith(b"PAR1"):
+        return "parquet"
+    if head.startswith(b"ARROW1") or head.startswith(b"FEA1"):
+        return "arrow"
+    if len(head) >= 8 and head[:4] == b"\xff\xff\xff\xff" and 0 < int.from_bytes(head[4:8], "little") < 1 << 24:
+        return "arrow"
+    return None
+
+
+def _head_format(path: str) -> str | None:
+    """:func:`table_format` of the file at ``path``'s first bytes; None if it cannot be read."""
+    try:
+        with open(path, "rb") as f:
+            return table_format(f.read(8))
+    except OSError:
+        return None
 
 
 def input_kind(path: str) -> str:

@@ -43,7 +43,7 @@ import pyarrow.fs as pafs
 
 from hconv.errors import InputError, OutputError, UsageError, first_line, option
 from hconv.tables import temporaries
-from hconv.tables.formats import EXTENSIONS
+from hconv.tables.formats import EXTENSIONS, choices, listing
 
 _URI = re.compile(r"^([A-Za-z][A-Za-z0-9+.-]*)://")
 GLOB_CHARS = "*?["
@@ -233,8 +233,8 @@ class Source:
             what = f"no file matches {self.spec!r}" if self.pattern is not None else f"{self.spec}: holds no file"
             if found:
                 raise InputError(
-                    f"{what} with a .csv, .parquet or .pq name ({len(found)} others, such as {found[0].rel}); "
-                    f"pass {option('src_format', 'csv')} or {option('src_format', 'parquet')} to read them"
+                    f"{what} with a name of a format hconv reads, {listing()} ({len(found)} others, such as "
+                    f"{found[0].rel}); pass {option('src_format', 'FORMAT')} ({choices()}) to read them as one"
                 )
             raise InputError(f"{what} (names starting with . or _ are left out); check the path")
         return readable

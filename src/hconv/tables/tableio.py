@@ -1,8 +1,10 @@
-"""Opening a table to read it, batch by batch: a file, a pipe or stdin ("-"), as CSV or Parquet.
+"""Opening a table to read it, batch by batch: a file, a pipe or stdin ("-"), as CSV, Parquet,
+Arrow IPC or JSON lines.
 
 Reading never holds more than a batch in memory (stdin, or a pipe given by name, is first
 spooled to a temporary file, since Parquet needs to seek). The readers are
-:mod:`hconv.tables.csvio` and :mod:`hconv.tables.parquetio`; telling the format,
+:mod:`hconv.tables.csvio`, :mod:`hconv.tables.parquetio`, :mod:`hconv.tables.ipcio` and
+:mod:`hconv.tables.jsonio`; telling the format,
 :mod:`hconv.tables.sniff`; writing, :mod:`hconv.tables.output`.
 
 Whatever pyarrow raises while reading is the input's (InputError, naming the file, and for
@@ -19,7 +21,9 @@ from typing import BinaryIO
 from hconv.errors import InputError, OutputError, UsageError
 from hconv.tables.csvio import open_csv
 from hconv.tables.inputs import Input, unreadable
+from hconv.tables.ipcio import open_ipc
 from hconv.tables.job import Job
+from hconv.tables.jsonio import open_jsonl
 from hconv.tables.parquetio import open_parquet
 from hconv.tables.sniff import input_kind
 from hconv.tables.temporaries import temporary_file
@@ -57,7 +61,10 @@ def open_input(path: str, fmt: str, job: Job, name: str | None = None, rows: tup
     try:
         if rows is not None and fmt != "parquet":
             raise ValueError("rows is for Parquet input")
-        inp = open_csv(path, name, job) if fmt == "csv" else open_parquet(path, name, job, rows)
+        if fmt == "parquet":
+            inp = open_parquet(path, name, job, rows)
+        else:
+            inp = {"csv": open_csv, "arrow": open_ipc, "jsonl": open_jsonl}[fmt](path, name, job)
     except BaseException:
         for c in closers:
             c()

@@ -12,6 +12,7 @@ import socket
 import sys
 import tempfile
 import zlib
+from collections.abc import Iterator
 from pathlib import Path
 
 #: Every temporary file hconv makes ends so; its name also carries the process that made it.
@@ -48,9 +49,15 @@ def _machine_tag() -> str:
 def _maker() -> str:
     """``pid-start-tag`` for this process's temporary files. The start time tells this process
     from a later one that reuses its pid; it is 0 where there is no /proc, and then only the
-    pid is checked."""
+    pid is checked. Worked out once per process (a forked child is another: its pid tells), not
+    per file: reading /proc for it cost a small file's output 0.4 ms."""
     pid = os.getpid()
-    return f"{pid}-{_proc_start(pid) or 0}-{_machine_tag()}"
+    if _MAKER.get("pid") != pid:
+        _MAKER.update(pid=pid, token=f"{pid}-{_proc_start(pid) or 0}-{_machine_tag()}")
+    return str(_MAKER["token"])
+
+
+_MAKER: dict[str, object] = {}
 
 
 def _maker_gone(pid: int, start: int, tag: str) -> bool:
@@ -160,6 +167,24 @@ def _names(directory: str) -> list[str]:
         return []
 
 
+#: The directories swept during a :func:`sweeping_once` block (None outside one: every call sweeps).
+_swept: set[str] | None = None
+
+
+@contextlib.contextmanager
+def sweeping_once() -> Iterator[None]:
+    """Inside the block, :func:`temporary_file` sweeps each directory once, not at every file: a
+    dataset run makes two temporary files per output, and listing a folder of thousands of
+    outputs for each cost more than converting a small file. A process killed after the sweep
+    leaves its files to the next run, as before."""
+    global _swept
+    outer, _swept = _swept, set() if _swept is None else _swept
+    try:
+        yield
+    finally:
+        _swept = outer
+
+
 def temporary_file(prefix: str, directory: str | None = None) -> tuple[int, str]:
     """A new temporary file (descriptor, path) named ``PREFIX<pid-start-host>-XXXXXXXX.hconv-tmp``
     in ``directory`` (default: the temporary directory), after removing those killed runs left
@@ -167,5 +192,8 @@ def temporary_file(prefix: str, directory: str | None = None) -> tuple[int, str]
     (:func:`remove_stale_temporaries`). ``prefix`` is one of ``.NAME.`` (beside a file NAME being
     written), ``hconv-stdin-``, ``hconv-stdout-``, ``hconv-fetch-`` or ``hconv-stage-``."""
     directory = directory or tempfile.gettempdir()
-    remove_stale_temporaries(directory)
+    if _swept is None or directory not in _swept:
+        remove_stale_temporaries(directory)
+        if _swept is not None:
+            _swept.add(directory)
     return tempfile.mkstemp(prefix=f"{prefix}{_maker()}-", suffix=TEMP_SUFFIX, dir=directory)

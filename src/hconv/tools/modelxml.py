@@ -539,10 +539,12 @@ def _include_target(node: Node, name: str, folder: Path, allowed: Path, named_ro
     if allowed != target and allowed not in target.parents:
         # where the path leads, when a symbolic link (not the name itself) took it out
         lexical = Path(os.path.normpath(folder / _slashed(name)))
-        leads = f" (a symbolic link to {quote(str(target))})" if lexical != target else ""
-        where = f"the root folder {quote(str(allowed))} ({option('root')})" if named_root else "the model's folder"
+        # paths from the file system, not values from the model: bounded by PATH_MAX, and only
+        # of use whole (a clipped one cannot be found), so quoted unclipped
+        leads = f" (a symbolic link to {str(target)!r})" if lexical != target else ""
+        where = f"the root folder {str(allowed)!r} ({option('root')})" if named_root else "the model's folder"
         if not named_root:
-            where += f" {quote(str(allowed))}"
+            where += f" {str(allowed)!r}"
         common = Path(os.path.commonpath([allowed, target]))
         fix = (
             f"MuJoCo reads it; give {option('root', _pasteable(common))} to let includes come from within that folder"
