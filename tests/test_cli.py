@@ -277,7 +277,9 @@ def test_convert_missing_input_file(tmp_path, capsys):
 def test_convert_unknown_extension_is_usage_error(tmp_path, capsys):
     proc = hconv_inprocess("convert", str(EXAMPLES / "scene.csv"), str(tmp_path / "out.txt"), capsys=capsys)
     # the formats hconv writes, by name: "name it .csv or .parquet" was wrong advice for a file of another format
-    assert_one_line_error(proc, 2, "out.txt", "hconv writes CSV (.csv), Parquet (.parquet, .pq) or Arrow IPC", "--to")
+    assert_one_line_error(
+        proc, 2, "out.txt", "hconv writes CSV (.csv, .tsv, .tab), Parquet (.parquet, .pq) or Arrow IPC", "--to"
+    )
 
 
 def test_convert_output_directory_missing(tmp_path, capsys):
@@ -718,11 +720,114 @@ def test_cli_usage_errors_are_one_line_exit_2(args, needle, capsys):
     assert_one_line_error(hconv_inprocess(*args, capsys=capsys), 2, needle)
 
 
-def test_convert_semicolon_csv_names_the_delimiter(tmp_path, capsys):
-    src = tmp_path / "in.csv"
-    src.write_text(";".join(CONTRACT[:9]) + "\n" + ";".join(["1"] * 9) + "\n")
+def test_convert_excel_semicolon_csv_with_decimal_commas_converts_right(tmp_path, capsys):
+    """Before: refused with "convert the delimiter to commas first", which turned 1,5 into two
+    values. The file as Excel saves "CSV (semicolon)": a byte-order mark, CRLF, a quoted ';'."""
+    from fractions import Fraction
+
+    src = tmp_path / "excel.csv"
+    src.write_bytes(
+        "\ufeffname;Hx;Hy;Hz;I1;I2;I3\r\n"
+        '"Rad 1; vorne";1,5;-2,25;0,5;0,5;1,5;2,5\r\n'
+        "Rad 2;3;0;1e-1;2;4;0,25\r\n".encode()
+    )
     proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.csv"), capsys=capsys)
-    assert_one_line_error(proc, 3, "separated by semicolons", "comma-separated")
+    assert proc.returncode == 0, proc.stderr
+    assert "# read as CSV: ';' separated, decimal ','" in proc.stderr.decode()
+    rows = list(csv.DictReader(io.StringIO((tmp_path / "out.csv").read_text())))
+    assert [r["name"] for r in rows] == ["Rad 1; vorne", "Rad 2"]
+    H = [("1.5", "-2.25", "0.5"), ("3", "0", "1e-1")]
+    I = [("0.5", "1.5", "2.5"), ("2", "4", "0.25")]
+    for r, h, i in zip(rows, H, I, strict=True):
+        want = [float(Fraction(a) / Fraction(b)) for a, b in zip(h, i, strict=True)]
+        assert [float(r[c]) for c in ("wx", "wy", "wz")] == want
+        assert [float(r[c]) for c in ("Hx", "Hy", "Hz")] == [float(x) for x in h]
+
+
+def test_convert_tsv_reads_and_writes_tabs(tmp_path, capsys):
+    """Before: "cannot tell the format" of a .tsv, and "separated by tabs" with --from csv."""
+    src = tmp_path / "log.tsv"
+    src.write_text("label\tHx\tHy\tHz\tI1\tI2\tI3\na,b\t1\t2\t3\t1\t2\t4\n")
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.tsv"), capsys=capsys)
+    assert proc.returncode == 0, proc.stderr
+    assert "# read as CSV: tab separated, decimal '.'" in proc.stderr.decode()
+    head, row = (tmp_path / "out.tsv").read_text().splitlines()
+    assert head.split("\t")[:8] == ["label", "Hx", "Hy", "Hz", "I1", "I2", "I3", "wx"]
+    assert row.split("\t")[:10] == ["a,b", "1", "2", "3", "1", "2", "4", "1", "1", "0.75"]
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.csv"), "-q", capsys=capsys)
+    assert (tmp_path / "out.csv").read_text().splitlines()[1].startswith('"a,b",1,2,3,')
+
+
+def test_convert_commented_csv_skips_comment_lines(tmp_path, capsys):
+    """Before: the first comment line was taken for the header: "the header names 1 columns"."""
+    src = tmp_path / "logger.csv"
+    src.write_text("# logger v2, 2026-12-01\n# H in kg*m^2/s\nHx,Hy,Hz,I1,I2,I3\n2,4,6,1,2,4\n2,4,6,2,2,2\n")
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.csv"), capsys=capsys)
+    assert proc.returncode == 0, proc.stderr
+    assert "2 comment lines skipped" in proc.stderr.decode()
+    rows = list(csv.DictReader(io.StringIO((tmp_path / "out.csv").read_text())))
+    assert [(r["wx"], r["wy"], r["wz"]) for r in rows] == [("2", "2", "1.5"), ("1", "2", "3")]
+
+
+def test_convert_units_row_csv_takes_the_units(tmp_path, capsys):
+    """Before: the row of units was data ("column 'Hx' must be numeric but holds 'kg*m^2/s'")."""
+    src = tmp_path / "cad.csv"
+    src.write_text(
+        "part,Hx,Hy,Hz,I1,I2,I3\n-,kg*m^2/s,kg*m^2/s,kg*m^2/s,g*cm^2,g*cm^2,kg*mm^2\nwheel,1,2,3,2e7,4e7,5e6\n"
+    )
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.csv"), capsys=capsys)
+    assert proc.returncode == 0, proc.stderr
+    assert "units from the row under the header" in proc.stderr.decode()
+    rows = list(csv.DictReader(io.StringIO((tmp_path / "out.csv").read_text())))
+    assert len(rows) == 1 and rows[0]["part"] == "wheel"  # the units row is not a data row
+    # 2e7 g*cm^2 = 2 kg*m^2, 4e7 g*cm^2 = 4 kg*m^2, 5e6 kg*mm^2 = 5 kg*m^2
+    assert [float(rows[0][c]) for c in ("wx", "wy", "wz")] == [0.5, 0.5, 0.6]
+
+
+def test_convert_delimiter_and_decimal_options_override_the_sniff(tmp_path, capsys):
+    src = tmp_path / "in.txt.csv"
+    # a header that splits alike at ',' and ';', each naming one of hconv's columns
+    src.write_text("Hx,Hy;Hz\n1,2;3\n")
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.csv"), capsys=capsys)
+    assert_one_line_error(proc, 2, "cannot tell the delimiter", "pass --delimiter ',' or --delimiter ';'")
+    src.write_text("Hx;Hy;Hz;I1;I2;I3\n1;2;3;4;5;8\n")
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.csv"), "--delimiter", "tab", capsys=capsys)
+    assert_one_line_error(proc, 3, "separated by semicolons, not tabs: pass --delimiter semicolon or drop --delimiter")
+    named = tmp_path / "in.tsv"  # the name says tabs; the file has semicolons
+    named.write_text(src.read_text())
+    proc = hconv_inprocess("convert", str(named), str(tmp_path / "out.csv"), capsys=capsys)
+    assert_one_line_error(proc, 3, "pass --delimiter semicolon, or name the file .csv)")
+    src.write_text("Hx;Hy;Hz;I1;I2;I3\n1,5;2;3;4;5;7,5\n")
+    proc = hconv_inprocess(
+        "convert", str(src), str(tmp_path / "out.csv"), "--delimiter", ";", "--decimal", ",", "-q", capsys=capsys
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "out.csv").read_text().splitlines()[1].startswith("1.5,2,3,4,5,7.5,0.375,0.4,0.4,")
+
+
+def test_convert_ambiguous_decimal_mark_names_the_option(tmp_path, capsys):
+    src = tmp_path / "in.csv"
+    src.write_text("Hx;Hy;Hz;I1;I2;I3\n1,5;2.5;3;4;5;8\n")
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.csv"), capsys=capsys)
+    assert_one_line_error(
+        proc, 2, "cannot tell the decimal mark: column 'Hx' holds '1,5' and column 'Hy' holds '2.5'", "--decimal ','"
+    )
+
+
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (
+            ["--delimiter", "x"],
+            "--delimiter takes one of ',', ';', '\\t', '|' (or comma, semicolon, tab, bar), got 'x'",
+        ),
+        (["--decimal", ";"], "--decimal takes '.' or ',', got ';'"),
+        (["--decimal", ",", "--delimiter", ","], "--decimal , needs another delimiter than the comma"),
+    ],
+)
+def test_convert_bad_delimiter_or_decimal_is_one_line(args, needle, tmp_path, capsys):
+    proc = hconv_inprocess("convert", "in.csv", str(tmp_path / "out.csv"), *args, capsys=capsys)
+    assert_one_line_error(proc, 2, needle)
 
 
 def test_convert_file_write_failure_midway_leaves_nothing(tmp_path, monkeypatch, rng):

@@ -32,9 +32,9 @@ ERRORS = {  # file: (exit code, words the one-line message must hold)
     "partial_quaternion.csv": (3, "has qw, qx but not qy, qz"),
     "spaces_in_header.csv": (3, "spaces around ' Hy'"),
     "has_output_columns.csv": (3, "already has output column wx"),
-    "semicolon_delimiter.csv": (3, "separated by semicolons"),
-    "tab_delimiter.csv": (3, "separated by tabs"),
-    "decimal_comma.csv": (3, "separated by semicolons"),
+    "comments_only.csv": (3, "holds only comment lines (starting with #)"),
+    "bad_units_row.csv": (3, "read as their units, but column 'Iyz': pint does not understand the unit 'kgm2'"),
+    "wrong_units_row.csv": (3, "read as their units, but column 'Iyz': 'm/s' is not a unit of inertia"),
     "text_in_numeric.csv": (3, "column 'Hy' must be numeric but holds 'two' in data row 2"),
     "mixed_types.csv": (3, "column 'Izz' must be numeric but holds 'four kg' in data row 2"),
     "number_with_unit.csv": (3, "holds '1 kg*m^2/s' in data row 1"),
@@ -62,6 +62,9 @@ ERRORS = {  # file: (exit code, words the one-line message must hold)
     "not_objects.ndjson": (3, "line 1 is a JSON list, not an object"),
 }
 
+#: The factor to SI of the inertia a file's units row gives (1 g·cm² = 1e-7 kg·m², exactly by definition)
+I_TO_SI = {"units_row.csv": 1e-7}
+
 STATUSES = {  # file: the status of each row, in order
     "header_only.csv": [],
     "zero_rows.parquet": [],
@@ -69,6 +72,14 @@ STATUSES = {  # file: the status of each row, in order
     "crlf.csv": ["ok", "ok"],
     "quoted_numbers.csv": ["ok"],
     "blank_lines.csv": ["ok", "ok"],
+    # dialects: sniffed delimiter, decimal comma, comment lines, a row of units under the header
+    "semicolon_delimiter.csv": ["ok"],
+    "tab_delimiter.csv": ["ok"],
+    "bar_delimiter.csv": ["ok"],
+    "decimal_comma.csv": ["ok"],
+    "excel_semicolon.csv": ["ok"],
+    "comment_lines.csv": ["ok"],
+    "units_row.csv": ["ok"],
     "nan_and_blank.csv": ["ok", "invalid_input", "invalid_input"],
     "infinities.csv": ["invalid_input", "invalid_input", "ok"],
     "nulls.parquet": ["ok", "invalid_input", "ok"],
@@ -123,7 +134,7 @@ def test_convert_corpus_file_gives_per_row_statuses(name, tmp_path, capsys):
                 ]
             )
             H = np.array([float(r["Hx"]), float(r["Hy"]), float(r["Hz"])])
-            want = mp_solve(I[None], H[None])  # 50 digits: no range trouble at 1e308
+            want = mp_solve(I[None] * I_TO_SI.get(name, 1.0), H[None])  # 50 digits: no range trouble at 1e308
             w = np.array([[float(r["wx"]), float(r["wy"]), float(r["wz"])]])
             assert rel_err(w, want)[0] < 1e-12, (name, r)
 

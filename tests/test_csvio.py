@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import csv
+import io
+
 
 def test_csv_writer_csv_to_csv_text_columns_come_out_byte_for_byte(tmp_path):
     """Before: one value needing quotes made every text value of its batch quoted (1 -> "1",
@@ -17,3 +20,126 @@ def test_csv_writer_csv_to_csv_text_columns_come_out_byte_for_byte(tmp_path):
     body = out.split("\n", 1)[1]
     assert body.startswith(rows[0] + ",1,2,3,1,2,4,")
     assert "\n" + rows[1] + ",1,2,3,1,2,4," in body
+
+
+def _wheels(tmp_path, text: str, name: str = "in.csv"):
+    path = tmp_path / name
+    path.write_text(text)
+    return str(path)
+
+
+def test_convert_file_units_row_gives_the_columns_units_and_keeps_them_in_parquet(tmp_path):
+    """Before: the row of units was read as data, and refused as text in a numeric column."""
+    import pyarrow.parquet as pq
+
+    from hconv.tables.pipeline import convert_file
+
+    src = _wheels(
+        tmp_path,
+        "id,Hx,Hy,Hz,I1,I2,I3\nunit,kg*m^2/s,kg*m^2/s,g*cm^2/s,g*cm^2,g*cm^2,g*cm^2\n7,1,2,3e7,2e7,4e7,6e7\n8,1,1,1e7,1e7,1e7,1e7\n",
+    )
+    tally = convert_file(src, str(tmp_path / "out.parquet"))
+    assert tally.rows == 2 and "units from the row under the header" in tally.read_as
+    t = pq.read_table(tmp_path / "out.parquet")
+    assert t.column("id").to_pylist() == [7, 8]  # the units row is no data row; the rows keep their order
+    assert t.schema.field("I1").metadata == {b"unit": b"g*cm^2"}
+    # H = (1, 2, 3) kg·m²/s over I = (2, 4, 6) kg·m² (1 g·cm² = 1e-7 kg·m²), and then all ones
+    assert t.column("wx").to_pylist() == [0.5, 1.0] and t.column("wz").to_pylist() == [0.5, 1.0]
+
+
+def test_convert_file_units_row_then_bad_rows_are_named_by_data_row(tmp_path):
+    """Rows are counted from the first data row: comment lines and the units row are not rows."""
+    import pytest
+
+    from hconv.errors import InputError
+    from hconv.tables.pipeline import convert_file
+
+    head = "# a logger\nHx;Hy;Hz;I1;I2;I3\nkg*m^2/s;kg*m^2/s;kg*m^2/s;kg*m^2;kg*m^2;kg*m^2\n1,5;2;3;1;1;1\n"
+    src = _wheels(tmp_path, head + "1;two;3;1;1;1\n")
+    with pytest.raises(InputError, match=r"column 'Hy' must be numeric but holds 'two' in data row 2"):
+        convert_file(src, str(tmp_path / "out.csv"))
+    src = _wheels(tmp_path, head + "1;2;3;1;1\n")
+    with pytest.raises(InputError, match=r"data row 2 has 5 values, but the header names 6 columns.*semicolon\)"):
+        convert_file(src, str(tmp_path / "out.csv"))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.csv"]
+
+
+def test_csv_writer_tsv_quotes_tabs_not_commas(tmp_path):
+    import pyarrow as pa
+
+    from hconv.tables.csvio import CsvWriter
+
+    t = pa.table({"a": ["x,y", "p\tq", 'say "hi"'], "b": [1.5, 2.0, 0.1]})
+    w = CsvWriter(str(tmp_path / "out.tsv"), t.schema, "\t")
+    w.write(t)
+    w.close()
+    assert (tmp_path / "out.tsv").read_text() == 'a\tb\nx,y\t1.5\n"p\tq"\t2\n"say ""hi"""\t0.1\n'
+
+
+def test_convert_file_progress_counts_bytes_of_the_rows_converted(tmp_path, monkeypatch):
+    """Before: pyarrow reads up to 16 blocks ahead, so the file's position, the progress, was
+    near its end at the first batch (100 % while still converting), and the bar had no size
+    until then. Now: the size first, then each batch's end, the file's end last."""
+    from hconv.tables import csvio
+    from hconv.tables.pipeline import convert_file
+
+    block = 4096
+    monkeypatch.setattr(csvio, "CSV_BLOCK_BYTES", block)
+    lines = ["Hx,Hy,Hz,I1,I2,I3"] + [f"{k},{k + 1},{k + 2},1,2,4" for k in range(3000)]
+    src = _wheels(tmp_path, "\n".join(lines) + "\n")
+    size = (tmp_path / "in.csv").stat().st_size
+    calls = []
+    convert_file(src, str(tmp_path / "out.csv"), threads=2, progress=lambda done, total: calls.append((done, total)))
+    done = [d for d, _ in calls]
+    assert {t for _, t in calls} == {size} and done[0] == 0 and done[-1] == size
+    assert all(d < size for d in done[:-1])  # 100 % only once the last row is converted
+    assert len(calls) == 1 + -(-size // block)  # the size, then one call per block of the file
+    # the k-th batch is the k-th block: it reports k blocks in, never the reader's read-ahead
+    assert done[1:-1] == [block * k for k in range(1, len(calls) - 1)]
+
+
+def test_csv_writer_slices_write_the_bytes_of_the_whole_table(tmp_path, monkeypatch):
+    """Values that need quotes are joined a slice of rows at a time: the bytes are those of the
+    whole table joined at once (a column's nulls beside empty strings are decided on the whole
+    table, though a slice may hold only one of them), and every value comes back as it was."""
+    import numpy as np
+    import pyarrow as pa
+
+    from hconv.tables import csvio
+
+    n = 3 * csvio._QUOTED_ROWS
+    rng = np.random.default_rng(1)
+    words = np.array(["", "a", "b,c", 'say "hi"', "x\ny", "007"], dtype=object)
+    text = words[rng.integers(0, len(words), n)]
+    text[: n // 2][text[: n // 2] == ""] = None  # nulls in the first half only, empty strings in the second
+    t = pa.table({"t": pa.array(text, pa.string()), "x": rng.normal(size=n), "d": pa.array(["p"] * n)})
+    written = {}
+    for rows in (csvio._QUOTED_ROWS, 10 * n):
+        monkeypatch.setattr(csvio, "_QUOTED_ROWS", rows)
+        w = csvio.CsvWriter(str(tmp_path / f"{rows}.csv"), t.schema)
+        w.write(t)
+        w.close()
+        written[rows] = (tmp_path / f"{rows}.csv").read_bytes()
+    assert written[10 * n] == written[csvio._QUOTED_ROWS]
+    rows = list(csv.reader(io.StringIO(written[10 * n].decode(), newline="")))
+    assert [r[0] for r in rows[1:]] == ["" if v is None else v for v in text]  # every value back as it was
+    assert b'\n"",' in written[10 * n] and b"\n," in written[10 * n]  # "" an empty string, nothing a null
+
+
+def test_csv_writer_a_value_pyarrow_refuses_unquoted_takes_its_rows_back(tmp_path, monkeypatch):
+    """pyarrow's writer writes a table's rows straight into the file, 1024 at a time, and refuses
+    a value that needs quotes only when it gets there: the rows it wrote are taken back, and the
+    table written with quotes, as if it had been seen first."""
+    import pyarrow as pa
+
+    from hconv.tables import csvio
+
+    t = pa.table({"t": ["a"] * 5000 + ["b,c"], "x": [0.5] * 5001})
+    expected = "t,x\n" + "a,0.5\n" * 5000 + '"b,c",0.5\n'
+    for seen in (True, False):
+        monkeypatch.setattr(csvio, "_needs_quoting", lambda t, d, seen=seen: seen)
+        w = csvio.CsvWriter(str(tmp_path / "out.csv"), t.schema)
+        w.write(t.slice(0, 10))
+        w.write(t)
+        w.close()
+        assert (tmp_path / "out.csv").read_text() == "t,x\n" + "a,0.5\n" * 10 + expected[4:]

@@ -34,6 +34,14 @@ def test_job_identity_records_a_prefix_only_when_given():
     assert list(record) == RELEASED_KEYS[:-2] + ["prefix"] + RELEASED_KEYS[-2:] and record["prefix"] == "out_"
 
 
+def test_job_identity_records_a_csv_dialect_only_when_given():
+    """A dataset converted before --delimiter existed is not converted again for a job without it;
+    one converted with another delimiter is."""
+    record = job_identity(hconv.Job(delimiter="tab", decimal=","), None, None)
+    assert list(record) == RELEASED_KEYS[:-2] + ["delimiter", "decimal"] + RELEASED_KEYS[-2:]
+    assert (record["delimiter"], record["decimal"]) == ("\t", ",")
+
+
 def _record(k: int, worst: float | None = 1.5e-12) -> FileRecord:
     return FileRecord(
         input=f"day={k % 2}/part-{k}.parquet",

@@ -202,3 +202,18 @@ def test_summary_says_when_the_engine_asked_for_converted_no_row(asked, ran, tol
     text = "\n".join(shown(console))
     assert (f"--engine {asked} computes --method exact or refined" in text) is told, text
     assert ("this run's rows went to numpy" in text) is told
+
+
+def test_progress_bar_of_bytes_shows_the_percentage_and_the_bytes():
+    """Before: a CSV's bar showed no size until its first batch, then its read-ahead (100 %)."""
+    console = Console(file=io.StringIO(), width=100, force_terminal=False, color_system=None)
+    bar = report.ProgressBar("converting big.csv", console=console, counts="bytes")
+    bar(0, 20_000_000)
+    bar(5_000_000, 20_000_000)
+    console.print(bar)
+    line = console.file.getvalue()
+    assert "converting big.csv" in line and " 25%" in line and "5.0/20.0 MB" in line
+    rows = report.ProgressBar("converting s.parquet", console=console)
+    rows(10, 40)
+    console.print(rows)
+    assert "/40" not in console.file.getvalue().splitlines()[-1]

@@ -65,6 +65,91 @@ def test_format_of_empty_path_says_it_is_empty(args, message, tmp_path, capsys, 
     assert (code, err) == (2, f"hconv: error: {message}\n")
 
 
+# --- a CSV's dialect ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "text, delimiter",
+    [
+        ("Hx,Hy,Hz\n1,2,3\n", ","),
+        ("Hx;Hy;Hz\n1,5;2;3\n", ";"),  # decimal commas do not make it comma-separated
+        ("Hx\tHy\tHz\n1\t2\t3\n", "\t"),
+        ("Hx|Hy|Hz\n1|2|3\n", "|"),
+        ('label;Hx;Hy\n"a;b";1;2\n', ";"),  # a quoted delimiter is a value's
+        ("Hx,Hy;Hz,Ixx\n1,2;3,4\n", ","),  # more columns under ',' than under ';'
+        ("Hx,Hy|note\n1,2|a\n", ","),  # a tie, settled by the header naming hconv's columns under ','
+        ("Hx\n1\n", ","),  # one column: nothing to sniff
+    ],
+)
+def test_sniff_delimiter_picks_the_most_columns_that_every_row_has(text, delimiter):
+    from hconv.tables import sets
+    from hconv.tables.sniff import sniff_delimiter
+
+    assert sniff_delimiter(text.split("\n"), "in.csv", frozenset(sets.all_names())) == delimiter
+
+
+def test_sniff_delimiter_tie_between_two_is_one_line_naming_the_option():
+    from hconv.errors import UsageError
+    from hconv.tables.sniff import sniff_delimiter
+
+    with pytest.raises(UsageError, match=r"in.csv: cannot tell the delimiter: ',' and ';' both split every line"):
+        sniff_delimiter(["a,b;c", "1,2;3"], "in.csv")
+
+
+@pytest.mark.parametrize(
+    "values, mark",
+    [
+        ({"Hx": ["1,5", "2"], "Hy": ["-0,25e3"]}, ","),
+        ({"Hx": ["1.5", "2"], "Hy": ["3"]}, "."),
+        ({"Hx": ["1", "2"]}, "."),  # whole numbers say nothing: the point
+        ({"Hx": [",5"]}, ","),
+    ],
+)
+def test_sniff_decimal_comma_only_where_no_value_has_a_point(values, mark):
+    from hconv.tables.sniff import sniff_decimal
+
+    assert sniff_decimal(values, "in.csv") == mark
+
+
+@pytest.mark.parametrize("suffix", [".tsv", ".tab", ".TSV"])
+def test_open_input_tsv_is_read_with_tabs(suffix, tmp_path):
+    """Before: a .tsv was "cannot tell the format"; with --from csv, refused as "separated by tabs"."""
+    from hconv.tables.job import Job
+    from hconv.tables.sniff import format_of
+    from hconv.tables.tableio import open_input
+
+    src = tmp_path / f"log{suffix}"
+    # a comma in a value, and a header that would split at the comma too: the name says tab
+    src.write_text("Hx\tHy\tHz\tI1\tI2\tI3\tnote,more\n1\t2\t3\t1\t2\t4\ta,b\n")
+    assert format_of(str(src), None, "src_format") == "csv"
+    with open_input(str(src), "csv", Job()) as inp:
+        table = next(inp.batches)
+        assert inp.dialect.delimiter == "\t" and inp.schema.names[-1] == "note,more"
+        assert table.column("note,more").to_pylist() == ["a,b"] and table.column("I3").to_pylist() == [4.0]
+
+
+def test_open_input_comment_lines_before_the_header_are_skipped(tmp_path):
+    """Before: "# exported ..." was the header, and the error "the header names 1 columns"."""
+    from hconv.tables.job import Job
+    from hconv.tables.tableio import open_input
+
+    src = tmp_path / "log.csv"
+    src.write_text('# exported by "logger", v2\n#\nHx,Hy,Hz,I1,I2,I3\n1,2,3,1,2,4\n')
+    with open_input(str(src), "csv", Job()) as inp:
+        assert inp.dialect.comment_lines == 2 and inp.schema.names[:3] == ["Hx", "Hy", "Hz"]
+        assert next(inp.batches).num_rows == 1
+
+
+def test_dialect_describe_says_only_what_is_not_plain_csv():
+    from hconv.tables.sniff import Dialect
+
+    assert Dialect().describe() == ""
+    assert Dialect(delimiter=";", decimal=",").describe() == "read as CSV: ';' separated, decimal ','"
+    assert Dialect(delimiter="\t", comment_lines=1, units_row=True).describe() == (
+        "read as CSV: tab separated, decimal '.', 1 comment line skipped, units from the row under the header"
+    )
+
+
 def _feather(path: Path) -> Path:
     import pyarrow.feather as feather
     import pyarrow.parquet as pq
@@ -80,14 +165,15 @@ def _feather(path: Path) -> Path:
         (
             "in.dat",
             [],
-            "cannot tell the format of 'in.dat' from its extension; hconv reads CSV (.csv), Parquet (.parquet, .pq), "
+            "cannot tell the format of 'in.dat' from its extension; hconv reads CSV (.csv, .tsv, .tab), "
+            "Parquet (.parquet, .pq), "
             "Arrow IPC (Feather) (.arrow, .feather, .ipc) or JSON lines (.jsonl, .ndjson): pass --from FORMAT "
             "(csv, parquet, arrow or jsonl) if it is one of them",
         ),
         (
             "in.orc",
             [],
-            "in.orc: its name says ORC (.orc), which hconv does not read; hconv reads CSV (.csv), Parquet "
+            "in.orc: its name says ORC (.orc), which hconv does not read; hconv reads CSV (.csv, .tsv, .tab), Parquet "
             "(.parquet, .pq), Arrow IPC (Feather) (.arrow, .feather, .ipc) or JSON lines (.jsonl, .ndjson)",
         ),
         ("in.json", [], "if it holds one JSON object per line, pass --from jsonl"),
@@ -118,7 +204,8 @@ def test_format_of_json_lines_out_is_refused_naming_what_hconv_writes(tmp_path, 
     code, _, err = run_inprocess("convert", str(SCENE_CSV), "out.jsonl", capsys=capsys)
     assert (code, err) == (
         2,
-        "hconv: error: out.jsonl: hconv reads JSON lines but does not write it; it writes CSV (.csv), Parquet "
+        "hconv: error: out.jsonl: hconv reads JSON lines but does not write it; it writes CSV (.csv, .tsv, .tab), "
+        "Parquet "
         "(.parquet, .pq) or Arrow IPC (Feather) (.arrow, .feather, .ipc): pass --to arrow (or csv, parquet), and "
         "name OUT for it\n",
     )

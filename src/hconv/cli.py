@@ -22,6 +22,7 @@ from hconv import interrupts, streams
 from hconv.commandline import (
     COLUMNS,
     DEGENERATE,
+    DIALECT,
     JOB,
     SCENE,
     Fmt,
@@ -215,7 +216,9 @@ def _fill(text: str, stream: Any, indent: str = "  ", first: str = "") -> str:
 
 @app.command("convert")
 @friendly
-@job_options("method", "precision", "engine", *SCENE, *DEGENERATE, *COLUMNS, "omega_unit", "keep_text", "prefix")
+@job_options(
+    "method", "precision", "engine", *SCENE, *DEGENERATE, *COLUMNS, *DIALECT, "omega_unit", "keep_text", "prefix"
+)
 def convert_cmd(
     src: str = typer.Argument(
         ...,
@@ -313,7 +316,8 @@ def convert_cmd(
     try:
         if sys.stderr.isatty() and not quiet and (files or dst != "-"):
             # for one file, its name: the path crowded out the bar
-            with report.ProgressBar("converting files" if files else f"converting {os.path.basename(src)}") as bar:
+            description = "converting files" if files else f"converting {os.path.basename(src)}"
+            with report.ProgressBar(description, counts=_progress_counts(src, value_of(from_), files)) as bar:
                 result = run(progress=bar)
         else:
             result = run()
@@ -329,12 +333,26 @@ def convert_cmd(
         report.summary(result, asked=job.engine)
 
 
+def _progress_counts(src: str, fmt: str | None, files: bool) -> str:
+    """What a convert run's progress counts: a CSV file's bytes read, else rows or files."""
+    from hconv.errors import HconvError
+    from hconv.tables.sniff import format_of
+
+    if files:
+        return "files"
+    try:
+        return "bytes" if format_of(src, fmt, "src_format") == "csv" else "rows"
+    except HconvError:  # the run says what is wrong with the input
+        return "rows"
+
+
 @app.command("diagnose")
 @friendly
 @job_options(
     *SCENE,
     *DEGENERATE,  # as convert: an engine's rods and point masses are diagnosed as it treated them
     *COLUMNS,
+    *DIALECT,
     observed=True,
     help={"omega_frame": "the frame of wx_obs, wy_obs, wz_obs; default: the frame of H (another needs q)"},
 )
@@ -361,7 +379,7 @@ def diagnose_cmd(
 
 @app.command("compare")
 @friendly
-@job_options(*SCENE, *COLUMNS)
+@job_options(*SCENE, *COLUMNS, *DIALECT)
 def compare_cmd(
     src: str = typer.Argument(..., metavar="IN", help="input .csv or .parquet"),
     dst: str | None = typer.Argument(

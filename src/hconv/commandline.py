@@ -174,6 +174,26 @@ JOB_OPTIONS = {
             "default: typed as pyarrow would (numbers, booleans, dates), except where that changes a value",
         ),
     ),
+    # A CSV's dialect is run configuration, not the command's: a dataset's manifest records it
+    # (a file read with another delimiter gives another output), and Python passes it in the Job.
+    "delimiter": (
+        str | None,
+        typer.Option(
+            None,
+            "--delimiter",
+            metavar="CHAR",
+            help="a CSV input's delimiter: , ; tab or |; default: sniffed from the file (tab for .tsv, .tab)",
+        ),
+    ),
+    "decimal": (
+        str | None,
+        typer.Option(
+            None,
+            "--decimal",
+            metavar="MARK",
+            help="a CSV input's decimal mark: . or , (the latter with another delimiter); default: sniffed",
+        ),
+    ),
     "prefix": (
         str,
         typer.Option(
@@ -189,6 +209,7 @@ _CONVENTIONS = ("frame", "omega_frame", "about", "products", "degenerate", "dege
 SCENE = ("frame", "omega_frame", "about", "products")
 DEGENERATE = ("degenerate", "degenerate_rtol")
 COLUMNS = ("mapping", "unit_options", "quat_order")
+DIALECT = ("delimiter", "decimal")
 
 
 #: The default of a command's ``job`` parameter, which :func:`job_options` always fills in.

@@ -37,6 +37,8 @@ def summary(tally: Tally, console: Console | None = None, asked: str = "auto") -
     engines = " + ".join(tally.engines) or "-"
     head = Text.assemble(("hconv convert", "bold"), f" · method {tally.method} · ω in {tally.unit} · engine {engines}")
     _status_table(console, tally, head)
+    if tally.read_as:
+        note(console, tally.read_as)
     if tally.worst_row is not None:
         note(console, f"worst residual {tally.worst_residual:.3g} (data row {tally.worst_row}), relative to I⁻¹H")
     _engine_note(console, tally, asked)
@@ -102,6 +104,8 @@ def dataset_summary(result: DatasetResult, console: Console | None = None, asked
 
 #: cells beside the bar on its line: the gaps, the percentage ("100%") and the time left ("0:00:03")
 _BESIDE_BAR = 14
+#: and, for bytes, their count ("123.4/567.8 MB" and a gap)
+_BESIDE_BYTES = 15
 #: the narrowest bar worth keeping the description beside it on one line
 _MIN_BAR = 10
 
@@ -128,21 +132,25 @@ def _elide_middle(text: str, width: int) -> str:
 
 
 class ProgressBar:
-    """A transient rich progress bar; call it as ``bar(done, total)``.
+    """A transient rich progress bar; call it as ``bar(done, total)``; ``counts``: what ``done``
+    counts, ``rows``, ``files`` or ``bytes`` (shown beside the percentage).
 
     The description goes before the bar when both fit on a line, else on a line of its own above
     it, shortened in the middle only when it is wider than the terminal: a long file name cut at
     its end looked the same for every file of a series."""
 
-    def __init__(self, description: str, console: Console | None = None):
+    def __init__(self, description: str, console: Console | None = None, counts: str = "rows"):
         from rich.live import Live
-        from rich.progress import BarColumn, Progress, TaskProgressColumn, TimeRemainingColumn
+        from rich.progress import BarColumn, DownloadColumn, Progress, TaskProgressColumn, TimeRemainingColumn
 
         console = console or Console(stderr=True)
         self._description = description
         self._bar = BarColumn()
+        # bytes read (a CSV file) show beside the percentage: "12.6/69.4 MB"
+        shown = (DownloadColumn(),) if counts == "bytes" else ()
+        self._beside = _BESIDE_BAR + (_BESIDE_BYTES if shown else 0)
         # never started: it keeps the task's counts and times and draws its row, laid out here
-        self._p = Progress(self._bar, TaskProgressColumn(), TimeRemainingColumn(), console=console)
+        self._p = Progress(self._bar, TaskProgressColumn(), *shown, TimeRemainingColumn(), console=console)
         self._task = self._p.add_task(description, total=None)
         self._live = Live(self, console=console, transient=True, refresh_per_second=10)
 
@@ -161,14 +169,14 @@ class ProgressBar:
         One column is left free: a line that fills the last one wraps early on some terminals,
         and the redraw then climbs a line too few."""
         width = options.max_width - 1
-        beside = width - cell_len(self._description) - 1 - _BESIDE_BAR
+        beside = width - cell_len(self._description) - 1 - self._beside
         if beside >= _MIN_BAR:
             self._bar.bar_width = min(40, beside)
             line = Table.grid(padding=(0, 1))
             line.add_row(Text(self._description), self._p.make_tasks_table(self._p.tasks))
             yield line
         else:
-            self._bar.bar_width = max(1, min(40, width - _BESIDE_BAR))
+            self._bar.bar_width = max(1, min(40, width - self._beside))
             yield Text(_elide_middle(self._description, width), no_wrap=True)
             yield self._p.make_tasks_table(self._p.tasks)
 

@@ -65,6 +65,14 @@ def main() -> None:
     text("semicolon_delimiter.csv", HEAD.replace(",", ";") + "\n" + ROW.replace(",", ";") + "\n")
     text("tab_delimiter.csv", HEAD.replace(",", "\t") + "\n" + ROW.replace(",", "\t") + "\n")
     text("decimal_comma.csv", HEAD.replace(",", ";") + "\n1,5;2;3;2;3;4;-0,5;0;0\n")
+    # as Excel saves "CSV (semicolon)" in much of Europe: a byte-order mark, CRLF, decimal commas
+    text("excel_semicolon.csv", ("\ufeff" + HEAD.replace(",", ";") + "\r\n1,5;2;3;2;3;4;-0,5;0;0\r\n").encode())
+    text("bar_delimiter.csv", HEAD.replace(",", "|") + "\n" + ROW.replace(",", "|") + "\n")
+    text("comment_lines.csv", "# exported by a logger\n# H in kg*m^2/s\n" + HEAD + "\n" + ROW + "\n")
+    text("comments_only.csv", "# nothing but a comment\n")
+    text("units_row.csv", HEAD + "\n" + ",".join(["kg*m^2/s"] * 3 + ["g*cm^2"] * 6) + "\n1,2,3,2e7,3e7,4e7,-5e6,0,0\n")
+    text("bad_units_row.csv", HEAD + "\n" + ",".join(["kg*m^2/s"] * 3 + ["g*cm^2"] * 5 + ["kgm2"]) + "\n" + ROW + "\n")
+    text("wrong_units_row.csv", HEAD + "\n" + ",".join(["kg*m^2/s"] * 3 + ["g*cm^2"] * 5 + ["m/s"]) + "\n" + ROW + "\n")
     # --- CSV: encodings and line endings that should just work ---
     text("utf8_bom.csv", b"\xef\xbb\xbf" + (HEAD + "\n" + ROW + "\n").encode())
     text("crlf.csv", (HEAD + "\r\n" + ROW + "\r\n" + ROW + "\r\n").encode())

@@ -9,65 +9,151 @@ pyarrow is given native files only (see :func:`open_csv`)."""
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
+import os
 import re
+import stat
 from collections.abc import Iterator
+from typing import Any
 
+import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 
-from hconv.errors import InputError, first_line
-from hconv.solve import forms
+from hconv.errors import HconvError, InputError, UsageError, first_line, option
+from hconv.solve import forms, units
 from hconv.tables import csvtypes, layout, sets
-from hconv.tables.inputs import FileStat, Input, changed_while_read, unreadable
-from hconv.tables.job import Job
-from hconv.tables.sniff import rename_or_pass, what_it_is
+from hconv.tables.inputs import FileStat, Input, ReadMarks, changed_while_read, unreadable
+from hconv.tables.job import DELIMITERS, Job
+from hconv.tables.sets import QUANTITY
+from hconv.tables.sniff import (
+    Dialect,
+    comment_lines,
+    delimiter_by_name,
+    rename_or_pass,
+    sniff_decimal,
+    sniff_delimiter,
+    what_it_is,
+)
 
 CSV_BLOCK_BYTES = 4 << 20
 UNIT_COLUMN = layout.UNIT_COLUMN
 
 
-def _sniff_csv(path: str, name: str) -> None:
-    """Refuse, with the reason, a file that is not comma-separated UTF-8 text (first 64 KiB)."""
+def _sniff_csv(path: str, name: str) -> str:
+    """The first 64 KiB of a file as text, whole lines only (a byte-order mark dropped); InputError,
+    with the reason, for a file that is not UTF-8 text."""
     try:
         with open(path, "rb") as f:
             head = f.read(1 << 16)
     except OSError as exc:
         raise unreadable(name, exc) from None
     if not head:
-        return  # the empty file has its own message
+        return ""  # the empty file has its own message
     what = what_it_is(head, path, name, "csv")
     if what:
         raise InputError(f"{name}: {what}")
     if b"\x00" in head or head.startswith(b"\x89PNG") or head.startswith(b"PAR1"):
         parquet = f" (it looks like Parquet: {rename_or_pass(name, 'parquet')})"
         raise InputError(f"{name}: is not a text file, so not CSV" + (parquet if head.startswith(b"PAR1") else ""))
-    head = head[3:] if head.startswith(b"\xef\xbb\xbf") else head
     cut = head.rfind(b"\n") + 1 if len(head) == 1 << 16 else len(head)
+    head = head[: cut or len(head)]
+    head = head[3:] if head.startswith(b"\xef\xbb\xbf") else head
     try:
-        head[: cut or len(head)].decode("utf-8")
+        return head.decode("utf-8")
     except UnicodeDecodeError as exc:
         line = head[: exc.start].count(b"\n") + 1
         raise InputError(
             f"{name}: line {line} is not UTF-8 text; convert the file to UTF-8 first "
             "(for example: iconv -f latin1 -t utf-8)"
         ) from None
-    first = head.split(b"\n", 1)[0].decode("utf-8").strip("\r")
-    if not first.strip():
+
+
+#: Rows of the first block the dialect is sniffed from (DuckDB samples more; a block is enough here).
+SNIFF_ROWS = 100
+
+
+def _dialect(head: str, name: str, job: Job) -> tuple[Dialect, list[str]]:
+    """The delimiter and comment lines of a CSV whose first lines are ``head`` (the decimal mark
+    and a units row are told later, from hconv's columns), and its header and first rows as
+    lines. InputError for a blank header line."""
+    lines = [ln.rstrip("\r") for ln in head.split("\n")]
+    comments = comment_lines(lines)
+    if head and comments and not any(ln.strip() for ln in lines[comments:]):
+        raise InputError(
+            f"{name}: holds only comment lines (starting with #) in its first {comments} lines; "
+            "a CSV needs a header line naming the columns"
+        )
+    body = lines[comments : comments + SNIFF_ROWS + 1]
+    if head and not (body[0].strip() if body else ""):
         raise InputError(f"{name}: the first line is blank; a CSV needs a header line naming the columns")
-    if "," not in first:
-        for sep, word in ((";", "semicolons"), ("\t", "tabs"), ("|", "bars")):
-            if sep in first:
-                raise InputError(
-                    f"{name}: the header is separated by {word}, but hconv reads comma-separated CSV; "
-                    f"convert the delimiter to commas first"
+    given = job.delimiter or delimiter_by_name(name)
+    delimiter = given or sniff_delimiter(body, name, frozenset(sets.all_names()))
+    return Dialect(delimiter=delimiter, decimal=job.decimal or ".", comment_lines=comments), body
+
+
+def _looks_numeric(text: str) -> bool:
+    """Whether a field reads as a number (or starts as one: ``1 kg``), with either decimal mark."""
+    t = text.strip()
+    try:
+        float(t.replace(",", ".", 1))
+    except ValueError:
+        return bool(re.match(r"[+-]?\.?\d", t))
+    return True
+
+
+def _units_row(row: list[str], names: list, plan: layout.Layout, name: str) -> tuple:
+    """The units a row under the header gives hconv's columns, as (column, unit) pairs: a row in
+    which every hconv column holds text that is no number (or nothing) is a row of units, not a
+    data row. () for a row that is data; InputError naming the column whose text is no unit of
+    its quantity."""
+    if len(row) != len(names):
+        return ()
+    quantity = {c: QUANTITY[g.name] for g in plan.groups.values() for c in g.columns}
+    values = {c: row[names.index(c)].strip() for c in plan.numeric}
+    if not any(values.values()) or any(_looks_numeric(v) for v in values.values() if v):
+        return ()
+    for c, v in values.items():
+        if v:
+            try:
+                units.factor(
+                    quantity[c],
+                    v,
+                    f"{name}: the row under the header has no number in hconv's columns, so it is read as their "
+                    f"units, but column {c!r}",
                 )
+            except UsageError as exc:
+                raise InputError(f"{exc}; or remove that row if it is no row of units") from None
+    return tuple((c, v) for c, v in values.items() if v)
 
 
-def _header_hint(names: list) -> str:
-    """Why a header may not have matched: spaces around names, or a first line that is no header."""
+def _read_options(d: Dialect) -> pacsv.ReadOptions:
+    return pacsv.ReadOptions(
+        block_size=CSV_BLOCK_BYTES, skip_rows=d.comment_lines, skip_rows_after_names=1 if d.units_row else 0
+    )
+
+
+def _parse_options(d: Dialect) -> pacsv.ParseOptions:
+    return pacsv.ParseOptions(delimiter=d.delimiter)
+
+
+def _header_hint(names: list, lines: list[str], dialect: Dialect, name: str, given: bool) -> str:
+    """Why a header may not have matched: spaces around names, a delimiter given (``given``: by
+    ``--delimiter``; else by the name, .tsv) that the header does not have, or a first line that
+    is no header."""
     known = sets.all_names()
+    if not any(n.strip() in known for n in names):
+        try:
+            sniffed = sniff_delimiter(lines, name, frozenset(known))
+        except UsageError:
+            sniffed = dialect.delimiter
+        if sniffed != dialect.delimiter:
+            words = DELIMITERS[sniffed], DELIMITERS[dialect.delimiter]
+            other = f" or drop {option('delimiter')}" if given else ", or name the file .csv"
+            fix = f"pass {option('delimiter', words[0])}{other}"
+            return f" (the header is separated by {words[0]}s, not {words[1]}s: {fix})"
     spaced = [n for n in names if n != n.strip() and n.strip() in known]
     if spaced:
         return f" (the header has spaces around {', '.join(repr(n) for n in spaced[:3])}; remove them)"
@@ -101,9 +187,10 @@ def _one_line(path: str, name: str) -> bytes | None:
 
 
 def open_csv(path: str, name: str, job: Job) -> Input:
-    _sniff_csv(path, name)
+    head = _sniff_csv(path, name)
+    dialect, lines = _dialect(head, name, job)
     one_line = _one_line(path, name)
-    ropts = pacsv.ReadOptions(block_size=CSV_BLOCK_BYTES)
+    ropts, popts = _read_options(dialect), _parse_options(dialect)
 
     def source() -> pa.NativeFile:
         """The file as pyarrow reads it: a native file, never a Python file object. pyarrow reads
@@ -117,7 +204,7 @@ def open_csv(path: str, name: str, job: Job) -> Input:
         return pa.OSFile(path)
 
     try:
-        with pacsv.open_csv(source(), read_options=ropts) as probe:
+        with pacsv.open_csv(source(), read_options=ropts, parse_options=popts) as probe:
             names = probe.schema.names
     except pa.ArrowInvalid as exc:
         if "Empty CSV file" in str(exc):
@@ -126,18 +213,34 @@ def open_csv(path: str, name: str, job: Job) -> Input:
                 f"{', '.join(sets.VECTOR_SETS['H'])} and the inertia "
                 f"({'; or '.join(', '.join(f.columns) for f in forms.FORMS.values() if not f.extends)})"
             ) from None
-        raise _csv_parse_error(path, name, exc) from None
+        raise _csv_parse_error(path, name, exc, _for_errors(dialect, lines, job, name)) from None
     except OSError as exc:
         raise unreadable(name, exc) from None
     try:
         plan = layout.plan(pa.schema([(n, pa.float64()) for n in names]), job, name)
     except InputError as exc:
-        raise InputError(f"{exc}{_header_hint(names)}") from None
+        raise InputError(f"{exc}{_header_hint(names, lines, dialect, name, job.delimiter is not None)}") from None
+    rows = [r for r in csv.reader(lines[1:], delimiter=dialect.delimiter) if r]
+    found = _units_row(rows[0], names, plan, name) if rows else ()
+    if rows and found:
+        rows = rows[1:]
+        plan = layout.plan(pa.schema([_with_unit(n, dict(found)) for n in names]), job, name)
+        dialect = dataclasses.replace(dialect, units=found, units_row=True)
+        ropts = _read_options(dialect)
+    if job.decimal is None and dialect.delimiter != ",":
+        at = {c: names.index(c) for c in plan.numeric}
+        values = {c: [r[k] for r in rows if len(r) > k] for c, k in at.items()}
+        dialect = dataclasses.replace(dialect, decimal=sniff_decimal(values, name))
     nums = set(plan.numeric)
     types = {n: (pa.float64() if n in nums else pa.string()) for n in names}
     # NaN is a float value, not a missing one: pyarrow's default null markers include its
     # spellings, which turned a file's NaN into a null (an empty field in CSV output).
-    copts = pacsv.ConvertOptions(column_types=types, strings_can_be_null=False, null_values=csvtypes.NULLS.to_pylist())
+    copts = pacsv.ConvertOptions(
+        column_types=types,
+        strings_can_be_null=False,
+        null_values=csvtypes.NULLS.to_pylist(),
+        decimal_point=dialect.decimal,
+    )
     try:
         f = source()
         fd = None if one_line is not None else f.fileno()
@@ -145,10 +248,12 @@ def open_csv(path: str, name: str, job: Job) -> Input:
     except OSError as exc:
         raise unreadable(name, exc) from None
     try:  # the reader parses its first block here already, so bad values can show up now
-        reader = pacsv.open_csv(f, read_options=ropts, convert_options=copts)
+        reader = pacsv.open_csv(f, read_options=ropts, parse_options=popts, convert_options=copts)
     except pa.ArrowInvalid as exc:  # f is left to pyarrow, whose read-ahead may still be using it
-        raise changed_while_read(name, fd, at_open) or _csv_value_error(path, name, names, ropts, exc) from None
+        raise changed_while_read(name, fd, at_open) or _csv_value_error(path, name, names, dialect, exc) from None
     total = f.size()
+    schema = pa.schema([_with_unit(fl, dict(dialect.units)) for fl in reader.schema])
+    read = ReadMarks(total, CSV_BLOCK_BYTES)
 
     def batches() -> Iterator[pa.RecordBatch]:
         while True:
@@ -157,18 +262,40 @@ def open_csv(path: str, name: str, job: Job) -> Input:
             except StopIteration:
                 break
             except pa.ArrowInvalid as exc:
-                raise changed_while_read(name, fd, at_open) or _csv_value_error(path, name, names, ropts, exc) from None
+                raise changed_while_read(name, fd, at_open) or _csv_value_error(
+                    path, name, names, dialect, exc
+                ) from None
             except (OSError, pa.ArrowException, MemoryError) as exc:  # all the reader raises is the input's
                 raise changed_while_read(name, fd, at_open) or InputError(
                     f"{name}: cannot be read ({first_line(exc)}); check the file"
                 ) from None
-            yield batch
+            read.add(batch.num_rows)
+            yield batch if not dialect.units else pa.RecordBatch.from_arrays(batch.columns, schema=schema)
         changed = changed_while_read(name, fd, at_open)
         if changed:
             raise changed
+        read.done()
 
     text = tuple(n for n in names if n not in nums)
-    return Input(name, reader.schema, batches(), total, f.tell, plan, [], text, path)
+    return Input(name, schema, batches(), total, read.position, plan, [], text, path, dialect=dialect, marks=read)
+
+
+def _for_errors(dialect: Dialect, lines: list[str], job: Job, name: str) -> Dialect:
+    """``dialect`` with its units row, for naming a bad row in a first block that pyarrow could
+    not read (the data rows are counted from under a units row); as it is if that is not known."""
+    try:
+        rows = [r for r in csv.reader(lines, delimiter=dialect.delimiter) if r]
+        plan = layout.plan(pa.schema([(n, pa.float64()) for n in rows[0]]), job, name)
+        return dataclasses.replace(dialect, units_row=len(rows) > 1 and bool(_units_row(rows[1], rows[0], plan, name)))
+    except (HconvError, IndexError, csv.Error):
+        return dialect
+
+
+def _with_unit(field: str | pa.Field, found: dict) -> pa.Field:
+    """A column as a float field (``field``: a name) or as it is, with the unit a units row gave
+    it as its metadata, where hconv reads a column's unit from (hconv.tables.layout)."""
+    f = pa.field(field, pa.float64()) if isinstance(field, str) else field
+    return f.with_metadata({"unit": found[f.name]}) if f.name in found else f
 
 
 def reopen(inp: Input, job: Job) -> Input:
@@ -180,12 +307,14 @@ def reopen(inp: Input, job: Job) -> Input:
 def text_batches(inp: Input) -> Iterator[pa.RecordBatch]:
     """A CSV input's text columns (:attr:`Input.text`) from its first row, block by block, as
     text; stops early where the file stops being readable (reading ``inp`` says why)."""
-    ropts = pacsv.ReadOptions(block_size=CSV_BLOCK_BYTES)
+    dialect = inp.dialect or Dialect()
     copts = pacsv.ConvertOptions(
         column_types=dict.fromkeys(inp.text, pa.string()), include_columns=list(inp.text), strings_can_be_null=False
     )
     try:
-        with pacsv.open_csv(inp.path, read_options=ropts, convert_options=copts) as reader:
+        with pacsv.open_csv(
+            inp.path, read_options=_read_options(dialect), parse_options=_parse_options(dialect), convert_options=copts
+        ) as reader:
             yield from reader
     except (OSError, pa.ArrowException):  # not the output's: reading inp again says what it is
         return
@@ -198,7 +327,7 @@ _CSV_RAGGED = re.compile(r"Expected (\d+) columns, got (\d+)")
 _CSV_UTF8 = re.compile(r"In CSV column #(\d+): CSV conversion error to string: invalid UTF8")
 
 
-def _csv_parse_error(path: str, name: str, exc: Exception) -> InputError:
+def _csv_parse_error(path: str, name: str, exc: Exception, dialect: Dialect) -> InputError:
     """A row with the wrong number of values, or too long for a block, named by its data row;
     else pyarrow's first line."""
     m = _CSV_RAGGED.search(str(exc))
@@ -209,10 +338,14 @@ def _csv_parse_error(path: str, name: str, exc: Exception) -> InputError:
     row, k = "", 0
     try:  # the error path only: find the row with Python's csv module
         with open(path, newline="", encoding="utf-8-sig") as f:
-            for k, fields in enumerate(csv.reader(f)):  # noqa: B007 - k is the last row read, below
+            for _ in range(dialect.comment_lines):
+                f.readline()
+            under = 1 + dialect.units_row  # the header, and a units row under it: no data rows
+            for k, fields in enumerate(csv.reader(f, delimiter=dialect.delimiter)):  # noqa: B007 - k: below
                 if k == 0:
                     expected = expected or len(fields)
-                elif fields and len(fields) != expected:
+                elif fields and len(fields) != expected and k >= under:
+                    k -= under - 1
                     row = f"data row {k}"
                     if any("\n" in v for v in fields):  # a quote that ran on, often to the end of the file
                         return InputError(
@@ -234,11 +367,11 @@ def _csv_parse_error(path: str, name: str, exc: Exception) -> InputError:
         )
     return InputError(
         f"{name}: {row or 'a row'} has {m.group(2)} values, but the header names {expected} columns; "
-        "every row needs one value per column (quote a value that holds a comma)"
+        f"every row needs one value per column (quote a value that holds a {DELIMITERS[dialect.delimiter]})"
     )
 
 
-def _csv_value_error(path: str, name: str, names: list, ropts: pacsv.ReadOptions, exc: Exception) -> InputError:
+def _csv_value_error(path: str, name: str, names: list, dialect: Dialect, exc: Exception) -> InputError:
     """Turn pyarrow's conversion error into one naming the column, the value and its row."""
     u = _CSV_UTF8.search(str(exc))
     if u:
@@ -248,18 +381,19 @@ def _csv_value_error(path: str, name: str, names: list, ropts: pacsv.ReadOptions
         )
     m = _CSV_COLUMN.search(str(exc))
     if not m:
-        return _csv_parse_error(path, name, exc)
+        return _csv_parse_error(path, name, exc, dialect)
     col, value = names[int(m.group(1))], m.group(2)
     where = ""
     try:  # a second pass, on the error path only, to find the row
         copts = pacsv.ConvertOptions(column_types={col: pa.string()}, include_columns=[col], strings_can_be_null=False)
         nulls = set(copts.null_values)
         seen = 0
-        for batch in pacsv.open_csv(path, read_options=ropts, convert_options=copts):
+        ropts, popts = _read_options(dialect), _parse_options(dialect)
+        for batch in pacsv.open_csv(path, read_options=ropts, parse_options=popts, convert_options=copts):
             for k, v in enumerate(batch.column(0).to_pylist()):
                 if v not in nulls:
                     try:
-                        float(v)
+                        float(v.replace(",", ".") if dialect.decimal == "," and "." not in v else v)
                     except ValueError:
                         where = f" in data row {seen + k + 1}"
                         raise StopIteration from None
@@ -307,7 +441,9 @@ def _list_as_text(col: pa.ChunkedArray) -> pa.ChunkedArray | pa.Array:
     )
 
 
-_NEEDS_QUOTES = r'[,"\r\n]'
+def _needs_quotes(delimiter: str) -> str:
+    """The characters that make a value need quotes: the delimiter, a quote, a line break."""
+    return "[" + re.escape(delimiter) + '"\\r\\n]'
 
 
 def _empty_beside_null(col: pa.ChunkedArray) -> bool:
@@ -319,37 +455,92 @@ def _empty_beside_null(col: pa.ChunkedArray) -> bool:
     )
 
 
-def _csv_rows(t: pa.Table) -> bytes:
-    """``t`` as CSV rows, each value quoted only if it must be: one holding a comma, quote or line
-    break, and, in a column that also holds nulls, the empty string (``""``; a null is empty).
-    pyarrow's own quoting (``needed``) quotes every text value, so that ``1`` became ``"1"``; the
-    values are formatted by the same cast pyarrow's writer uses, so the bytes match its unquoted
-    output otherwise."""
+def _is_number(t: pa.DataType) -> bool:
+    """A type whose text never holds a delimiter, a quote or a line break."""
+    return pa.types.is_integer(t) or pa.types.is_floating(t) or pa.types.is_boolean(t)
+
+
+def _csv_rows(t: pa.Table, delimiter: str, with_nulls: frozenset) -> pa.Buffer:
+    """``t`` as CSV rows, each value quoted only if it must be: one holding the delimiter, a
+    quote or a line break, and, in a column that also holds nulls (``with_nulls``: their
+    indices, in the whole table written), the empty string (``""``; a null is empty). pyarrow's
+    own quoting (``needed``) quotes every text value, so that ``1`` became ``"1"``; the values are
+    formatted by the same cast pyarrow's writer uses, so the bytes match its unquoted output
+    otherwise. The rows are joined by pyarrow, not Python: the last column gets the line end,
+    then each row's values are joined into one text whose data buffer is the rows' bytes."""
+
+    def text_of(v: str) -> pa.Scalar:
+        return pa.scalar(v, pa.large_string())
+
     cols = []
+    for k, col in enumerate(t.columns):
+        text = pc.cast(col, pa.large_string())  # 64-bit offsets: a block's text may pass 2 GiB
+        if not _is_number(col.type):
+            needs = pc.match_substring_regex(text, _needs_quotes(delimiter))
+            if pc.any(needs).as_py():
+                quoted = pc.binary_join_element_wise(
+                    text_of('"'), pc.replace_substring(text, '"', '""'), text_of('"'), text_of("")
+                )
+                text = pc.if_else(needs, quoted, text)
+        if k in with_nulls:
+            text = pc.if_else(pc.equal(text, ""), text_of('""'), text)
+        cols.append(pc.fill_null(text, text_of("")))
+    if not cols:
+        return pa.py_buffer(b"\n" * t.num_rows)
+    cols[-1] = pc.binary_join_element_wise(cols[-1], text_of("\n"), text_of(""))
+    lines = pc.binary_join_element_wise(*cols, text_of(delimiter)) if len(cols) > 1 else cols[0]
+    lines = lines.combine_chunks() if isinstance(lines, pa.ChunkedArray) else lines
+    if len(lines) == 0:
+        return pa.py_buffer(b"")
+    offsets = np.frombuffer(lines.buffers()[1], dtype=np.int64)
+    return lines.buffers()[2][int(offsets[lines.offset]) : int(offsets[lines.offset + len(lines)])]
+
+
+#: Rows formatted at once where values need quotes: a slice's text stays in the CPU's cache, as
+#: pyarrow's writer formats 1024 rows at a time (a whole 4 MB block's text did not, and cost more).
+_QUOTED_ROWS = 8192
+
+
+def _needs_quoting(t: pa.Table, delimiter: str) -> bool:
+    """Whether a value of ``t`` may hold the delimiter, a quote or a line break: looked for in the
+    bytes of each text column's values at once (a slice's buffer may hold more values than the
+    slice: a value outside it can only send the table to the quoted path, which writes the same
+    bytes for values that need no quotes)."""
+    marks = (delimiter.encode(), b'"', b"\n", b"\r")
     for col in t.columns:
-        text = pc.cast(col, pa.string())
-        quoted = pc.binary_join_element_wise('"', pc.replace_substring(text, '"', '""'), '"', "")
-        text = pc.if_else(pc.match_substring_regex(text, _NEEDS_QUOTES), quoted, text)
-        if col.null_count:
-            text = pc.if_else(pc.equal(text, ""), '""', text)
-        cols.append(pc.fill_null(text, ""))
-    lines = pc.binary_join_element_wise(*cols, ",") if cols else pa.array([""] * t.num_rows)
-    return "".join(line + "\n" for line in lines.to_pylist()).encode()
+        if _is_number(col.type):
+            continue
+        text = col if pa.types.is_string(col.type) or pa.types.is_large_string(col.type) else pc.cast(col, pa.string())
+        for chunk in text.chunks if isinstance(text, pa.ChunkedArray) else [text]:
+            data = chunk.buffers()[2]
+            raw = data.to_pybytes() if data is not None else b""  # a copy, then memchr: 1 ms a MB
+            if any(m in raw for m in marks):
+                return True
+    return False
 
 
 class CsvWriter:
-    """CSV with a minimal-quoting header, ``status`` as text and ω's unit in a ``w_unit`` column."""
+    """CSV with a minimal-quoting header, ``status`` as text and ω's unit in a ``w_unit`` column;
+    ``delimiter``: a comma, or a tab for ``.tsv``.
 
-    def __init__(self, path: str, schema: pa.Schema):
-        self._f = open(path, "wb")  # noqa: SIM115 - written batch by batch; close() closes it
+    Where no value needs quotes, pyarrow's own writer writes the rows straight into the file (it
+    formats 1024 rows at a time, in the CPU's cache): pyarrow's speed. Where one does, the rows
+    are joined by pyarrow in slices (:func:`_csv_rows`)."""
+
+    def __init__(self, path: str, schema: pa.Schema, delimiter: str = ","):
+        self._delimiter, self._path = delimiter, path
+        # a pipe (stdout straight to its reader) cannot seek, which a native file needs: its
+        # rows are formatted into memory first, so that a late refusal has written nothing
+        self._seekable = not os.path.exists(path) or stat.S_ISREG(os.stat(path).st_mode)
+        self._f: Any = pa.OSFile(path, "wb") if self._seekable else open(path, "wb")  # noqa: SIM115 - close() closes it
         wx, self._unit_column = layout.output_name("wx", schema), layout.output_name(UNIT_COLUMN, schema)
         meta = schema.field(wx).metadata or {} if wx in schema.names else {}
         self._unit = meta[b"unit"].decode() if b"unit" in meta else None  # only tables with ω have one
         names = schema.names + ([self._unit_column] if self._unit else [])
         buf = io.StringIO()
-        csv.writer(buf, lineterminator="\n").writerow(names)
+        csv.writer(buf, lineterminator="\n", delimiter=delimiter).writerow(names)
         self._f.write(buf.getvalue().encode())
-        self._plain = pacsv.WriteOptions(include_header=False, quoting_style="none")
+        self._plain = pacsv.WriteOptions(include_header=False, quoting_style="none", delimiter=delimiter)
 
     def write(self, table: pa.Table) -> None:
         check_csv_columns(table.schema, "")  # the callers check the input first, naming it
@@ -366,16 +557,32 @@ class CsvWriter:
             cols.append(pa.repeat(self._unit, table.num_rows))
             names = names + [self._unit_column]
         t = pa.Table.from_arrays(cols, names=names)
-        if any(_empty_beside_null(c) for c in t.columns):
-            self._f.write(_csv_rows(t))
+        # decided on the whole table, so that its slices are written alike
+        if any(_empty_beside_null(c) for c in t.columns) or _needs_quoting(t, self._delimiter):
+            self._quoted(t)
             return
-        buf = pa.BufferOutputStream()
+        if not self._seekable:
+            try:
+                sink = pa.BufferOutputStream()
+                pacsv.write_csv(t, sink, self._plain)
+            except pa.ArrowInvalid:  # a value pyarrow would quote after all: quote those values
+                self._quoted(t)
+            else:
+                self._f.write(sink.getvalue())
+            return
+        at = self._f.tell()
         try:
-            pacsv.write_csv(t, buf, self._plain)
-        except pa.ArrowInvalid:  # a value holds a comma, quote or newline: quote those values only
-            self._f.write(_csv_rows(t))
-            return
-        self._f.write(buf.getvalue())
+            pacsv.write_csv(t, self._f, self._plain)
+        except pa.ArrowInvalid:  # a value pyarrow would quote after all: take back its rows, quote those values
+            self._f.close()
+            os.truncate(self._path, at)
+            self._f = pa.OSFile(self._path, "ab")
+            self._quoted(t)
+
+    def _quoted(self, t: pa.Table) -> None:
+        with_nulls = frozenset(k for k, c in enumerate(t.columns) if c.null_count)
+        for k in range(0, t.num_rows, _QUOTED_ROWS):
+            self._f.write(_csv_rows(t.slice(k, _QUOTED_ROWS), self._delimiter, with_nulls))
 
     def close(self) -> None:
         self._f.close()

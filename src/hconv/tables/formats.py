@@ -13,8 +13,9 @@ only.
 from __future__ import annotations
 
 #: Format name -> the extensions that imply it (lower case).
+#: ``.tsv`` and ``.tab`` are CSV with a tab delimiter (hconv.tables.sniff.TAB_EXTENSIONS).
 EXTENSIONS = {
-    "csv": (".csv",),
+    "csv": (".csv", ".tsv", ".tab"),
     "parquet": (".parquet", ".pq"),
     "arrow": (".arrow", ".feather", ".ipc"),
     "jsonl": (".jsonl", ".ndjson"),
@@ -26,7 +27,7 @@ NAMES = {"csv": "CSV", "parquet": "Parquet", "arrow": "Arrow IPC (Feather)", "js
 
 
 def listing(fmts: tuple = FORMATS) -> str:
-    """``fmts`` with their extensions, for a message: ``CSV (.csv), Parquet (.parquet, .pq) ...``."""
+    """``fmts`` with their extensions, for a message: ``CSV (.csv, .tsv, .tab), Parquet (.parquet, .pq) ...``."""
     named = [f"{NAMES.get(f, f)} ({', '.join(EXTENSIONS.get(f, ()))})" for f in fmts]
     return ", ".join(named[:-1]) + " or " + named[-1] if len(named) > 1 else named[0]
 

@@ -6,8 +6,10 @@ opened. The readers (:mod:`hconv.tables.csvio`, :mod:`hconv.tables.parquetio`) m
 from __future__ import annotations
 
 import os
+from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from typing import Any
 
 import pyarrow as pa
 
@@ -30,6 +32,16 @@ class Input:
     text: tuple = ()
     path: str = ""  #: the file read (for stdin, its spooled copy, which lives as long as this Input)
     first_row: int = 0  #: the file's row that :attr:`batches` starts at (a part of the file: ``rows``)
+    #: CSV: how the file is written (:class:`hconv.tables.sniff.Dialect`); None for Parquet
+    dialect: Any = None
+    #: CSV: where in the file each batch read ends (:class:`ReadMarks`); None: :attr:`position` says
+    marks: ReadMarks | None = None
+
+    def reached(self, rows: int) -> int:
+        """How far into the input (bytes or rows, as :attr:`total`) the first ``rows`` rows of
+        :attr:`batches` go, for progress shown as the rows converted, not as the reader's position
+        (which runs ahead of them). Called with ``rows`` that never decrease."""
+        return self.marks.reached(rows) if self.marks is not None else self.position()
 
     def close(self) -> None:
         for c in reversed(self._closers):
@@ -41,6 +53,38 @@ class Input:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+class ReadMarks:
+    """Where in a CSV file each batch read so far ends: pyarrow reads up to 16 blocks ahead of
+    the batch it hands over, so the file's position is near its end before the first row is
+    converted. Each batch is one block of the file, so the k-th ends within a row of k blocks in;
+    the last, at the file's end."""
+
+    def __init__(self, total: int, block: int):
+        self.total, self.block = total, block
+        self._batches = self._rows = 0
+        self._marks: deque[tuple[int, int]] = deque()  # (rows read, bytes they reach), oldest first
+
+    def add(self, rows: int) -> None:
+        """A batch of ``rows`` rows was read."""
+        self._batches += 1
+        self._rows += rows
+        self._marks.append((self._rows, min(self.total, self._batches * self.block)))
+
+    def done(self) -> None:
+        """The reader has reached the file's end."""
+        self._marks.append((self._rows, self.total))
+
+    def position(self) -> int:
+        """The bytes the batches read so far reach."""
+        return self._marks[-1][1] if self._marks else 0
+
+    def reached(self, rows: int) -> int:
+        """The bytes the first ``rows`` rows reach, batch by batch (``rows`` never decreases)."""
+        while len(self._marks) > 1 and self._marks[1][0] <= rows:
+            self._marks.popleft()
+        return self._marks[0][1] if self._marks and self._marks[0][0] <= rows else 0
 
 
 def unreadable(name: str, exc: OSError) -> InputError:

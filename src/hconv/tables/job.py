@@ -18,6 +18,13 @@ from hconv.solve import methods, options, units
 from hconv.solve.options import Options
 from hconv.tables.sets import QUANTITY, all_names, quantity_of
 
+#: The delimiters a CSV may have (DuckDB's candidates), each with the word messages use for it.
+DELIMITERS = {",": "comma", ";": "semicolon", "\t": "tab", "|": "bar"}
+#: How ``delimiter`` may be spelled: the character itself, or its word (a tab is hard to type).
+DELIMITER_SPELLINGS = {**{d: d for d in DELIMITERS}, **{w: d for d, w in DELIMITERS.items()}, "\\t": "\t", "pipe": "|"}
+#: The decimal marks a CSV's numbers may have.
+DECIMALS = {".": "point", ",": "comma"}
+
 
 def _pairs(what: str, value: Any) -> tuple:
     """``value`` as a tuple of (name, value) string pairs: from a dict, or from pairs."""
@@ -78,7 +85,9 @@ class Job(Options):
     column's own metadata and ``unit_options`` come first, and a column hconv does not read is
     left alone, as its metadata would be. ``prefix`` (``--prefix``) goes before the name of every
     column hconv appends (``wx`` becomes ``out_wx`` with ``prefix='out_'``), so that an input
-    that already has a ``status`` or a ``wx`` column can be converted.
+    that already has a ``status`` or a ``wx`` column can be converted. ``delimiter`` and
+    ``decimal`` (``--delimiter``, ``--decimal``): how a CSV input is written, where sniffing it
+    would otherwise decide (docs/input.md); None: sniffed.
     """
 
     mapping: tuple = ()
@@ -88,6 +97,8 @@ class Job(Options):
     observed: bool = False
     keep_text: bool = False  #: CSV to Parquet: the other columns stay text, as in the CSV
     field_units: tuple = ()  #: (column, unit) pairs, as field metadata would give them
+    delimiter: str | None = None  #: a CSV input's delimiter, one of DELIMITERS; None: sniffed
+    decimal: str | None = None  #: a CSV input's decimal mark, one of DECIMALS; None: sniffed
     prefix: str = ""  #: put before the name of every column hconv appends (wx: Pwx), for an input that has them
 
     def __post_init__(self) -> None:
@@ -95,6 +106,7 @@ class Job(Options):
         object.__setattr__(self, "unit_options", _pairs("unit_options", self.unit_options))
         object.__setattr__(self, "field_units", _pairs("field_units", self.field_units))
         _check_mapping(self.mapping)
+        _check_dialect(self)
         _check_units_once(self.unit_options)
         for key, unit in self.unit_options:
             quantity = quantity_of(key)
@@ -145,6 +157,27 @@ class Job(Options):
         if name not in given:
             return 1.0
         return units.factor(QUANTITY[name], given[name], entry("unit_options", name, given[name]))
+
+
+def _check_dialect(job: Job) -> None:
+    """``delimiter`` as one of :data:`DELIMITERS` (given as a character or its word), ``decimal``
+    as one of :data:`DECIMALS`; a decimal comma with a comma delimiter could not be read."""
+    if job.delimiter is not None:
+        d = DELIMITER_SPELLINGS.get(job.delimiter) if isinstance(job.delimiter, str) else None
+        if d is None:
+            raise UsageError(
+                f"{option('delimiter')} takes one of {', '.join(repr(k) for k in DELIMITERS)} "
+                f"(or comma, semicolon, tab, bar), got {job.delimiter!r}"
+            )
+        object.__setattr__(job, "delimiter", d)
+    if job.decimal is not None:
+        if job.decimal not in DECIMALS:
+            raise UsageError(f"{option('decimal')} takes '.' or ',', got {job.decimal!r}")
+        if job.decimal == "," and job.delimiter == ",":
+            raise UsageError(
+                f"{option('decimal', ',')} needs another delimiter than the comma; "
+                f"pass {option('delimiter', ';')} (or tab) as well, or drop {option('decimal')}"
+            )
 
 
 def check_job(job: object) -> None:

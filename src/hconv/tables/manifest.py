@@ -81,13 +81,19 @@ JOB_KEYS = ("method", "precision", "diagnostics", "conventions", "mapping", "uni
             "omega_unit", "observed", "engine", "keep_text", "field_units", "prefix")  # fmt: skip
 
 
+#: Fields added later, with their defaults: a manifest records each only when it is set, so that
+#: a dataset converted before it existed is not all converted again for a job that does not set it.
+RECORDED_WHEN_SET = {"prefix": "", "delimiter": None, "decimal": None}
+
+
 def job_identity(job: Job, src_format: str | None, dst_format: str | None) -> dict:
     """The job as the manifest records it: every Job field, in :data:`JOB_KEYS`' order, and the
-    formats asked for. ``prefix`` only when one is given: a manifest written before it existed
-    still records the same job."""
+    formats asked for; :data:`RECORDED_WHEN_SET` only when set (a manifest written before they
+    existed still records the same job)."""
     fields = dataclasses.asdict(job)
-    if not job.prefix:
-        del fields["prefix"]
+    for k, default in RECORDED_WHEN_SET.items():
+        if fields.get(k) == default:
+            del fields[k]
     d = {k: fields.pop(k) for k in JOB_KEYS if k in fields} | fields  # a field added later goes last
     d["src_format"], d["dst_format"] = src_format, dst_format
     return json.loads(json.dumps(d))  # tuples as lists, as they come back from the file

@@ -29,7 +29,7 @@ from hconv.tables.csvio import CsvWriter
 from hconv.tables.formats import EXTENSIONS, NAMES
 from hconv.tables.ipcio import IpcWriter
 from hconv.tables.parquetio import ParquetWriter
-from hconv.tables.sniff import format_of
+from hconv.tables.sniff import delimiter_by_name, format_of
 from hconv.tables.temporaries import temporary_file
 
 
@@ -136,8 +136,8 @@ class Output:
         # (a pipe opened again by /dev/fd is the same pipe).
         path = f"/dev/fd/{sys.stdout.fileno()}" if self.direct else self._tmp
         assert path is not None
-        if self.fmt == "csv":
-            return CsvWriter(path, schema)
+        if self.fmt == "csv":  # out.tsv gets tabs
+            return CsvWriter(path, schema, delimiter_by_name(self.shown) or ",")
         if self.fmt == "arrow":
             return IpcWriter(path, schema, stream=self.path == "-")
         return ParquetWriter(path, schema)

@@ -45,6 +45,7 @@ class Tally:
     worst_row: int | None = None  #: 1-based data row of the worst residual
     seconds: float = 0.0
     engines: dict = field(default_factory=dict)  #: engine -> rows it converted, in order of first use
+    read_as: str = ""  #: how a CSV input was read, where it is not plain CSV (hconv.tables.sniff.Dialect)
 
     def add(self, table: pa.Table, engine: str | None = None) -> None:
         if engine is not None:
@@ -307,6 +308,10 @@ def _convert(
     # full), stops the compute threads now rather than when the suspended generator is collected,
     # so that none is still converting while a dataset run goes on to its next file or manifest.
     results = ordered_map(one, _numbered(batches, inp.first_row), threads)
+    if inp.dialect is not None:
+        tally.read_as = inp.dialect.describe()
+    if progress is not None:  # the size, before the first batch takes its time
+        progress(0, inp.total)
     writing = contextlib.nullcontext(_Direct(out)) if whole else BackgroundWriter(out)
     with out, writing as writer, contextlib.closing(results):
         _write_all(inp, results, writer, tally, job=job, strict=strict, progress=progress)
@@ -336,8 +341,8 @@ def _write_all(
             _check_strict(table, inp.first_row + tally.rows, inp.name)
         writer.write(table)
         tally.add(table, engine)
-        if progress is not None:
-            progress(inp.position(), inp.total)
+        if progress is not None:  # the rows converted, not how far the reader has got ahead of them
+            progress(inp.reached(tally.rows), inp.total)
     if tally.rows == 0:  # a header and no rows is a valid empty table
         writer.write(convert_batch(inp.schema.empty_table(), job, inp.plan, inp.name)[0])
 

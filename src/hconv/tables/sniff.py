@@ -1,19 +1,24 @@
 """Telling what a path holds before reading it: the format a name (or ``--from``/``--to``) says;
 a path that is missing, a directory or a pipe; and, from a file's first bytes, what a file that is
 not plain CSV or Parquet is instead (compressed, a spreadsheet, UTF-16 text), each with the
-command that makes it readable."""
+command that makes it readable; and a CSV's dialect (:class:`Dialect`): its delimiter, decimal
+mark and comment lines."""
 
 from __future__ import annotations
 
+import csv
 import difflib
 import os
+import re
 import shlex
 import stat
+from dataclasses import dataclass
 from pathlib import Path
 
 from hconv.errors import InputError, OutputError, UsageError, option
 from hconv.tables.formats import EXTENSIONS, FOREIGN, FORMATS, NAMES, WRITES, choices, listing
 from hconv.tables.inputs import unreadable
+from hconv.tables.job import DELIMITERS
 
 
 def format_of(path: str, given: str | None, flag: str) -> str:
@@ -277,3 +282,106 @@ def rename_or_pass(name: str, fmt: str) -> str:
     if _named_format(name):
         return f"rename it {os.path.splitext(name)[0]}{EXTENSIONS[fmt][0]}"
     return f"name it {EXTENSIONS[fmt][0]} or pass {option('src_format', fmt)}"
+
+
+# --- a CSV's dialect -------------------------------------------------------------------------
+# As DuckDB's CSV reader sniffs one: the delimiter is the candidate (comma, semicolon, tab, bar)
+# that splits the header into the most columns while every row of the first block has as many;
+# comment lines (``#``) before the header are skipped; a decimal comma and a row of units under the
+# header are told from the values of hconv's columns (hconv.tables.csvio, once it knows them).
+
+#: Extensions that name tab-separated text: read with a tab delimiter, and written with one.
+TAB_EXTENSIONS = (".tsv", ".tab")
+
+
+@dataclass(frozen=True)
+class Dialect:
+    """How a CSV file is written: its delimiter, its decimal mark, the comment lines before its
+    header, and the units a row under the header gives hconv's columns ((column, unit) pairs)."""
+
+    delimiter: str = ","
+    decimal: str = "."
+    comment_lines: int = 0
+    units: tuple = ()
+    units_row: bool = False  #: a row of units under the header, not a data row
+
+    def describe(self) -> str:
+        """What the summary says of a dialect that is not plain CSV; "" for plain CSV."""
+        if self == Dialect():
+            return ""
+        shown = "tab" if self.delimiter == "\t" else repr(self.delimiter)
+        parts = [f"{shown} separated", f"decimal {self.decimal!r}"]
+        if self.comment_lines:
+            parts.append(f"{self.comment_lines} comment line{'s' if self.comment_lines > 1 else ''} skipped")
+        if self.units_row:
+            parts.append("units from the row under the header")
+        return "read as CSV: " + ", ".join(parts)
+
+
+def delimiter_by_name(name: str) -> str | None:
+    """The delimiter a file's name says: a tab for ``.tsv`` and ``.tab``; None for any other."""
+    return "\t" if Path(name).suffix.lower() in TAB_EXTENSIONS else None
+
+
+def comment_lines(lines: list[str]) -> int:
+    """How many of ``lines`` before the header are comments (start with ``#``)."""
+    k = 0
+    while k < len(lines) and lines[k].lstrip().startswith("#"):
+        k += 1
+    return k
+
+
+def sniff_delimiter(lines: list[str], name: str, known: frozenset = frozenset()) -> str:
+    """The delimiter of the CSV whose header and first rows are ``lines``: the candidate that splits
+    the header into the most columns with most rows as long (a row of the wrong length is named
+    later, by its number); of two alike, the one with more rows as long. A tie is settled by the
+    header naming hconv's columns (``known``) under one of them only; else UsageError naming
+    ``--delimiter``. Comma when none splits the header."""
+    score: dict[str, tuple[int, int]] = {}  # delimiter -> (columns, rows as long as the header)
+    headers: dict[str, list[str]] = {}
+    for d in DELIMITERS:
+        try:
+            rows = [r for r in csv.reader(lines, delimiter=d) if r]
+        except csv.Error:  # a value longer than the csv module's limit: not this delimiter's table
+            continue
+        if not rows or len(rows[0]) < 2:
+            continue
+        agree = sum(len(r) == len(rows[0]) for r in rows[1:])
+        if 2 * agree >= len(rows) - 1:
+            score[d], headers[d] = (len(rows[0]), agree), rows[0]
+    if not score:
+        return ","
+    top = max(score.values())
+    best = [d for d in DELIMITERS if score.get(d) == top]
+    if len(best) > 1:
+        naming = [d for d in best if known & {c.strip() for c in headers[d]}]
+        if len(naming) == 1:
+            return naming[0]
+        shown = [repr("tab" if d == "\t" else d) for d in best]
+        raise UsageError(
+            f"{name}: cannot tell the delimiter: {' and '.join(shown)} both split every line into {top[0]} columns; "
+            f"pass {' or '.join(option('delimiter', s) for s in shown)}"
+        )
+    return best[0]
+
+
+#: A number written with a decimal comma: 1,5  -0,25  ,5  1,5e-3
+_DECIMAL_COMMA = re.compile(r"\s*[+-]?(\d+,\d*|,\d+)([eE][+-]?\d+)?\s*")
+#: A number written with a decimal point, not a whole number: 1.5  -.25  1.5e-3
+_DECIMAL_POINT = re.compile(r"\s*[+-]?(\d+\.\d*|\.\d+)([eE][+-]?\d+)?\s*")
+
+
+def sniff_decimal(values: dict[str, list[str]], name: str) -> str:
+    """The decimal mark of hconv's columns, from their first values (column -> texts) in a file
+    whose delimiter is not a comma: a comma if some are written with one and none with a point;
+    UsageError naming ``--decimal`` if both are."""
+    comma = next(((c, v) for c, vs in values.items() for v in vs if _DECIMAL_COMMA.fullmatch(v)), None)
+    if comma is None:
+        return "."
+    point = next(((c, v) for c, vs in values.items() for v in vs if _DECIMAL_POINT.fullmatch(v)), None)
+    if point is not None:
+        raise UsageError(
+            f"{name}: cannot tell the decimal mark: column {comma[0]!r} holds {comma[1]!r} and column {point[0]!r} "
+            f"holds {point[1]!r}; pass {option('decimal', repr(','))} or {option('decimal', repr('.'))}"
+        )
+    return ","
