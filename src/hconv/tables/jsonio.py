@@ -91,7 +91,7 @@ def _kind(value: object) -> str | None:
         return "true/false"
     if isinstance(value, (int, float)):
         return "a number"
-    return {str: "text", list: "a list", dict: "an object"}[type(value)]
+    return "text" if isinstance(value, str) else "a list" if isinstance(value, list) else "an object"
 
 
 def _type_change(row: dict, kinds: dict, number: int) -> tuple[str, str, tuple[str, int]] | None:
