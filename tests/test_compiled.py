@@ -112,7 +112,8 @@ def test_convert_rows_uncovered_runs_are_numpy_whatever_is_asked():
     assert hconv.convert(H, I, method="eigen", engine="compiled").engine == "numpy"
     assert hconv.convert(H, I, precision=32, engine="compiled").engine == "numpy"
     assert hconv.convert(H, I, degenerate="pinv", engine="compiled").engine == "numpy"
-    assert hconv.convert(H, np.ones((3, 3)), engine="compiled").engine == "numpy"  # principal moments: a division
+    moments = np.ones((4, 3))  # four rows: (3, 3) beside three rows is refused as ambiguous
+    assert hconv.convert(np.ones((4, 3)), moments, engine="compiled").engine == "numpy"  # a division
 
 
 def test_convert_rows_same_bits_whatever_the_blocks_and_threads(rng, monkeypatch):

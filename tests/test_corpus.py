@@ -54,7 +54,7 @@ ERRORS = {  # file: (exit code, words the one-line message must hold)
     "string_column.parquet": (3, "column 'Hx' has type string"),
     "bool_column.parquet": (3, "column 'Hx' has type bool"),
     "duplicate_column.parquet": (3, "'Hx' appears more than once"),
-    "truncated.arrow": (3, "record batch 1 (after data row 0) cannot be read"),
+    "truncated.arrow": (3, "record batch 1 (from data row 1) cannot be read"),
     "empty.arrow": (3, "the file is empty"),
     "parquet_named_arrow.arrow": (3, "is a Parquet file, not Arrow IPC"),
     "bad_line.jsonl": (3, "line 2 is not valid JSON"),

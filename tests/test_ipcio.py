@@ -70,8 +70,17 @@ def test_open_ipc_cuts_one_huge_batch(tmp_path, monkeypatch):
     assert sizes == [64] * 6 + [16]
 
 
-@pytest.mark.parametrize("kind, cut", [("file-small-batches", 3000), ("stream", 30000), ("stream", 100)])
-def test_open_ipc_truncated_is_exit_3_naming_the_file(kind, cut, tmp_path, capsys):
+@pytest.mark.parametrize(
+    "kind, cut, says",
+    [
+        # the file format's footer lost: named as truncated, not as "not an Arrow file"
+        ("file-small-batches", 3000, "the Arrow IPC file is truncated: it starts with ARROW1 but does not end with it"),
+        ("feather-lz4", -8, "the Arrow IPC file is truncated: it starts with ARROW1 but does not end with it"),
+        ("stream", 30000, "record batch 1 (from data row 1) cannot be read"),
+        ("stream", 100, "completely written"),
+    ],
+)
+def test_open_ipc_truncated_is_exit_3_naming_the_file(kind, cut, says, tmp_path, capsys):
     t = pq.read_table(SCENE)
     whole = tmp_path / "whole.arrow"
     _write(kind, whole, t)
@@ -81,7 +90,25 @@ def test_open_ipc_truncated_is_exit_3_naming_the_file(kind, cut, tmp_path, capsy
     err = proc.stderr.decode()
     assert proc.returncode == 3 and len(err.strip().splitlines()) == 1, err
     assert err.startswith(f"hconv: error: {bad}: ") and "Traceback" not in err
-    assert "completely written" in err
+    assert says in err, err
+    assert not (tmp_path / "out.csv").exists()
+
+
+def test_open_ipc_stream_cut_in_a_later_batch_names_its_first_row(tmp_path, capsys):
+    """Batches of 37 rows, the stream cut inside the third: its first data row is 2 * 37 + 1,
+    counted from 1 as a Parquet row group's rows are."""
+    t = pq.read_table(SCENE)
+    sink = pa.BufferOutputStream()
+    ends = []  # the stream's length after each batch
+    with ipc.new_stream(sink, t.schema) as w:
+        for b in t.to_batches(max_chunksize=37):
+            w.write_batch(b)
+            ends.append(sink.tell())
+    bad = tmp_path / "bad.arrow"
+    bad.write_bytes(sink.getvalue().to_pybytes()[: (ends[1] + ends[2]) // 2])
+    proc = hconv_inprocess("convert", str(bad), str(tmp_path / "out.csv"), capsys=capsys)
+    err = proc.stderr.decode()
+    assert proc.returncode == 3 and f"{bad}: record batch 3 (from data row 75) cannot be read" in err, err
     assert not (tmp_path / "out.csv").exists()
 
 

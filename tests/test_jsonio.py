@@ -64,6 +64,14 @@ def test_open_jsonl_integers_then_fractions_in_a_later_block(tmp_path, monkeypat
         ('{"Hx":1,"Hy":0,"Hz":0,"I":1}\n\n[1, 2]\n', r": line 3 is a JSON list, not an object"),
         ('[{"Hx":1,"Hy":0,"Hz":0,"I":1}]\n', r": is one JSON array, not JSON lines .*jq -c"),
         ("", r": the file is empty"),
+        (
+            '{"Hx":1,"Hy":0,"Hz":0,"I":1}\n{"Hx":"a","Hy":0,"Hz":0,"I":1}\n',
+            r": line 2: column 'Hx' holds text where line 1 holds a number; hconv reads it as numbers",
+        ),
+        (
+            '{"Hx":1,"Hy":0,"Hz":0,"I":1,"tag":1}\n\n{"Hx":1,"Hy":0,"Hz":0,"I":1,"tag":"b"}\n',
+            r": line 3: column 'tag' holds text where line 1 holds a number; .* jq -c 'del\(\.\[\"tag\"\]\)'",
+        ),
     ],
 )
 def test_open_jsonl_bad_line_is_exit_3_naming_it(text, says, tmp_path, capsys):
@@ -85,3 +93,16 @@ def test_open_jsonl_key_first_seen_in_a_later_block_is_named(tmp_path, monkeypat
     proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.csv"), capsys=capsys)
     err = proc.stderr.decode()
     assert proc.returncode == 3 and f"{src}: line 101 has the key 'note'" in err, err
+
+
+def test_open_jsonl_type_change_in_a_later_block_is_named_by_line(tmp_path, monkeypatch, capsys):
+    """pyarrow counts rows from 0 within a block; the message names the file's line."""
+    monkeypatch.setattr(jsonio, "JSON_BLOCK_BYTES", 1 << 10)
+    lines = ['{"Hx":1,"Hy":0,"Hz":0,"I":1,"tag":7}'] * 100 + ['{"Hx":1,"Hy":0,"Hz":0,"I":1,"tag":"x"}']
+    src = tmp_path / "late.jsonl"
+    src.write_text("\n".join(lines) + "\n")
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.csv"), capsys=capsys)
+    err = proc.stderr.decode()
+    assert proc.returncode == 3 and len(err.strip().splitlines()) == 1, err
+    assert f"{src}: line 101: column 'tag' holds text where line 1 holds a number" in err, err
+    assert not (tmp_path / "out.csv").exists()

@@ -287,15 +287,26 @@ def test_convert_one_offset_and_one_h_broadcast_over_many_rows(rng):
     assert hconv.convert(h, I[0]).w.shape == (3,)  # every argument one body's: unstacked, as before
 
 
-def test_convert_3x3_inertia_beside_three_rows_stays_three_principal_rows():
-    """The one ambiguous shape keeps its old reading: I (3, 3) with H of three rows is three rows
-    of principal moments; I[None] uses one matrix for the three."""
-    H = np.arange(9.0).reshape(3, 3) + 1
-    I = np.array([[2.0, 3.0, 4.0], [3.0, 4.0, 5.0], [4.0, 5.0, 6.0]])  # a singular matrix
-    np.testing.assert_array_equal(hconv.convert(H, I).w, H / I)
+def test_convert_3x3_inertia_beside_three_rows_is_refused():
+    """I (3, 3) beside three rows of H (or r) could be one tensor or three rows of principal
+    moments; read as moments it gave a wrong ω with status ok, so it is refused, and each of the
+    two explicit spellings the message names gives its own reading."""
+    H = np.array([[1.0, 2.0, 3.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
+    I = np.array([[2.0, 1.5, 1.0], [1.5, 2.0, 1.0], [1.0, 1.0, 2.0]])
+    r = np.zeros((3, 3))
+    for call in (
+        lambda: hconv.convert(H, I),
+        lambda: hconv.convert(H[0], I, r, method="exact"),
+        lambda: hconv.convert(H, I, r[:1], method="exact"),
+    ):
+        with pytest.raises(ValueError, match=r"could be one tensor or three rows.* pass I\[None\]"):
+            call()
+    # I⁻¹H[0] = (-1, 1, 3/2): I @ (-1, 1, 3/2) = (1, 2, 3), by hand
+    np.testing.assert_allclose(hconv.convert(H, I[None]).w[0], [-1.0, 1.0, 1.5], rtol=1e-15)
+    np.testing.assert_array_equal(hconv.convert(H, I[:, None] * np.eye(3)).w, H / I)
     M = np.diag([1.0, 2.0, 4.0])
-    np.testing.assert_array_equal(hconv.convert(H, M[None]).w, H / [1.0, 2.0, 4.0])
-    np.testing.assert_array_equal(hconv.convert(H[:2], M).w, H[:2] / [1.0, 2.0, 4.0])
+    np.testing.assert_array_equal(hconv.convert(H[:2], M).w, H[:2] / [1.0, 2.0, 4.0])  # not three rows: one tensor
+    np.testing.assert_array_equal(hconv.convert(np.ones((6, 3)), np.ones((6, 6))).w.shape, (6, 3))  # (6, 6): rows
 
 
 @pytest.mark.parametrize(

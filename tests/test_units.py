@@ -222,13 +222,13 @@ def test_convert_pint_unit_of_another_quantity_is_refused_naming_the_argument(na
 
 def test_convert_masked_entries_are_invalid_input_rows():
     H = np.ma.masked_array([[1.0, 2.0, 3.0], [1e300, 2.0, 3.0], [4.0, 4.0, 4.0]], mask=[[0] * 3, [1, 0, 0], [0] * 3])
-    res = hconv.convert(H, np.full((3, 3), 2.0))
+    res = hconv.convert(H, np.full((3, 3), 2.0)[:, None] * np.eye(3))  # three rows of moments, as matrices
     assert res.status.tolist() == ["ok", "invalid_input", "ok"]
     assert np.isnan(res.w[1]).all() and res.w[2].tolist() == [2.0, 2.0, 2.0]
     assert H.data[1, 0] == 1e300 and H.mask[1, 0]  # the caller's array untouched
     # in a Quantity too, and a masked I
     I = np.ma.masked_array([[2.0] * 3] * 3, mask=[[0] * 3, [0] * 3, [0, 0, 1]])
-    res = hconv.convert(H.data * _ureg()("g*cm**2/s"), I * _ureg()("g*cm**2"))
+    res = hconv.convert(H.data * _ureg()("g*cm**2/s"), I[:, None] * np.eye(3) * _ureg()("g*cm**2"))
     assert res.status.tolist() == ["ok", "ok", "invalid_input"]
 
 

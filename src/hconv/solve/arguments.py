@@ -77,9 +77,16 @@ def _vector_rows(name: str, a: np.ndarray) -> int | None:
 
 def _tensor_rows(I: np.ndarray, others: set) -> int | None:
     """The rows of I: None for one body's tensor. A ``(3, 3)`` I is one body's matrix, except
-    beside H or r of three rows, where it has always been three rows of principal moments."""
+    beside H or r of three rows, where it could as well be three rows of principal moments: that
+    one shape both readings share is refused, as either guess would give some caller a wrong ω."""
     if I.shape == (3, 3):
-        return 3 if others == {3} else None
+        if 3 in others and others <= {1, 3}:
+            raise ValueError(
+                "I of shape (3, 3) beside H or r of three rows could be one tensor or three rows of principal "
+                "moments; pass I[None] (shape (1, 3, 3)) for one tensor used for every row, or "
+                "I[:, None] * np.eye(3) (three diagonal matrices) for three rows of principal moments"
+            )
+        return None
     if I.shape in ONE_BODY_I:
         return None
     if (I.ndim == 2 and I.shape[1] in (3, 6, 9)) or (I.ndim == 3 and I.shape[1:] == (3, 3)):

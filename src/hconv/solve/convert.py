@@ -7,8 +7,9 @@ the row axis: ``(3,)`` for H and r, ``(3,)``, ``(6,)``, ``(9,)`` or ``(3, 3)`` f
 broadcast as numpy broadcasts: one body's, or a stack of one row, is used for every row of the
 others (one body's I over a log of its H), stacks of N rows go together, and anything else is a
 ValueError naming both shapes. Only where every argument is one body's does the result come back
-unstacked. One exception keeps an old reading: an I of shape ``(3, 3)`` beside H or r of three
-rows is three rows of principal moments; pass ``I[None]`` to use one matrix for the three rows.
+unstacked. The one shape both readings share is refused (ValueError): an I of shape ``(3, 3)``
+beside H or r of three rows; pass ``I[None]`` for one matrix used for the three rows, or
+``I[:, None] * np.eye(3)`` for three rows of principal moments.
 These stacks are read into hconv's column layout at the edge (:func:`hconv.solve.forms.from_array`);
 :func:`convert_columns` takes that layout directly.
 Conventions are those of :mod:`hconv.kernels.inertia`.

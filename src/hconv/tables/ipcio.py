@@ -6,7 +6,8 @@ DuckDB, which map such a file without copying it.
 
 Batches are cut to at most :data:`IPC_BATCH_ROWS` rows (slices, no copy), since a writer may
 have put a whole table in one. Whatever pyarrow raises while reading is the input's
-(InputError naming the file and the record batch)."""
+(InputError naming the file and the record batch, with its first data row counted from 1); a
+file format without ``ARROW1`` at its end is named as truncated before pyarrow reads it."""
 
 from __future__ import annotations
 
@@ -37,6 +38,23 @@ def _not_ipc(path: str, name: str, head: bytes, exc: Exception | None) -> InputE
     )
 
 
+def _tail(path: str, k: int) -> bytes:
+    with open(path, "rb") as f:
+        f.seek(max(os.fstat(f.fileno()).st_size - k, 0))
+        return f.read(k)
+
+
+def _truncated(name: str) -> InputError:
+    """The file format lists its record batches in a footer at its end, closed by a second
+    ``ARROW1``; without it no batch can be found, and reading those before the cut as a stream
+    would pass off part of the file as all of it."""
+    return InputError(
+        f"{name}: the Arrow IPC file is truncated: it starts with ARROW1 but does not end with it, so its "
+        "footer (the list of its record batches) is missing and no row can be read; copy or write it again "
+        "from its source"
+    )
+
+
 def open_ipc(path: str, name: str, job: Job) -> Input:
     """The Arrow IPC file or stream ``path``, in batches of at most :data:`IPC_BATCH_ROWS` rows."""
     try:
@@ -54,6 +72,8 @@ def open_ipc(path: str, name: str, job: Job) -> Input:
             table = feather.read_table(path)
             return _input(name, table.schema, iter(table.to_batches()), job, table.num_rows, [], None, None, path)
         if head.startswith(_FILE_MAGIC):
+            if _tail(path, len(_FILE_MAGIC)) != _FILE_MAGIC:
+                raise _truncated(name)
             source: pa.NativeFile = pa.memory_map(path)
             at_open = FileStat.of(source.fileno())
             reader = ipc.open_file(source)
@@ -96,7 +116,7 @@ def _input(
                 break
             except Exception as exc:  # noqa: BLE001 - only pyarrow's reading runs in this try
                 raise changed_while_read(name, fd, at_open, f"; {first_line(exc)}") or InputError(
-                    f"{name}: record batch {k + 1} (after data row {done[0]}) cannot be read ({first_line(exc)}); "
+                    f"{name}: record batch {k + 1} (from data row {done[0] + 1}) cannot be read ({first_line(exc)}); "
                     "the file is damaged or was not completely written: write it again from its source"
                 ) from None
             k += 1

@@ -4,9 +4,11 @@ streaming JSON reader a block (:data:`JSON_BLOCK_BYTES`) at a time.
 pyarrow infers each column's type from the first block, and a later block whose values do not
 fit fails (``1`` in the first rows, ``1.5`` later); so the columns hconv reads are read as
 float64 (lists of float64) whatever the first block holds, and the other columns keep the
-first block's types. A line that is not a JSON object is named by its line number: pyarrow's
-own message counts rows within a block, so on that error path the file is read again, line by
-line, to find it."""
+first block's types. A line that is not a JSON object, or whose value for a key is of another
+JSON type than an earlier line's, is named by its line number: pyarrow's own message counts rows
+from 0 within a block, so on that error path the file is read again, line by line, to find it.
+pyarrow reads no column whose values change type, not even as text, so such a column hconv does
+not read is refused too, named with what to do."""
 
 from __future__ import annotations
 
@@ -17,7 +19,7 @@ from collections.abc import Iterator
 import pyarrow as pa
 import pyarrow.json as pajson
 
-from hconv.errors import InputError, first_line
+from hconv.errors import HconvError, InputError, first_line
 from hconv.tables import layout
 from hconv.tables.inputs import FileStat, Input, changed_while_read, unreadable
 from hconv.tables.job import Job
@@ -26,10 +28,14 @@ from hconv.tables.sniff import what_it_is
 JSON_BLOCK_BYTES = 1 << 20
 
 
-def _bad_line(path: str, name: str, exc: Exception, known: set | None = None) -> InputError:
+def _bad_line(path: str, name: str, exc: Exception, job: Job, known: set | None = None) -> InputError:
     """The error for a JSON lines file pyarrow could not read: the first line that is not a JSON
-    object, or (``known``: the first block's keys) that has a key the first block lacks, by
-    number; or else pyarrow's reason (a column whose values change type)."""
+    object, or (``known``: the first block's keys) that has a key the first block lacks, or whose
+    value is of another JSON type than an earlier line's for that key, by its line number in the
+    file (blank lines counted); or else pyarrow's reason. pyarrow's own count is of rows, from 0,
+    within a block, which names no line a user can find; and it reads no column whose values
+    change type (not even as text), so such a column is named, with what to do."""
+    kinds: dict[str, tuple[str, int]] = {}  # key -> the JSON type of its first non-null value, its line
     try:
         with open(path, "rb") as f:
             for number, line in enumerate(f, 1):
@@ -56,12 +62,61 @@ def _bad_line(path: str, name: str, exc: Exception, known: set | None = None) ->
                         f"({JSON_BLOCK_BYTES >> 20} MiB) has; the first lines fix the columns: give every "
                         "key in the first line (null where it has no value)"
                     )
+                changed = _type_change(value, kinds, number)
+                if changed:
+                    key, kind, (was, at) = changed
+                    fix = (
+                        f"hconv reads it as numbers: make every line's {key!r} a number (or null)"
+                        if key in _read_by_hconv(kinds, job, name)
+                        else f"write every {key!r} as one type (text in quotes, or numbers), or leave the "
+                        f"column out: jq -c 'del(.[{json.dumps(key)}])' {name}"
+                    )
+                    return InputError(
+                        f"{name}: line {number}: column {key!r} holds {kind} where line {at} holds {was}; {fix}"
+                    )
     except OSError as err:
         return unreadable(name, err)
     return InputError(
         f"{name}: cannot be read as JSON lines ({first_line(exc)}); a column's values change type part-way "
         "(the first rows fix each column's type): write that column with one type throughout"
     )
+
+
+def _kind(value: object) -> str | None:
+    """The JSON type of ``value`` as pyarrow tells them apart (an integer and a fraction are both
+    numbers); None for null, which fits any."""
+    if value is None:
+        return None
+    if isinstance(value, bool):
+        return "true/false"
+    if isinstance(value, (int, float)):
+        return "a number"
+    return "text" if isinstance(value, str) else "a list" if isinstance(value, list) else "an object"
+
+
+def _type_change(row: dict, kinds: dict, number: int) -> tuple[str, str, tuple[str, int]] | None:
+    """The first key of ``row`` whose value's JSON type differs from the one ``kinds`` holds for
+    it (which this records for keys not seen yet): the key, its kind here, and the first kind and
+    its line; or None."""
+    for key, value in row.items():
+        kind = _kind(value)
+        if kind is None:
+            continue
+        first = kinds.setdefault(key, (kind, number))
+        if first[0] != kind:
+            return key, kind, first
+    return None
+
+
+def _read_by_hconv(kinds: dict, job: Job, name: str) -> set:
+    """The columns among ``kinds``' keys that hconv reads as numbers; empty when those keys are
+    not yet a table hconv reads (the message then gives the advice for any column)."""
+    listed = pa.list_(pa.float64())
+    schema = pa.schema([(k, listed if kind == "a list" else pa.float64()) for k, (kind, _) in kinds.items()])
+    try:
+        return set(layout.plan(schema, job, name).numeric)
+    except HconvError:
+        return set()
 
 
 def _as_float(t: pa.DataType) -> pa.DataType:
@@ -97,7 +152,7 @@ def open_jsonl(path: str, name: str, job: Job) -> Input:
     except (pa.ArrowException, OSError) as exc:
         if isinstance(exc, OSError) and exc.errno is not None:
             raise unreadable(name, exc) from None
-        raise _bad_line(path, name, exc) from None
+        raise _bad_line(path, name, exc, job) from None
     plan = layout.plan(first, job, name)
     numeric = set(plan.numeric)
     schema = pa.schema([f.with_type(_as_float(f.type)) if f.name in numeric else f for f in first])
@@ -109,7 +164,7 @@ def open_jsonl(path: str, name: str, job: Job) -> Input:
     except (pa.ArrowException, OSError) as exc:
         if isinstance(exc, OSError) and exc.errno is not None:
             raise unreadable(name, exc) from None
-        raise _bad_line(path, name, exc, set(schema.names)) from None
+        raise _bad_line(path, name, exc, job, set(schema.names)) from None
     done = [0]
     fd = source.fileno()
 
@@ -121,7 +176,7 @@ def open_jsonl(path: str, name: str, job: Job) -> Input:
                 break
             except Exception as exc:  # noqa: BLE001 - only pyarrow's reading runs in this try
                 raise changed_while_read(name, fd, at_open, f"; {first_line(exc)}") or _bad_line(
-                    path, name, exc, set(schema.names)
+                    path, name, exc, job, set(schema.names)
                 ) from None
             done[0] += batch.num_rows
             yield batch
