@@ -143,3 +143,50 @@ def test_csv_writer_a_value_pyarrow_refuses_unquoted_takes_its_rows_back(tmp_pat
         w.write(t)
         w.close()
         assert (tmp_path / "out.csv").read_text() == "t,x\n" + "a,0.5\n" * 10 + expected[4:]
+
+
+def test_convert_delimiter_comma_on_a_semicolon_file_names_the_semicolon(tmp_path, capsys):
+    """Before: --delimiter , on an Excel-style file ('0,5' values) said a row has more values than
+    the header and to quote a value holding a comma; the header is split by ';' instead."""
+    from helpers import hconv_inprocess
+
+    src = tmp_path / "excel.csv"
+    src.write_text("Hx;Hy;Hz;I\n0,5;2,1;3;2\n4;5;6;2\n")
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "o.csv"), "--delimiter", ",", capsys=capsys)
+    err = proc.stderr.decode()
+    assert proc.returncode == 3
+    assert len(err.strip().splitlines()) == 1
+    assert "separated by semicolons, not commas: pass --delimiter semicolon or drop --delimiter" in err
+    assert "quote a value" not in err
+    assert not (tmp_path / "o.csv").exists()
+
+
+def test_convert_decimal_point_on_a_decimal_comma_value_names_decimal_comma(tmp_path, capsys):
+    """Before: --decimal . on a decimal-comma file said to fix or blank '0,5'; it is a number,
+    read with --decimal , (or without --decimal, which sniffs the comma)."""
+    from helpers import hconv_inprocess
+
+    src = tmp_path / "dec.csv"
+    src.write_text("Hx;Hy;Hz;I\n1;2;3;2\n0,5;2;3;2\n")
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "o.csv"), "--decimal", ".", capsys=capsys)
+    err = proc.stderr.decode()
+    assert proc.returncode == 3
+    assert len(err.strip().splitlines()) == 1
+    assert "'0,5' in data row 2" in err
+    assert "pass --decimal , or drop --decimal" in err
+    # the advice works: without --decimal the file is read, 0,5 as 0.5
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "o.csv"), "-q", capsys=capsys)
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "o.csv").read_text().splitlines()[2].startswith("0.5,")
+
+
+def test_convert_non_number_keeps_fix_or_blank_advice(tmp_path, capsys):
+    """A value that is no number at all, not one with a decimal comma, keeps its advice."""
+    from helpers import hconv_inprocess
+
+    src = tmp_path / "bad.csv"
+    src.write_text("Hx;Hy;Hz;I\n1;2;3;2\nabc;2;3;2\n")
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "o.csv"), "--decimal", ".", capsys=capsys)
+    err = proc.stderr.decode()
+    assert proc.returncode == 3
+    assert "fix or blank that value" in err and "--decimal ," not in err

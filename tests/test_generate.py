@@ -106,3 +106,13 @@ def test_generate_unknown_scene_names_the_option(tmp_path, capsys):
     )
     with pytest.raises(UsageError, match=r"^scene must be one of mix, box, .*, got 'blob'$"):
         generate_file(str(tmp_path / "x.csv"), 5, scene="blob")
+
+
+@pytest.mark.parametrize("flag", ["-q", "--quiet"])
+def test_generate_quiet_prints_no_summary_and_writes_the_same_rows(flag, tmp_path, capsys):
+    """Before: `hconv generate ... -q` was 'No such option: -q', though convert takes it."""
+    loud = hconv_inprocess("generate", str(tmp_path / "a.csv"), "-n", "5", "--seed", "3", capsys=capsys)
+    assert loud.returncode == 0 and loud.stderr.startswith(b"hconv generate: 5 rows to ")
+    quiet = hconv_inprocess("generate", str(tmp_path / "b.csv"), "-n", "5", "--seed", "3", flag, capsys=capsys)
+    assert (quiet.returncode, quiet.stderr, quiet.stdout) == (0, b"", b"")
+    assert (tmp_path / "a.csv").read_bytes() == (tmp_path / "b.csv").read_bytes()

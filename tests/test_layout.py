@@ -438,3 +438,41 @@ def test_plan_reads_an_observed_omega_struct_for_diagnose(rng):
     w = pa.StructArray.from_arrays([pa.array(rng.normal(size=4)) for _ in range(3)], names=["x", "y", "z"])
     plan = layout.plan(data.append_column("w_obs", w).schema, Job(observed=True), "log.parquet")
     assert plan.groups["w_obs"].columns == ("w_obs.x", "w_obs.y", "w_obs.z")
+
+
+def test_plan_lowercase_i_suggests_the_isotropic_map_that_works(tmp_path, capsys):
+    """Before: a column 'i' got 'if column 'i' holds I1, give --map I1=i', which then failed
+    for lacking I2, I3; the isotropic inertia's name is I, and --map I=i reads the file."""
+    src = tmp_path / "i.csv"
+    src.write_text("Hx,Hy,Hz,i\n1,2,3,2\n")
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "o.csv"), capsys=capsys)
+    err = proc.stderr.decode()
+    assert proc.returncode == 3 and len(err.strip().splitlines()) == 1
+    assert err.rstrip().endswith("if column 'i' holds I, give --map I=i")
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "o.csv"), "--map", "I=i", "-q", capsys=capsys)
+    assert proc.returncode == 0, proc.stderr
+    import pyarrow.csv as pacsv
+
+    assert pacsv.read_csv(tmp_path / "o.csv").column("wx").to_pylist() == [0.5]  # H / I: 1 / 2
+
+
+@pytest.mark.parametrize(
+    "header, name, column, fixed",
+    [
+        ("Hx [kg*m^2/s,Hy,Hz,I", "Hx", "Hx [kg*m^2/s", "Hx [kg*m^2/s]"),
+        ("Hx,Hy,Hz,Ixx (g*cm^2,Iyy,Izz,Ixy,Ixz,Iyz", "Ixx", "Ixx (g*cm^2", "Ixx (g*cm^2)"),
+    ],
+)
+def test_plan_unclosed_unit_bracket_names_the_column_and_its_fix(header, name, column, fixed, tmp_path, capsys):
+    """Before: 'missing column Hx' with no word of the column 'Hx [kg*m^2/s', whose bracket is
+    not closed; docs/input.md promises the close column is named."""
+    src = tmp_path / "b.csv"
+    values = ",".join(["1"] * len(header.split(",")))
+    src.write_text(f"{header}\n{values}\n")
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "o.csv"), capsys=capsys)
+    err = proc.stderr.decode()
+    assert proc.returncode == 3 and len(err.strip().splitlines()) == 1
+    assert f"column {column!r} is {name} with its unit's bracket not closed: rename it {fixed!r}" in err
+    src.write_text(f"{header.replace(column, fixed)}\n{values}\n")
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "o.csv"), "-q", capsys=capsys)
+    assert proc.returncode == 0, proc.stderr

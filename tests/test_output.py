@@ -139,6 +139,35 @@ def test_output_in_a_path_through_a_file_says_it_is_not_a_directory(tmp_path, ca
     assert (code, err) == (4, "hconv: error: a.csv/o.parquet: 'a.csv' is not a directory; give a path in a directory\n")
 
 
+@pytest.mark.parametrize(
+    "out, folder",
+    [("nonexist_dir/", "nonexist_dir"), ("nonexist_dir/sub/", "nonexist_dir/sub"), ("nodir/o.csv", "nodir")],
+)
+def test_output_in_a_missing_directory_says_to_make_it(out, folder, tmp_path, capsys, monkeypatch):
+    """Before: OUT nonexist_dir/ said to pass --to FORMAT, and with --to it was 'could not be
+    written (Not a directory)'; the directory is missing, and the fix is to make it."""
+    monkeypatch.chdir(tmp_path)
+    Path("s.csv").write_bytes(SCENE_CSV.read_bytes())
+    for extra in ((), ("--to", "csv")):
+        code, _, err = run_inprocess("convert", "s.csv", out, *extra, capsys=capsys)
+        assert (code, err) == (
+            4,
+            f"hconv: error: {out}: the directory {folder!r} does not exist; create it first (mkdir -p {folder})\n",
+        )
+    assert sorted(os.listdir()) == ["s.csv"]
+    # the advice works
+    os.makedirs(folder)
+    code, _, err = run_inprocess("convert", "s.csv", out, "-q", capsys=capsys)
+    assert code == 0, err
+
+
+def test_output_ending_in_slash_on_a_file_says_it_is_not_a_directory(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    Path("s.csv").write_bytes(SCENE_CSV.read_bytes())
+    code, _, err = run_inprocess("convert", "s.csv", "s.csv/", capsys=capsys)
+    assert (code, err) == (4, "hconv: error: s.csv/: 's.csv' is not a directory; give a path in a directory\n")
+
+
 _COUNT_ROWS = """
 import os, sys
 

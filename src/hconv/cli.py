@@ -482,6 +482,7 @@ def generate_cmd(
         None, "--to", metavar="FORMAT", help="output format, csv, parquet or arrow; needed when OUT is -"
     ),
     force: bool = typer.Option(False, "--force", help="overwrite OUT if it exists"),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="no summary on stderr"),
 ) -> None:
     """Write a synthetic scene of physically valid bodies with their known ω (w_true_x, ...)."""
     from hconv.tools import generate
@@ -492,7 +493,8 @@ def generate_cmd(
     )
     rate = f", {rows / seconds:,.0f} rows/s" if seconds > 0 and rows else ""
     where = "stdout" if dst == "-" else dst
-    print(f"hconv generate: {rows:,} rows to {where} in {seconds:.2f} s{rate}", file=sys.stderr)
+    if not quiet:
+        print(f"hconv generate: {rows:,} rows to {where} in {seconds:.2f} s{rate}", file=sys.stderr)
 
 
 @app.command("bench")

@@ -95,9 +95,30 @@ def find(columns: list, given: dict, source: str) -> dict:
     return out
 
 
-def map_hint(lack: list, free: list) -> str:
-    """The --map that would read the first lacking name from a column whose name is close to it;
-    without one, the --map to give."""
+def _unclosed(column: str) -> tuple[str, str] | None:
+    """A column's name before a unit whose bracket or parenthesis is not closed (``Hx [kg*m^2/s``),
+    and the column's name closed; None for any other column."""
+    for left, right in ("[]", "()"):
+        at = column.rfind(left)
+        if at > 0 and right not in column[at:]:
+            return column[:at].strip(), column.rstrip() + right
+    return None
+
+
+def map_hint(lack: list, free: list, also: tuple = ()) -> str:
+    """For the first lacking name a column may hold: a column that is the name with its unit's
+    bracket not closed; else the --map that would read it from a column that is the name in
+    another case (``also``: names looked for only so, such as the one-letter I); else from a column
+    whose name is close to it; else the --map to give."""
+    for n in lack:
+        for c in free:
+            cut = _unclosed(c)
+            if cut and cut[0].lower() == n.lower():
+                return f"; column {c!r} is {n} with its unit's bracket not closed: rename it {cut[1]!r}"
+    for n in (*lack, *also):
+        c = next((c for c in free if header_name(c)[0].lower() == n.lower()), None)
+        if c is not None:
+            return f"; if column {c!r} holds {n}, give {entry('mapping', n, c)}"
     for n in lack:
         close = difflib.get_close_matches(n.lower(), [c.lower() for c in free], n=1, cutoff=0.6)
         if close:

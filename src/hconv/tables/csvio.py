@@ -31,7 +31,9 @@ from hconv.tables.sets import QUANTITY
 from hconv.tables.sniff import (
     Dialect,
     comment_lines,
+    decimal_comma,
     delimiter_by_name,
+    delimiter_hint,
     rename_or_pass,
     sniff_decimal,
     sniff_delimiter,
@@ -140,20 +142,12 @@ def _parse_options(d: Dialect) -> pacsv.ParseOptions:
 
 
 def _header_hint(names: list, lines: list[str], dialect: Dialect, name: str, given: bool) -> str:
-    """Why a header may not have matched: spaces around names, a delimiter given (``given``: by
-    ``--delimiter``; else by the name, .tsv) that the header does not have, or a first line that
-    is no header."""
+    """Why a header may not have matched: a delimiter it does not have (:func:`delimiter_hint`),
+    spaces around names, or a first line that is no header."""
     known = sets.all_names()
-    if not any(n.strip() in known for n in names):
-        try:
-            sniffed = sniff_delimiter(lines, name, frozenset(known))
-        except UsageError:
-            sniffed = dialect.delimiter
-        if sniffed != dialect.delimiter:
-            words = DELIMITERS[sniffed], DELIMITERS[dialect.delimiter]
-            other = f" or drop {option('delimiter')}" if given else ", or name the file .csv"
-            fix = f"pass {option('delimiter', words[0])}{other}"
-            return f" (the header is separated by {words[0]}s, not {words[1]}s: {fix})"
+    wrong = delimiter_hint(names, lines, dialect.delimiter, name, given, frozenset(known))
+    if wrong:
+        return wrong
     spaced = [n for n in names if n != n.strip() and n.strip() in known]
     if spaced:
         return f" (the header has spaces around {', '.join(repr(n) for n in spaced[:3])}; remove them)"
@@ -213,7 +207,11 @@ def open_csv(path: str, name: str, job: Job) -> Input:
                 f"{', '.join(sets.VECTOR_SETS['H'])} and the inertia "
                 f"({'; or '.join(', '.join(f.columns) for f in forms.FORMS.values() if not f.extends)})"
             ) from None
-        raise _csv_parse_error(path, name, exc, _for_errors(dialect, lines, job, name)) from None
+        # a row that splits into more values than the header: the delimiter given may be wrong
+        header = next(csv.reader(lines[:1], delimiter=dialect.delimiter), [])
+        known = frozenset(sets.all_names())
+        hint = delimiter_hint(header, lines, dialect.delimiter, name, job.delimiter is not None, known)
+        raise _csv_parse_error(path, name, exc, _for_errors(dialect, lines, job, name), hint) from None
     except OSError as exc:
         raise unreadable(name, exc) from None
     try:
@@ -250,7 +248,9 @@ def open_csv(path: str, name: str, job: Job) -> Input:
     try:  # the reader parses its first block here already, so bad values can show up now
         reader = pacsv.open_csv(f, read_options=ropts, parse_options=popts, convert_options=copts)
     except pa.ArrowInvalid as exc:  # f is left to pyarrow, whose read-ahead may still be using it
-        raise changed_while_read(name, fd, at_open) or _csv_value_error(path, name, names, dialect, exc) from None
+        raise changed_while_read(name, fd, at_open) or _csv_value_error(
+            path, name, names, dialect, exc, job.decimal is not None
+        ) from None
     total = f.size()
     schema = pa.schema([_with_unit(fl, dict(dialect.units)) for fl in reader.schema])
     read = ReadMarks(total, CSV_BLOCK_BYTES)
@@ -263,7 +263,7 @@ def open_csv(path: str, name: str, job: Job) -> Input:
                 break
             except pa.ArrowInvalid as exc:
                 raise changed_while_read(name, fd, at_open) or _csv_value_error(
-                    path, name, names, dialect, exc
+                    path, name, names, dialect, exc, job.decimal is not None
                 ) from None
             except (OSError, pa.ArrowException, MemoryError) as exc:  # all the reader raises is the input's
                 raise changed_while_read(name, fd, at_open) or InputError(
@@ -327,9 +327,10 @@ _CSV_RAGGED = re.compile(r"Expected (\d+) columns, got (\d+)")
 _CSV_UTF8 = re.compile(r"In CSV column #(\d+): CSV conversion error to string: invalid UTF8")
 
 
-def _csv_parse_error(path: str, name: str, exc: Exception, dialect: Dialect) -> InputError:
+def _csv_parse_error(path: str, name: str, exc: Exception, dialect: Dialect, hint: str = "") -> InputError:
     """A row with the wrong number of values, or too long for a block, named by its data row;
-    else pyarrow's first line."""
+    else pyarrow's first line. ``hint``: why the header split wrong (:func:`delimiter_hint`),
+    said instead of quoting advice for a row with the wrong number of values."""
     m = _CSV_RAGGED.search(str(exc))
     straddles = "straddl" in str(exc)  # a row longer than a block ("straddles two block boundaries")
     if not m and not straddles:
@@ -367,12 +368,17 @@ def _csv_parse_error(path: str, name: str, exc: Exception, dialect: Dialect) -> 
         )
     return InputError(
         f"{name}: {row or 'a row'} has {m.group(2)} values, but the header names {expected} columns; "
-        f"every row needs one value per column (quote a value that holds a {DELIMITERS[dialect.delimiter]})"
+        "every row needs one value per column"
+        + (hint or f" (quote a value that holds a {DELIMITERS[dialect.delimiter]})")
     )
 
 
-def _csv_value_error(path: str, name: str, names: list, dialect: Dialect, exc: Exception) -> InputError:
-    """Turn pyarrow's conversion error into one naming the column, the value and its row."""
+def _csv_value_error(
+    path: str, name: str, names: list, dialect: Dialect, exc: Exception, decimal_given: bool = False
+) -> InputError:
+    """Turn pyarrow's conversion error into one naming the column, the value and its row; for a
+    number with a decimal comma read with a decimal point, the option that reads it
+    (``decimal_given``: the point was given by ``--decimal``, which may be dropped)."""
     u = _CSV_UTF8.search(str(exc))
     if u:
         return InputError(
@@ -400,6 +406,12 @@ def _csv_value_error(path: str, name: str, names: list, dialect: Dialect, exc: E
             seen += batch.num_rows
     except (StopIteration, OSError, pa.ArrowException):
         pass
+    if dialect.decimal == "." and dialect.delimiter != "," and decimal_comma(value):
+        drop = f" or drop {option('decimal')}" if decimal_given else ""
+        return InputError(
+            f"{name}: column {col!r} must be numeric but holds {value!r}{where}, a number written with a "
+            f"decimal comma; pass {option('decimal', ',')}{drop}"
+        )
     return InputError(
         f"{name}: column {col!r} must be numeric but holds {value!r}{where}; "
         "fix or blank that value (a blank becomes a row with status invalid_input)"

@@ -262,13 +262,15 @@ def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
         c = src(n)
         return c in present and (n in mapping or n not in used_elsewhere) and not pa.types.is_struct(fields[c].type)
 
-    def taken(lack: list) -> str:
+    def taken(lack: list, also: tuple = ()) -> str:
         """Why a lacking name whose column is there is not read: --map gave the column to another
-        name; else the --map that would read it, from a column of a name close to it."""
+        name; else the --map that would read it, from a column of a name close to it (``also``:
+        :func:`hconv.tables.columns.map_hint`'s)."""
         back = {column: n for n, column in given.items()}
         c = next((c for c in lack if c not in given and c in present and c in back), None)
         if c is None:
-            return columns.map_hint(lack, [f for f in fields if f not in used_elsewhere and f not in all_names()])
+            free = [f for f in fields if f not in used_elsewhere and f not in all_names()]
+            return columns.map_hint(lack, free, also)
         return (
             f" (column {c!r} is read as {back[c]}: {entry('mapping', back[c], c)}); "
             f"give {c} a column too, e.g. {entry('mapping', c, 'COLUMN')}"
@@ -378,7 +380,7 @@ def _inertia_group(
     has: Callable[[str], bool],
     src: Callable[[str], str],
     source: str,
-    taken: Callable[[list], str],
+    taken: Callable[..., str],
 ) -> tuple[str | None, Group]:
     """The one inertia form the schema holds, asking :mod:`hconv.solve.forms`' registry."""
     found = {}
@@ -410,7 +412,7 @@ def _inertia_group(
     if not found:
         raise InputError(
             f"{source}: missing the inertia; give {forms.forms_text()}, or a list column I"
-            f"{taken([c for c in forms.column_names() if len(c) > 1])}"
+            f"{taken([c for c in forms.column_names() if len(c) > 1], ('I',))}"
         )
     ((name, got),) = found.items()
     if name == "list":

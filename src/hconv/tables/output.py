@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import errno
 import os
+import shlex
 import shutil
 import stat
 import sys
@@ -83,7 +84,7 @@ class Output:
             self._target = os.path.realpath(path)
         target = Path(self._target)
         if not target.parent.exists():
-            raise OutputError(f"{path}: the directory {str(target.parent)!r} does not exist; create it first")
+            raise _no_directory(path, str(target.parent))
         if not target.parent.is_dir():
             raise OutputError(f"{path}: {str(target.parent)!r} is not a directory; give a path in a directory")
         if input_path not in (None, "-") and target.exists() and os.path.samefile(input_path, target):
@@ -222,7 +223,16 @@ def into_directory(src: str, dst: str, src_format: str | None, dst_format: str |
     """OUT for one input file: ``dst`` itself, or where ``dst`` is an existing directory, the file
     in it named as the input, as ``cp`` names it; with ``dst_format`` another format than the
     input's, the name takes that format's extension (``s.csv --to parquet``: ``dst/s.parquet``)."""
-    if dst == "-" or not os.path.isdir(dst):
+    if dst == "-" or "://" in dst:
+        return dst
+    if not os.path.isdir(dst):
+        # a name ending in / means a directory, and one in a missing directory cannot be written:
+        # refused before the name's format is asked for (a directory has none)
+        folder = dst.rstrip("/" + os.sep) if dst.endswith(("/", os.sep)) else os.path.dirname(dst)
+        if folder and os.path.exists(folder) and not os.path.isdir(folder):
+            raise OutputError(f"{dst}: {folder!r} is not a directory; give a path in a directory")
+        if folder and not os.path.exists(folder):
+            raise _no_directory(dst, folder)
         return dst
     if src == "-":
         raise UsageError(f"{dst}: is a directory, and stdin has no name to give the output; give OUT a file name")
@@ -232,6 +242,13 @@ def into_directory(src: str, dst: str, src_format: str | None, dst_format: str |
         named = any(ext.lower() in exts for exts in EXTENSIONS.values())
         name = (stem if named else name) + EXTENSIONS[dst_format][0]
     return os.path.join(dst, name)
+
+
+def _no_directory(path: str, folder: str) -> OutputError:
+    """OUT at ``path`` is in ``folder``, which does not exist: the command that makes it."""
+    return OutputError(
+        f"{path}: the directory {folder!r} does not exist; create it first (mkdir -p {shlex.quote(folder)})"
+    )
 
 
 def _stdout_is(path: str) -> bool:

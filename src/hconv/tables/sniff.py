@@ -371,6 +371,28 @@ _DECIMAL_COMMA = re.compile(r"\s*[+-]?(\d+,\d*|,\d+)([eE][+-]?\d+)?\s*")
 _DECIMAL_POINT = re.compile(r"\s*[+-]?(\d+\.\d*|\.\d+)([eE][+-]?\d+)?\s*")
 
 
+def delimiter_hint(names: list, lines: list[str], delimiter: str, name: str, given: bool, known: frozenset) -> str:
+    """Where a header split by ``delimiter`` names none of the ``known`` columns, and its first
+    ``lines`` split better by another delimiter: which one, and the fix (``given``: the delimiter
+    was given by ``--delimiter``, which may be dropped; else by the name, .tsv); else ""."""
+    if not any(n.strip() in known for n in names):
+        try:
+            sniffed = sniff_delimiter(lines, name, known)
+        except UsageError:
+            sniffed = delimiter
+        if sniffed != delimiter:
+            words = DELIMITERS[sniffed], DELIMITERS[delimiter]
+            other = f" or drop {option('delimiter')}" if given else ", or name the file .csv"
+            fix = f"pass {option('delimiter', words[0])}{other}"
+            return f" (the header is separated by {words[0]}s, not {words[1]}s: {fix})"
+    return ""
+
+
+def decimal_comma(text: str) -> bool:
+    """Whether ``text`` is a number written with a decimal comma (``0,5``)."""
+    return _DECIMAL_COMMA.fullmatch(text) is not None
+
+
 def sniff_decimal(values: dict[str, list[str]], name: str) -> str:
     """The decimal mark of hconv's columns, from their first values (column -> texts) in a file
     whose delimiter is not a comma: a comma if some are written with one and none with a point;
