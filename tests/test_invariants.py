@@ -52,7 +52,11 @@ def inputs(tmp_path_factory):
 def test_convert_rows_in_equal_rows_out_at_any_batch_size(inputs, tmp_path, capsys, monkeypatch, method, fmt):
     d, t = inputs
     outs = []
-    for rows, block, threads in ((7, 2048, 3), (333, 16384, 2), (parquetio.PARQUET_BATCH_ROWS, csvio.CSV_BLOCK_BYTES, 1)):
+    for rows, block, threads in (
+        (7, 2048, 3),
+        (333, 16384, 2),
+        (parquetio.PARQUET_BATCH_ROWS, csvio.CSV_BLOCK_BYTES, 1),
+    ):
         monkeypatch.setattr(parquetio, "PARQUET_BATCH_ROWS", rows)
         monkeypatch.setattr(csvio, "CSV_BLOCK_BYTES", block)
         dst = tmp_path / f"out-{rows}.{fmt}"
