@@ -29,9 +29,11 @@ from hconv.commandline import (
     OutFmt,
     body_forms,
     completes,
+    fill,
     friendly,
     job_options,
     json_number,
+    listing,
     numbers,
     value_of,
 )
@@ -192,26 +194,10 @@ def one(
             print("      see docs/design-note.md, the design note's questions")
     if cancelled and not math.isnan(residual):  # the status says that digits were lost, not how many, nor what to do
         sys.stdout.flush()  # after the result on a shared terminal too
-        print(_fill(body.cancellation_hint(state, residual), sys.stderr), file=sys.stderr)
+        print(fill(body.cancellation_hint(state, residual), sys.stderr), file=sys.stderr)
     if unread:
         sys.stdout.flush()
-        print(_fill(body.unread_note(unread), sys.stderr), file=sys.stderr)
-
-
-def _width(stream: Any) -> int:
-    """The width text for ``stream`` wraps at: 80 columns, or a narrower terminal's."""
-    import shutil
-
-    return min(80, shutil.get_terminal_size().columns) if stream.isatty() else 80
-
-
-def _fill(text: str, stream: Any, indent: str = "  ", first: str = "") -> str:
-    """``text`` wrapped at spaces to ``stream``'s width, after ``first`` and with later lines
-    indented by ``indent``, with no trailing spaces. A no-break space keeps a number with its unit."""
-    import textwrap
-
-    lines = textwrap.fill(text, _width(stream), initial_indent=first, subsequent_indent=indent, break_on_hyphens=False)
-    return lines.replace("\xa0", " ")
+        print(fill(body.unread_note(unread), sys.stderr), file=sys.stderr)
 
 
 @app.command("convert")
@@ -541,18 +527,7 @@ def engines_cmd(
 
     if compile_now:  # the compiled engine is built when hconv is installed
         print("nothing to compile: the compiled engine is built when hconv is installed")
-    _listing(engines.listing())
-
-
-def _listing(entries: list[tuple[str, ...]]) -> None:
-    """Print ``(name, paragraph, ...)`` entries as a name column beside paragraphs wrapped at
-    spaces to 80 columns, or to a narrower terminal, so that no line is cut or runs over. A
-    no-break space keeps a number with its unit."""
-    width = max(len(name) for name, *_ in entries) + 2
-    for name, *paragraphs in entries:
-        for k, text in enumerate(paragraphs):
-            first = f"{name:<{width}}" if k == 0 else " " * width
-            print(_fill(text, sys.stdout, " " * width, first))
+    listing(engines.listing())
 
 
 @app.command("methods")

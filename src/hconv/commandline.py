@@ -389,3 +389,30 @@ def pairs(option: str, items: list[str] | None) -> tuple:
                 raise UsageError(f"{option} takes {form}, got {part!r}")
             pairs.append((name.strip(), value.strip()))
     return tuple(pairs)
+
+
+def width(stream: Any) -> int:
+    """The width text for ``stream`` wraps at: 80 columns, or a narrower terminal's."""
+    import shutil
+
+    return min(80, shutil.get_terminal_size().columns) if stream.isatty() else 80
+
+
+def fill(text: str, stream: Any, indent: str = "  ", first: str = "") -> str:
+    """``text`` wrapped at spaces to ``stream``'s width, after ``first`` and with later lines
+    indented by ``indent``, with no trailing spaces. A no-break space keeps a number with its unit."""
+    import textwrap
+
+    lines = textwrap.fill(text, width(stream), initial_indent=first, subsequent_indent=indent, break_on_hyphens=False)
+    return lines.replace("\xa0", " ")
+
+
+def listing(entries: list[tuple[str, ...]]) -> None:
+    """Print ``(name, paragraph, ...)`` entries as a name column beside paragraphs wrapped at
+    spaces to 80 columns, or to a narrower terminal, so that no line is cut or runs over. A
+    no-break space keeps a number with its unit."""
+    width = max(len(name) for name, *_ in entries) + 2
+    for name, *paragraphs in entries:
+        for k, text in enumerate(paragraphs):
+            first = f"{name:<{width}}" if k == 0 else " " * width
+            print(fill(text, sys.stdout, " " * width, first))
