@@ -169,6 +169,24 @@ def test_convert_dataset_rerun_converts_only_missing_or_stale_files(tmp_path, ca
     assert {rel: (out / rel).stat().st_mtime_ns for rel in _files(out)} == after  # not even the manifest
 
 
+def test_convert_dataset_output_of_a_deleted_input_is_left_and_named(tmp_path, capsys, monkeypatch):
+    """An input deleted since the last run: its output stays in OUT (it may be wanted), but the
+    rerun says so, since the manifest no longer lists it and "complete" would not tell."""
+    monkeypatch.chdir(tmp_path)
+    data = _dataset(tmp_path / "data")
+    assert _hconv("convert", "data", "out", capsys=capsys)[0] == 0
+    (data / PARTS[1]).unlink()
+    code, err = _hconv("convert", "data", "out", capsys=capsys)
+    assert code == 0, err
+    assert (tmp_path / "out" / PARTS[1]).exists()
+    assert f"1 output(s) in OUT belong to no input of this run ({Path('out') / PARTS[1]})" in " ".join(err.split())
+    run = hconv.convert_dataset("data", "out")
+    assert run.complete and run.orphans == [str(Path("out") / PARTS[1])]
+    # an output the user removed as told is not named again
+    (tmp_path / "out" / PARTS[1]).unlink()
+    assert hconv.convert_dataset("data", "out").orphans == []
+
+
 def test_convert_dataset_changed_job_converts_every_file_and_says_why(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     _dataset(tmp_path / "data")

@@ -91,6 +91,14 @@ def dataset_summary(result: DatasetResult, console: Console | None = None, asked
     parts += [f"{len(result.pending):,} not reached"] if result.pending else []
     state = "complete" if result.complete else "not complete"
     note(console, f"files: {', '.join(parts)}; {result.manifest} says the dataset is {state}")
+    if result.orphans:  # the manifest no longer lists them, so nothing else would say they are there
+        shown = ", ".join(result.orphans[:3]) + (", …" if len(result.orphans) > 3 else "")
+        note(
+            console,
+            f"{len(result.orphans):,} output(s) in OUT belong to no input of this run ({shown}): an earlier "
+            "run wrote them, and their input is gone or renamed, or was written in another format; hconv "
+            "leaves them: remove them if they should go",
+        )
     if result.ran_on:
         note(console, f"converted on {result.ran_on}")
     if result.split_files:  # a run's time follows its tasks, here more than its files

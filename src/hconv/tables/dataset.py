@@ -34,7 +34,7 @@ import contextlib
 import os
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from hconv import interrupts
 from hconv.errors import HconvError, UsageError, option
@@ -88,6 +88,8 @@ class DatasetResult:
     split_files: int = 0  #: files this run converted in parts on the cluster (:func:`hconv.tables.parts.split`)
     split_parts: int = 0  #: the parts those files were split into
     task_rows: int = 0  #: the rows per part the run asked for (0: every file whole)
+    #: outputs in OUT that earlier runs wrote and no input of this one maps to (left in place)
+    orphans: list[str] = field(default_factory=list)
 
     @property
     def complete(self) -> bool:
@@ -363,4 +365,5 @@ def _result(plan: Plan, records: dict, failed: dict, converted: list[str], t0: f
         worst_file=None if worst is None else plan.src.place.name(worst.input),
         rows_converted=sum(records[rel].rows for rel in converted),
         seconds=seconds,
+        orphans=[plan.dst.name(rel) for rel in plan.orphans],
     )

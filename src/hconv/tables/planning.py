@@ -6,7 +6,7 @@ refusing an OUT that overlaps IN, even through links. See :mod:`hconv.tables.dat
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from hconv.errors import HconvError, OutputError, UsageError, option
 from hconv.tables import storage
@@ -41,6 +41,10 @@ class Plan:
     refused: list[tuple[str, HconvError]]  #: (input, why): outputs in the way that hconv did not write
     why: str | None  #: why files that look converted are converted again (the job changed), if so
     manifest_before: dict | None
+    #: outputs hconv wrote in earlier runs that no input of this run maps to (their input gone or
+    #: renamed, or another output format), still in OUT: hconv leaves them (they may be wanted)
+    #: but says so, since the manifest's "complete" does not account for them
+    orphans: list[str] = field(default_factory=list)
 
     def describe(self) -> str:
         n, kept = len(self.inputs), len(self.kept)
@@ -176,7 +180,8 @@ def plan_dataset(
             )
             continue
         todo.append(Task(f, out_rel, fmt_in, fmt_out, overwrite=there is not None))
-    return Plan(source, out, job, identity, inputs, kept, todo, refused, why if todo else None, before)
+    orphans = sorted(rel for rel in ours if rel not in outputs and rel in existing)
+    return Plan(source, out, job, identity, inputs, kept, todo, refused, why if todo else None, before, orphans)
 
 
 def _refuse_links_into_out(source: Source, out: Place) -> None:
