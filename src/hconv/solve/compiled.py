@@ -158,11 +158,24 @@ def convert_rows(
     if threads == 1:
         return rowcode.convert(*args, 0, n)
     # one block per thread when they are few; more, of at least BLOCK_ROWS, for large calls, so
-    # that a slow core (a shared machine) holds up the others by one block at most
+    # that a slow core (a shared machine) holds up the others by one block at most. Every thread,
+    # the caller's too, takes the next block until none is left: blocks handed out in advance
+    # left the caller one block and a single pool thread all the others.
     parts = threads if n < 16 * threads * BLOCK_ROWS else 4 * threads
     size = -(-n // parts)
-    starts = range(0, n, size)
+    blocks = iter(range(0, n, size))
+    lock = threading.Lock()
+
+    def take() -> int:
+        lost = 0
+        while True:
+            with lock:
+                lo = next(blocks, None)
+            if lo is None:
+                return lost
+            lost += rowcode.convert(*args, lo, min(n, lo + size))
+
     pool = _shared_pool(threads - 1)
-    futures = [pool.submit(rowcode.convert, *args, lo, min(n, lo + size)) for lo in starts[1:]]
-    lost = rowcode.convert(*args, 0, min(n, size))
+    futures = [pool.submit(take) for _ in range(threads - 1)]
+    lost = take()
     return lost + sum(f.result() for f in futures)  # re-raises a block's exception here
