@@ -30,7 +30,6 @@ import math
 import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
-from typing import Any
 
 import numpy as np
 
@@ -115,22 +114,16 @@ def _shared_pool(threads: int) -> ThreadPoolExecutor:
         return _pool
 
 
-def one(
-    I: np.ndarray, nine: bool, H: np.ndarray, refined: bool, diagnostics: bool, cond_limit: float
-) -> tuple[np.ndarray, Any, Any, Any, bool] | None:
-    """One body, ``I`` ``(3, 3)`` or ``(6,)`` and ``H`` ``(3,)`` contiguous float64, in the caller's
-    thread: ``(w (3,), cond, status code, residual or None, fallback)``, numpy scalars as a
-    stacked Result's rows hold them, or None for arrays of another layout."""
-    return rowcode.one(I, nine, H, refined, diagnostics, cond_limit)
-
-
-def stack(
-    I: np.ndarray, H: np.ndarray, refined: bool, diagnostics: bool, cond_limit: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None] | None:
-    """A small stack as numpy users hold it, ``I`` ``(N, 3, 3)`` or ``(N, 6)`` and ``H``
-    ``(N, 3)`` float64, on the caller's thread into new arrays: ``(w (N, 3), cond, status codes,
-    residual or None)``; None when a row is left to the numpy engine, or for another layout."""
-    return rowcode.stack(I, H, refined, diagnostics, cond_limit)
+#: ``one(I, nine, H, refined, diagnostics, cond_limit)``: one body, ``I`` ``(3, 3)`` or ``(6,)``
+#: and ``H`` ``(3,)`` contiguous float64, in the caller's thread: ``(w (3,), cond, status code,
+#: residual or None, fallback)``, numpy scalars as a stacked Result's rows hold them, or None for
+#: arrays of another layout. The C function itself: a wrapper would add a sixth to a one-body call.
+one = rowcode.one
+#: ``stack(I, H, refined, diagnostics, cond_limit)``: a small stack as numpy users hold it, ``I``
+#: ``(N, 3, 3)`` or ``(N, 6)`` and ``H`` ``(N, 3)`` float64, on the caller's thread into new
+#: arrays: ``(w (N, 3), cond, status codes, residual or None)``; None when a row is left to the
+#: numpy engine, or for another layout. The C function itself, as ``one``.
+stack = rowcode.stack
 
 
 def convert_rows(
