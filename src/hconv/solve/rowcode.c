@@ -354,6 +354,62 @@ typedef struct {
     npy_bool *fallback;
 } Job;
 
+/* m rows of nine numbers each, together (an (N, 3, 3) stack as numpy holds it), into s: each
+ * number first into a column of its own (v3, v6, v7 in d1..d3, not yet used), a strided loop
+ * that vectorises where a row at a time does not, then as sym_of_nine. */
+HOT static void nine_rows(Chunk *restrict s, int m, const double *restrict rows)
+{
+#define COLUMN(col, k)                                                                                       \
+    for (int j = 0; j < m; j++)                                                                              \
+        s->col[j] = rows[9 * j + (k)];
+    COLUMN(xx, 0) COLUMN(xy, 1) COLUMN(xz, 2) COLUMN(d1, 3) COLUMN(yy, 4) COLUMN(yz, 5) COLUMN(d2, 6)
+    COLUMN(d3, 7) COLUMN(zz, 8)
+#undef COLUMN
+    for (int j = 0; j < m; j++) {
+        double v[9] = {s->xx[j], s->xy[j], s->xz[j], s->d1[j], s->yy[j], s->yz[j], s->d2[j], s->d3[j], s->zz[j]};
+        sym_of_nine(s, j, v);
+    }
+}
+
+/* The m rows' answers from their scratch (omega from a0..a2: LDL^T's or refined's) into the
+ * outputs: a row without an answer gets NaN, a row the numpy engine must convert is marked
+ * fallback. One loop per case, with no branch in it, so that it vectorises. */
+HOT static void store_chunk(const Chunk *restrict s, int m, const double *restrict a0, const double *restrict a1,
+                            const double *restrict a2, double *restrict w, double *restrict cond,
+                            double *restrict residual, uint8_t *restrict code_out, npy_bool *restrict fallback,
+                            int more, int diagnostics)
+{
+#define STORE(MORE, DIAGNOSTICS)                                                                             \
+    for (int j = 0; j < m; j++) {                                                                            \
+        double state = s->state[j];                                                                          \
+        int answered = state == ANSWER;                                                                      \
+        double code = s->code[j];                                                                            \
+        int lost = (s->asym[j] == 1.0) | (state == FALLBACK);                                                \
+        if (MORE) /* refinement needs safe inputs, and its answer must pass the checks again */              \
+            lost |= answered & ((s->safe[j] != 1.0) | (s->fin[j] != 1.0));                                   \
+        double b0 = a0[j], b1 = a1[j], b2 = a2[j]; /* loaded whatever the row: no branch */                  \
+        w[3 * j] = answered ? b0 : NAN;                                                                      \
+        w[3 * j + 1] = answered ? b1 : NAN;                                                                  \
+        w[3 * j + 2] = answered ? b2 : NAN;                                                                  \
+        if (DIAGNOSTICS) {                                                                                   \
+            double res = answered ? s->res[j] : NAN;                                                         \
+            residual[j] = res;                                                                               \
+            /* inaccurate takes a row only from ok: it comes after the statuses set above */                 \
+            code = (res > K.ill_tol) & (code == K.ok) ? K.inaccurate : code;                                 \
+        }                                                                                                    \
+        cond[j] = s->cond[j];                                                                                \
+        code_out[j] = (uint8_t)(int)code; /* through int: a conversion that vectorises */                    \
+        fallback[j] = (npy_bool)lost;                                                                        \
+    }
+    if (diagnostics)
+        STORE(1, 1)
+    else if (more)
+        STORE(1, 0)
+    else
+        STORE(0, 0)
+#undef STORE
+}
+
 /* Rows start..start+m (m <= CH) of the job, through one chunk's scratch. With `fused`, the
  * residual's products have their errors from fma() rather than from Dekker's splits: within the
  * safe range, which every row that keeps its answer is in (linsolve.in_safe_range's rule), both
@@ -364,9 +420,7 @@ HOT static void chunk_body(const Job *jb, Chunk *restrict s, npy_intp start, int
 #define AT(base, s0, s1, k, i) (*(const double *)((base) + (k) * (s0) + (i) * (s1)))
     if (jb->nine && jb->Is0 == sizeof(double) && jb->Is1 == 9 * sizeof(double)) {
         /* an (N, 3, 3) stack as numpy holds it: each row's nine numbers together */
-        const double *rows = (const double *)jb->Ib + 9 * start;
-        for (int j = 0; j < m; j++)
-            sym_of_nine(s, j, rows + 9 * j);
+        nine_rows(s, m, (const double *)jb->Ib + 9 * start);
     } else if (jb->nine) {
         for (int j = 0; j < m; j++) {
             double v[9];
@@ -396,40 +450,8 @@ HOT static void chunk_body(const Job *jb, Chunk *restrict s, npy_intp start, int
         finish_chunk(s, m, jb->refined, jb->diagnostics, fused);
     const double *a0 = jb->refined ? s->x0 : s->w0, *a1 = jb->refined ? s->x1 : s->w1;
     const double *a2 = jb->refined ? s->x2 : s->w2;
-    double *restrict w = jb->w + 3 * start, *restrict cond = jb->cond + start;
-    double *restrict residual = jb->residual + (jb->diagnostics ? start : 0);
-    uint8_t *restrict code_out = jb->code + start;
-    npy_bool *restrict fallback = jb->fallback + start;
-    /* one loop per case, with no branch in it, so that it vectorises */
-#define STORE(MORE, DIAGNOSTICS)                                                                             \
-    for (int j = 0; j < m; j++) {                                                                            \
-        double state = s->state[j];                                                                          \
-        int answered = state == ANSWER;                                                                      \
-        double code = s->code[j];                                                                            \
-        int lost = (s->asym[j] == 1.0) | (state == FALLBACK);                                                \
-        if (MORE) /* refinement needs safe inputs, and its answer must pass the checks again */              \
-            lost |= answered & ((s->safe[j] != 1.0) | (s->fin[j] != 1.0));                                   \
-        double b0 = a0[j], b1 = a1[j], b2 = a2[j]; /* loaded whatever the row: no branch */                  \
-        w[3 * j] = answered ? b0 : NAN;                                                                      \
-        w[3 * j + 1] = answered ? b1 : NAN;                                                                  \
-        w[3 * j + 2] = answered ? b2 : NAN;                                                                  \
-        if (DIAGNOSTICS) {                                                                                   \
-            double res = answered ? s->res[j] : NAN;                                                         \
-            residual[j] = res;                                                                               \
-            /* inaccurate takes a row only from ok: it comes after the statuses set above */                 \
-            code = (res > K.ill_tol) & (code == K.ok) ? K.inaccurate : code;                                 \
-        }                                                                                                    \
-        cond[j] = s->cond[j];                                                                                \
-        code_out[j] = (uint8_t)code;                                                                         \
-        fallback[j] = (npy_bool)lost;                                                                        \
-    }
-    if (jb->diagnostics)
-        STORE(1, 1)
-    else if (more)
-        STORE(1, 0)
-    else
-        STORE(0, 0)
-#undef STORE
+    store_chunk(s, m, a0, a1, a2, jb->w + 3 * start, jb->cond + start, jb->residual + (jb->diagnostics ? start : 0),
+                jb->code + start, jb->fallback + start, more, jb->diagnostics);
 }
 
 /* chunk_body compiled once per instruction set: wider vectors where the CPU has them, and fma
