@@ -371,6 +371,17 @@ HOT static void nine_rows(Chunk *restrict s, int m, const double *restrict rows)
     }
 }
 
+/* m rows of three numbers each, together, into h0..h2: by columns, as nine_rows */
+HOT static void three_rows(Chunk *restrict s, int m, const double *restrict rows)
+{
+    for (int j = 0; j < m; j++)
+        s->h0[j] = rows[3 * j];
+    for (int j = 0; j < m; j++)
+        s->h1[j] = rows[3 * j + 1];
+    for (int j = 0; j < m; j++)
+        s->h2[j] = rows[3 * j + 2];
+}
+
 /* The m rows' answers from their scratch (omega from a0..a2: LDL^T's or refined's) into the
  * outputs: a row without an answer gets NaN, a row the numpy engine must convert is marked
  * fallback. One loop per case, with no branch in it, so that it vectorises. */
@@ -437,11 +448,15 @@ HOT static void chunk_body(const Job *jb, Chunk *restrict s, npy_intp start, int
             s->asym[j] = 0.0;
         }
     }
-    for (int j = 0; j < m; j++) {
-        npy_intp i = start + j;
-        s->h0[j] = AT(jb->Hb, jb->Hs0, jb->Hs1, 0, i);
-        s->h1[j] = AT(jb->Hb, jb->Hs0, jb->Hs1, 1, i);
-        s->h2[j] = AT(jb->Hb, jb->Hs0, jb->Hs1, 2, i);
+    if (jb->Hs0 == sizeof(double) && jb->Hs1 == 3 * sizeof(double)) {
+        three_rows(s, m, (const double *)jb->Hb + 3 * start); /* an (N, 3) H as numpy holds it */
+    } else {
+        for (int j = 0; j < m; j++) {
+            npy_intp i = start + j;
+            s->h0[j] = AT(jb->Hb, jb->Hs0, jb->Hs1, 0, i);
+            s->h1[j] = AT(jb->Hb, jb->Hs0, jb->Hs1, 1, i);
+            s->h2[j] = AT(jb->Hb, jb->Hs0, jb->Hs1, 2, i);
+        }
     }
 #undef AT
     numbers_chunk(s, m, jb->cond_limit);
