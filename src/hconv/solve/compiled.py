@@ -43,6 +43,8 @@ from hconv.solve.status import CODE, ILL_CONDITIONED_TOL, SINGULAR_RTOL_EPS, SYM
 #: Rows per thread below which a call stays on its caller's thread (handing rows to another
 #: thread would cost more than it saves).
 BLOCK_ROWS = 4096
+#: A large call's blocks per thread (docs/measurements.md).
+PARTS_PER_THREAD = 8
 
 _EPS = float(np.finfo(np.float64).eps)
 #: The status codes this engine sets, status.py's. The C code writes them in the order of
@@ -150,11 +152,12 @@ def convert_rows(
     threads = _threads(n)
     if threads == 1:
         return rowcode.convert(*args, 0, n)
-    # one block per thread when they are few; more, of at least BLOCK_ROWS, for large calls, so
-    # that a slow core (a shared machine) holds up the others by one block at most. Every thread,
-    # the caller's too, takes the next block until none is left: blocks handed out in advance
-    # left the caller one block and a single pool thread all the others.
-    parts = threads if n < 16 * threads * BLOCK_ROWS else 4 * threads
+    # Every thread, the caller's too, takes the next block until none is left (blocks handed out
+    # in advance left the caller one block and a single pool thread all the others), and blocks
+    # are small enough, a quarter of BLOCK_ROWS and at most PARTS_PER_THREAD a thread, that a
+    # thread which starts late or runs slow (a busy machine) holds up the call by little: one
+    # block a thread left the caller waiting for a pool thread that had not begun its half.
+    parts = max(threads, min(-(-n // max(1, BLOCK_ROWS // 4)), PARTS_PER_THREAD * threads))
     size = -(-n // parts)
     blocks = iter(range(0, n, size))
     lock = threading.Lock()
