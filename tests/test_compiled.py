@@ -146,6 +146,36 @@ def test_convert_rows_same_bits_whatever_the_blocks_and_threads(rng, monkeypatch
     assert "MainThread" in names and any(n.startswith("hconv-rows") for n in names)
 
 
+def test_convert_rows_caller_takes_the_blocks_a_late_thread_has_not_begun(rng, monkeypatch):
+    """A pool thread held up in its first block (a busy machine) leaves the other blocks to the
+    caller, who converts them meanwhile: no block waits for a thread that has not begun it."""
+    I, H = physical_bodies(rng, 10_000), rng.normal(size=(10_000, 3))
+    ref = _rows_of(I, H)
+    caller_blocks = []
+    caller_went_on = threading.Event()
+    real = compiled.rowcode.convert
+
+    class HeldUp:
+        configure = compiled.rowcode.configure
+
+        @staticmethod
+        def convert(*args):
+            if threading.current_thread() is threading.main_thread():
+                caller_blocks.append(args[-2:])
+                if len(caller_blocks) == 2:
+                    caller_went_on.set()
+            else:  # the pool's thread: held until the caller has taken a second block (or gives up)
+                caller_went_on.wait(timeout=30)
+            return real(*args)
+
+    monkeypatch.setattr(compiled, "rowcode", HeldUp)
+    monkeypatch.setattr(compiled, "available_cores", lambda: 2)
+    got = _rows_of(I, H)
+    assert caller_went_on.is_set() and len(caller_blocks) >= 2
+    for a, b in zip(got, ref):
+        assert same_bits(a, b)
+
+
 def test_convert_rows_same_bits_whatever_the_instruction_set(rng):
     """Every version of the chunk code this CPU runs gives the bits of the plain x86-64 one, which
     takes the residual's product errors from Dekker's splits where the others use fma(): within
