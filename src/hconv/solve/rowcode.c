@@ -385,12 +385,16 @@ HOT static void three_rows(Chunk *restrict s, int m, const double *restrict rows
 /* The m rows' answers from their scratch (omega from a0..a2: LDL^T's or refined's) into the
  * outputs: a row without an answer gets NaN, a row the numpy engine must convert is marked
  * fallback. One loop per case, with no branch in it, so that it vectorises. */
-HOT static void store_chunk(const Chunk *restrict s, int m, const double *restrict a0, const double *restrict a1,
+HOT static void store_chunk(Chunk *restrict s, int m, const double *restrict a0, const double *restrict a1,
                             const double *restrict a2, double *restrict w, double *restrict cond,
                             double *restrict residual, uint8_t *restrict code_out, npy_bool *restrict fallback,
                             int more, int diagnostics)
 {
-#define STORE(MORE, DIAGNOSTICS)                                                                             \
+    /* With the residual, first in doubles only, into columns the chunk is done with (d1..d3
+     * omega, xc the code, rc whether lost), then omega's rows of three and the bytes: one loop
+     * with everything was the slower there (measured; docs/measurements.md), and the faster
+     * without the residual. */
+#define STORE(MORE, DIAGNOSTICS, W0, W1, W2, CODE, LOST)                                                     \
     for (int j = 0; j < m; j++) {                                                                            \
         double state = s->state[j];                                                                          \
         int answered = state == ANSWER;                                                                      \
@@ -399,25 +403,34 @@ HOT static void store_chunk(const Chunk *restrict s, int m, const double *restri
         if (MORE) /* refinement needs safe inputs, and its answer must pass the checks again */              \
             lost |= answered & ((s->safe[j] != 1.0) | (s->fin[j] != 1.0));                                   \
         double b0 = a0[j], b1 = a1[j], b2 = a2[j]; /* loaded whatever the row: no branch */                  \
-        w[3 * j] = answered ? b0 : NAN;                                                                      \
-        w[3 * j + 1] = answered ? b1 : NAN;                                                                  \
-        w[3 * j + 2] = answered ? b2 : NAN;                                                                  \
+        W0 = answered ? b0 : NAN;                                                                            \
+        W1 = answered ? b1 : NAN;                                                                            \
+        W2 = answered ? b2 : NAN;                                                                            \
         if (DIAGNOSTICS) {                                                                                   \
             double res = answered ? s->res[j] : NAN;                                                         \
             residual[j] = res;                                                                               \
             /* inaccurate takes a row only from ok: it comes after the statuses set above */                 \
             code = (res > K.ill_tol) & (code == K.ok) ? K.inaccurate : code;                                 \
         }                                                                                                    \
-        cond[j] = s->cond[j];                                                                                \
-        code_out[j] = (uint8_t)(int)code; /* through int: a conversion that vectorises */                    \
-        fallback[j] = (npy_bool)lost;                                                                        \
+        CODE = (int)code; /* through int: a conversion to a byte that vectorises */                         \
+        LOST = lost;                                                                                         \
+        if (!(DIAGNOSTICS))                                                                                  \
+            cond[j] = s->cond[j];                                                                            \
     }
-    if (diagnostics)
-        STORE(1, 1)
-    else if (more)
-        STORE(1, 0)
+    if (diagnostics) {
+        STORE(1, 1, s->d1[j], s->d2[j], s->d3[j], s->xc[j], s->rc[j])
+        for (int j = 0; j < m; j++)
+            w[3 * j] = s->d1[j], w[3 * j + 1] = s->d2[j], w[3 * j + 2] = s->d3[j];
+        for (int j = 0; j < m; j++)
+            cond[j] = s->cond[j];
+        for (int j = 0; j < m; j++)
+            code_out[j] = (uint8_t)(int)s->xc[j];
+        for (int j = 0; j < m; j++)
+            fallback[j] = (npy_bool)(int)s->rc[j];
+    } else if (more)
+        STORE(1, 0, w[3 * j], w[3 * j + 1], w[3 * j + 2], code_out[j], fallback[j])
     else
-        STORE(0, 0)
+        STORE(0, 0, w[3 * j], w[3 * j + 1], w[3 * j + 2], code_out[j], fallback[j])
 #undef STORE
 }
 
