@@ -6,8 +6,9 @@
  * omega, cond and every status are the same bits. It must be compiled so that it rounds as
  * written (setup.py): no contraction into fused multiply-adds (-ffp-contract=off) and no
  * fast-math; -fno-math-errno and -fno-trapping-math only let the compiler vectorise sqrt and
- * turn branches into selects, which changes no result. A row this code cannot settle is marked
- * fallback and converted by the numpy engine.
+ * turn branches into selects, which changes no result. The one fused multiply-add is the
+ * residual's explicit fma() (chunk_body), the exact error of a product as Dekker's splits give it.
+ * A row this code cannot settle is marked fallback and converted by the numpy engine.
  *
  * pmin and pmax keep the first argument unless the second compares smaller or greater (as
  * Python's min and max, which the row code was first written with); where a NaN makes them
@@ -49,8 +50,8 @@ static struct {
 #define NO_ANSWER 1.0
 #define ANSWER 2.0
 
-/* The loops over a chunk: inlined into convert_chunk, so that each of its versions (WIDEST) has
- * them compiled for its own vectors. */
+/* The loops over a chunk: inlined into chunk_body and it into each of its versions (chunk_avx512,
+ * chunk_avx2, chunk_plain), so that each has them compiled for its own vectors. */
 #if defined(__GNUC__)
 #define HOT __attribute__((always_inline)) inline
 #define NOINLINE __attribute__((noinline))
@@ -89,8 +90,7 @@ typedef struct {
     double cond[CH], code[CH], state[CH], safe[CH];
     double x0[CH], x1[CH], x2[CH], xc[CH], xon[CH];
     double r0[CH], r1[CH], r2[CH], rc[CH], ron[CH];
-    double res[CH], fin[CH];
-    int asym[CH];
+    double res[CH], fin[CH], asym[CH];
 } Chunk;
 
 /* The numbers and the verdict of the m rows, with no branch. The numbers: LDL^T
@@ -180,18 +180,22 @@ HOT static void numbers_chunk(Chunk *restrict s, int m, double cond_limit)
 /* s - (a . x) in double the precision, for x split into xh + xl: one row of
  * linsolve.residual_dd, operation for operation */
 HOT static double dot_row(double s, double a0, double a1, double a2, double x0, double x1, double x2,
-                             double xh0, double xh1, double xh2, double xl0, double xl1, double xl2)
+                             double xh0, double xh1, double xh2, double xl0, double xl1, double xl2, int fused)
 {
     double c, ah, al, p, e, s_new, bb, q, err;
 #define TERM(a, x, xh, xl)                                                                                   \
-    c = K.split * (a);                                                                                       \
-    ah = c - (c - (a));                                                                                      \
-    al = (a) - ah;                                                                                           \
     p = (a) * (x);                                                                                           \
-    e = ah * (xh) - p;                                                                                       \
-    e += ah * (xl);                                                                                          \
-    e += al * (xh);                                                                                          \
-    e += al * (xl);                                                                                          \
+    if (fused) /* the product's error, exactly (no rounding but the one of p) */                             \
+        e = fma((a), (x), -p);                                                                               \
+    else {                                                                                                   \
+        c = K.split * (a);                                                                                   \
+        ah = c - (c - (a));                                                                                  \
+        al = (a) - ah;                                                                                       \
+        e = ah * (xh) - p;                                                                                   \
+        e += ah * (xl);                                                                                      \
+        e += al * (xh);                                                                                      \
+        e += al * (xl);                                                                                      \
+    }                                                                                                        \
     s_new = s - p;                                                                                           \
     bb = s_new - s;                                                                                          \
     q = s - (s_new - bb);                                                                                    \
@@ -212,7 +216,7 @@ HOT static double dot_row(double s, double a0, double a1, double a2, double x0, 
 
 /* One step of linsolve._refine for row j from x: x corrected by the LDL^T solve of its
  * double-double residual, and the correction's size relative to x, squared (*c). */
-HOT static void refine_step(const Chunk *restrict s, int j, double *x0, double *x1, double *x2, double *c)
+HOT static void refine_step(const Chunk *restrict s, int j, double *x0, double *x1, double *x2, double *c, int fused)
 {
     double xx = s->xx[j], yy = s->yy[j], zz = s->zz[j], xy = s->xy[j], xz = s->xz[j], yz = s->yz[j];
     double v0 = *x0, v1 = *x1, v2 = *x2, t;
@@ -222,9 +226,9 @@ HOT static void refine_step(const Chunk *restrict s, int j, double *x0, double *
     double xh1 = t - (t - v1), xl1 = v1 - xh1;
     t = K.split * v2;
     double xh2 = t - (t - v2), xl2 = v2 - xh2;
-    double r0 = dot_row(s->h0[j], xx, xy, xz, v0, v1, v2, xh0, xh1, xh2, xl0, xl1, xl2);
-    double r1 = dot_row(s->h1[j], xy, yy, yz, v0, v1, v2, xh0, xh1, xh2, xl0, xl1, xl2);
-    double r2 = dot_row(s->h2[j], xz, yz, zz, v0, v1, v2, xh0, xh1, xh2, xl0, xl1, xl2);
+    double r0 = dot_row(s->h0[j], xx, xy, xz, v0, v1, v2, xh0, xh1, xh2, xl0, xl1, xl2, fused);
+    double r1 = dot_row(s->h1[j], xy, yy, yz, v0, v1, v2, xh0, xh1, xh2, xl0, xl1, xl2, fused);
+    double r2 = dot_row(s->h2[j], xz, yz, zz, v0, v1, v2, xh0, xh1, xh2, xl0, xl1, xl2, fused);
     double l21 = s->l21[j], l31 = s->l31[j], l32 = s->l32[j];
     double y1 = r0;
     double y2 = r1 - l21 * y1;
@@ -245,11 +249,11 @@ HOT static void refine_step(const Chunk *restrict s, int j, double *x0, double *
 }
 
 #define REFINE_CHUNK(name, F0, F1, F2, X0, X1, X2, XC, ON)                                                 \
-    HOT static void name(Chunk *restrict s, int m)                                                             \
+    HOT static void name(Chunk *restrict s, int m, int fused)                                                  \
     {                                                                                                        \
         for (int j = 0; j < m; j++) {                                                                        \
             double v0 = s->F0[j], v1 = s->F1[j], v2 = s->F2[j], c;                                           \
-            refine_step(s, j, &v0, &v1, &v2, &c);                                                            \
+            refine_step(s, j, &v0, &v1, &v2, &c, fused);                                                         \
             int go = (s->state[j] == ANSWER) & (s->safe[j] == 1.0) & (c < 0.25) & (c * c > K.stop) &         \
                      (c > K.tiny);                                                                           \
             s->X0[j] = v0, s->X1[j] = v1, s->X2[j] = v2, s->XC[j] = c, s->ON[j] = go ? 1.0 : 0.0;           \
@@ -262,7 +266,7 @@ HOT static void refine_step(const Chunk *restrict s, int j, double *x0, double *
                 break;                                                                                       \
             for (int j = 0; j < m; j++) {                                                                    \
                 double v0 = s->X0[j], v1 = s->X1[j], v2 = s->X2[j], c = s->XC[j], c_next;                   \
-                refine_step(s, j, &v0, &v1, &v2, &c_next);                                                   \
+                refine_step(s, j, &v0, &v1, &v2, &c_next, fused);                                                \
                 int o = s->ON[j] == 1.0;                                                                     \
                 double ratio = c_next / c;                                                                   \
                 s->X0[j] = o ? v0 : s->X0[j];                                                                \
@@ -300,11 +304,11 @@ static inline double relative_error(double x0, double x1, double x2, double r0, 
  * residual, and whether both are final (fin: 1.0; 0.0 sends the row to the numpy engine). The
  * residual's reference is a refinement of its own: from LDL^T's answer for exact (the first
  * correction is that answer's error), from the refined answer for refined. */
-HOT static void finish_chunk(Chunk *restrict s, int m, int refined, int diagnostics)
+HOT static void finish_chunk(Chunk *restrict s, int m, int refined, int diagnostics, int fused)
 {
-    refine_w_into_x(s, m);
+    refine_w_into_x(s, m, fused);
     if (refined && diagnostics)
-        refine_x_into_r(s, m);
+        refine_x_into_r(s, m, fused);
     /* one loop per case, naming its columns, so that the compiler sees them apart */
 #define FINISH(A0, A1, A2, B0, B1, B2)                                                                       \
     for (int j = 0; j < m; j++) {                                                                            \
@@ -325,17 +329,19 @@ HOT static void finish_chunk(Chunk *restrict s, int m, int refined, int diagnost
 #undef FINISH
 }
 
-/* Nine row-major numbers: the six of their symmetric part; returns whether they are not symmetric
- * (forms._sym3_of_nine's test; NaN rows fall back too). */
-static inline int sym_of_nine(const double v[9], double out[6])
+/* Nine row-major numbers v: the six of their symmetric part into row j of s, and whether they are
+ * not symmetric (forms._sym3_of_nine's test; NaN rows fall back too), with no branch, so that a
+ * loop over rows vectorises. */
+HOT static void sym_of_nine(Chunk *restrict s, int j, const double *v)
 {
-    double skew = pmax(pmax(fabs(v[1] - v[3]), fabs(v[2] - v[6])), fabs(v[5] - v[7]));
-    double scale = pmax(pmax(pmax(fabs(v[0]), fabs(v[1])), pmax(fabs(v[2]), fabs(v[3]))),
-                        pmax(pmax(fabs(v[4]), fabs(v[5])), pmax(fabs(v[6]), fabs(v[7]))));
-    scale = pmax(scale, fabs(v[8]));
-    out[0] = v[0], out[1] = v[4], out[2] = v[8];
-    out[3] = 0.5 * (v[1] + v[3]), out[4] = 0.5 * (v[2] + v[6]), out[5] = 0.5 * (v[5] + v[7]);
-    return skew > K.symmetry_rtol * scale || skew != skew;
+    double v0 = v[0], v1 = v[1], v2 = v[2], v3 = v[3], v4 = v[4], v5 = v[5], v6 = v[6], v7 = v[7], v8 = v[8];
+    double skew = pmax(pmax(fabs(v1 - v3), fabs(v2 - v6)), fabs(v5 - v7));
+    double scale = pmax(pmax(pmax(fabs(v0), fabs(v1)), pmax(fabs(v2), fabs(v3))),
+                        pmax(pmax(fabs(v4), fabs(v5)), pmax(fabs(v6), fabs(v7))));
+    scale = pmax(scale, fabs(v8));
+    s->xx[j] = v0, s->yy[j] = v4, s->zz[j] = v8;
+    s->xy[j] = 0.5 * (v1 + v3), s->xz[j] = 0.5 * (v2 + v6), s->yz[j] = 0.5 * (v5 + v7);
+    s->asym[j] = (skew > K.symmetry_rtol * scale) | (skew != skew) ? 1.0 : 0.0;
 }
 
 typedef struct {
@@ -348,81 +354,182 @@ typedef struct {
     npy_bool *fallback;
 } Job;
 
-/* Wider vectors where the CPU has them, chosen when the module loads (an x86-64 wheel must run on
- * any x86-64): more rows at once, the same operations on each, so the same bits. No FMA: the
- * flags forbid contraction, and neither target implies it. */
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
-#define WIDEST __attribute__((target_clones("avx512f", "avx2", "default")))
-#else
-#define WIDEST
-#endif
+/* m rows of nine numbers each, together (an (N, 3, 3) stack as numpy holds it), into s: each
+ * number first into a column of its own (v3, v6, v7 in d1..d3, not yet used), a strided loop
+ * that vectorises where a row at a time does not, then as sym_of_nine. */
+HOT static void nine_rows(Chunk *restrict s, int m, const double *restrict rows)
+{
+#define COLUMN(col, k)                                                                                       \
+    for (int j = 0; j < m; j++)                                                                              \
+        s->col[j] = rows[9 * j + (k)];
+    COLUMN(xx, 0) COLUMN(xy, 1) COLUMN(xz, 2) COLUMN(d1, 3) COLUMN(yy, 4) COLUMN(yz, 5) COLUMN(d2, 6)
+    COLUMN(d3, 7) COLUMN(zz, 8)
+#undef COLUMN
+    for (int j = 0; j < m; j++) {
+        double v[9] = {s->xx[j], s->xy[j], s->xz[j], s->d1[j], s->yy[j], s->yz[j], s->d2[j], s->d3[j], s->zz[j]};
+        sym_of_nine(s, j, v);
+    }
+}
 
-/* Rows start..start+m (m <= CH) of the job, through one chunk's scratch. */
-WIDEST NOINLINE static void convert_chunk(const Job *jb, Chunk *restrict s, npy_intp start, int m)
+/* m rows of three numbers each, together, into h0..h2: by columns, as nine_rows */
+HOT static void three_rows(Chunk *restrict s, int m, const double *restrict rows)
+{
+    for (int j = 0; j < m; j++)
+        s->h0[j] = rows[3 * j];
+    for (int j = 0; j < m; j++)
+        s->h1[j] = rows[3 * j + 1];
+    for (int j = 0; j < m; j++)
+        s->h2[j] = rows[3 * j + 2];
+}
+
+/* The m rows' answers from their scratch (omega from a0..a2: LDL^T's or refined's) into the
+ * outputs: a row without an answer gets NaN, a row the numpy engine must convert is marked
+ * fallback. One loop per case, with no branch in it, so that it vectorises. */
+HOT static void store_chunk(Chunk *restrict s, int m, const double *restrict a0, const double *restrict a1,
+                            const double *restrict a2, double *restrict w, double *restrict cond,
+                            double *restrict residual, uint8_t *restrict code_out, npy_bool *restrict fallback,
+                            int more, int diagnostics)
+{
+    /* With the residual, first in doubles only, into columns the chunk is done with (d1..d3
+     * omega, xc the code, rc whether lost), then omega's rows of three and the bytes: one loop
+     * with everything was the slower there (measured; docs/measurements.md), and the faster
+     * without the residual. */
+#define STORE(MORE, DIAGNOSTICS, W0, W1, W2, CODE, LOST)                                                     \
+    for (int j = 0; j < m; j++) {                                                                            \
+        double state = s->state[j];                                                                          \
+        int answered = state == ANSWER;                                                                      \
+        double code = s->code[j];                                                                            \
+        int lost = (s->asym[j] == 1.0) | (state == FALLBACK);                                                \
+        if (MORE) /* refinement needs safe inputs, and its answer must pass the checks again */              \
+            lost |= answered & ((s->safe[j] != 1.0) | (s->fin[j] != 1.0));                                   \
+        double b0 = a0[j], b1 = a1[j], b2 = a2[j]; /* loaded whatever the row: no branch */                  \
+        W0 = answered ? b0 : NAN;                                                                            \
+        W1 = answered ? b1 : NAN;                                                                            \
+        W2 = answered ? b2 : NAN;                                                                            \
+        if (DIAGNOSTICS) {                                                                                   \
+            double res = answered ? s->res[j] : NAN;                                                         \
+            residual[j] = res;                                                                               \
+            /* inaccurate takes a row only from ok: it comes after the statuses set above */                 \
+            code = (res > K.ill_tol) & (code == K.ok) ? K.inaccurate : code;                                 \
+        }                                                                                                    \
+        CODE = (int)code; /* through int: a conversion to a byte that vectorises */                         \
+        LOST = lost;                                                                                         \
+        if (!(DIAGNOSTICS))                                                                                  \
+            cond[j] = s->cond[j];                                                                            \
+    }
+    if (diagnostics) {
+        STORE(1, 1, s->d1[j], s->d2[j], s->d3[j], s->xc[j], s->rc[j])
+        for (int j = 0; j < m; j++)
+            w[3 * j] = s->d1[j], w[3 * j + 1] = s->d2[j], w[3 * j + 2] = s->d3[j];
+        for (int j = 0; j < m; j++)
+            cond[j] = s->cond[j];
+        for (int j = 0; j < m; j++)
+            code_out[j] = (uint8_t)(int)s->xc[j];
+        for (int j = 0; j < m; j++)
+            fallback[j] = (npy_bool)(int)s->rc[j];
+    } else if (more)
+        STORE(1, 0, w[3 * j], w[3 * j + 1], w[3 * j + 2], code_out[j], fallback[j])
+    else
+        STORE(0, 0, w[3 * j], w[3 * j + 1], w[3 * j + 2], code_out[j], fallback[j])
+#undef STORE
+}
+
+/* Rows start..start+m (m <= CH) of the job, through one chunk's scratch. With `fused`, the
+ * residual's products have their errors from fma() rather than from Dekker's splits: within the
+ * safe range, which every row that keeps its answer is in (linsolve.in_safe_range's rule), both
+ * are that error exactly, so the bits are the same; fma() only where the CPU has it (a library
+ * fma without it costs far more than the splits). */
+HOT static void chunk_body(const Job *jb, Chunk *restrict s, npy_intp start, int m, int fused)
 {
 #define AT(base, s0, s1, k, i) (*(const double *)((base) + (k) * (s0) + (i) * (s1)))
     if (jb->nine && jb->Is0 == sizeof(double) && jb->Is1 == 9 * sizeof(double)) {
         /* an (N, 3, 3) stack as numpy holds it: each row's nine numbers together */
-        const double *rows = (const double *)jb->Ib + 9 * start;
+        nine_rows(s, m, (const double *)jb->Ib + 9 * start);
+    } else if (jb->nine) {
         for (int j = 0; j < m; j++) {
-            double six[6];
-            s->asym[j] = sym_of_nine(rows + 9 * j, six);
-            s->xx[j] = six[0], s->yy[j] = six[1], s->zz[j] = six[2];
-            s->xy[j] = six[3], s->xz[j] = six[4], s->yz[j] = six[5];
+            double v[9];
+            for (int k = 0; k < 9; k++)
+                v[k] = AT(jb->Ib, jb->Is0, jb->Is1, k, start + j);
+            sym_of_nine(s, j, v);
         }
     } else {
         for (int j = 0; j < m; j++) {
             npy_intp i = start + j;
-            double six[6];
-            s->asym[j] = 0;
-            if (jb->nine) {
-                double v[9];
-                for (int k = 0; k < 9; k++)
-                    v[k] = AT(jb->Ib, jb->Is0, jb->Is1, k, i);
-                s->asym[j] = sym_of_nine(v, six);
-            } else {
-                for (int k = 0; k < 6; k++)
-                    six[k] = AT(jb->Ib, jb->Is0, jb->Is1, k, i);
-            }
-            s->xx[j] = six[0], s->yy[j] = six[1], s->zz[j] = six[2];
-            s->xy[j] = six[3], s->xz[j] = six[4], s->yz[j] = six[5];
+            s->xx[j] = AT(jb->Ib, jb->Is0, jb->Is1, 0, i), s->yy[j] = AT(jb->Ib, jb->Is0, jb->Is1, 1, i);
+            s->zz[j] = AT(jb->Ib, jb->Is0, jb->Is1, 2, i), s->xy[j] = AT(jb->Ib, jb->Is0, jb->Is1, 3, i);
+            s->xz[j] = AT(jb->Ib, jb->Is0, jb->Is1, 4, i), s->yz[j] = AT(jb->Ib, jb->Is0, jb->Is1, 5, i);
+            s->asym[j] = 0.0;
         }
     }
-    for (int j = 0; j < m; j++) {
-        npy_intp i = start + j;
-        s->h0[j] = AT(jb->Hb, jb->Hs0, jb->Hs1, 0, i);
-        s->h1[j] = AT(jb->Hb, jb->Hs0, jb->Hs1, 1, i);
-        s->h2[j] = AT(jb->Hb, jb->Hs0, jb->Hs1, 2, i);
+    if (jb->Hs0 == sizeof(double) && jb->Hs1 == 3 * sizeof(double)) {
+        three_rows(s, m, (const double *)jb->Hb + 3 * start); /* an (N, 3) H as numpy holds it */
+    } else {
+        for (int j = 0; j < m; j++) {
+            npy_intp i = start + j;
+            s->h0[j] = AT(jb->Hb, jb->Hs0, jb->Hs1, 0, i);
+            s->h1[j] = AT(jb->Hb, jb->Hs0, jb->Hs1, 1, i);
+            s->h2[j] = AT(jb->Hb, jb->Hs0, jb->Hs1, 2, i);
+        }
     }
 #undef AT
     numbers_chunk(s, m, jb->cond_limit);
     int more = jb->refined || jb->diagnostics;
     if (more)
-        finish_chunk(s, m, jb->refined, jb->diagnostics);
+        finish_chunk(s, m, jb->refined, jb->diagnostics, fused);
     const double *a0 = jb->refined ? s->x0 : s->w0, *a1 = jb->refined ? s->x1 : s->w1;
     const double *a2 = jb->refined ? s->x2 : s->w2;
-    for (int j = 0; j < m; j++) {
-        npy_intp i = start + j;
-        double state = s->state[j];
-        int answered = state == ANSWER;
-        double code = s->code[j];
-        int lost = s->asym[j] | (state == FALLBACK);
-        if (more) /* refinement needs safe inputs, and its answer must pass the checks again */
-            lost |= answered & ((s->safe[j] != 1.0) | (s->fin[j] != 1.0));
-        jb->w[3 * i] = answered ? a0[j] : NAN;
-        jb->w[3 * i + 1] = answered ? a1[j] : NAN;
-        jb->w[3 * i + 2] = answered ? a2[j] : NAN;
-        if (jb->diagnostics) {
-            double res = answered ? s->res[j] : NAN;
-            jb->residual[i] = res;
-            /* inaccurate takes a row only from ok: it comes after the statuses set above */
-            code = (res > K.ill_tol) & (code == K.ok) ? K.inaccurate : code;
-        }
-        jb->cond[i] = s->cond[j];
-        jb->code[i] = (uint8_t)code;
-        jb->fallback[i] = (npy_bool)lost;
-    }
+    store_chunk(s, m, a0, a1, a2, jb->w + 3 * start, jb->cond + start, jb->residual + (jb->diagnostics ? start : 0),
+                jb->code + start, jb->fallback + start, more, jb->diagnostics);
 }
+
+/* chunk_body compiled once per instruction set: wider vectors where the CPU has them, and fma
+ * where it has that, chosen when the module loads (an x86-64 wheel must run on any x86-64).
+ * More rows at once, the same operations on each, so the same bits; no multiply-add is fused but
+ * the residual's explicit fma(). */
+typedef void (*ChunkFn)(const Job *, Chunk *restrict, npy_intp, int);
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
+__attribute__((target("avx512f,fma"))) NOINLINE static void chunk_avx512(const Job *jb, Chunk *restrict s,
+                                                                          npy_intp start, int m)
+{
+    chunk_body(jb, s, start, m, 1);
+}
+__attribute__((target("avx2,fma"))) NOINLINE static void chunk_avx2(const Job *jb, Chunk *restrict s, npy_intp start,
+                                                                   int m)
+{
+    chunk_body(jb, s, start, m, 1);
+}
+NOINLINE static void chunk_plain(const Job *jb, Chunk *restrict s, npy_intp start, int m)
+{
+    chunk_body(jb, s, start, m, 0);
+}
+/* the versions this CPU runs, the first the one used */
+static int kernels_of_cpu(const char *names[3], ChunkFn fns[3])
+{
+    int k = 0;
+    __builtin_cpu_init();
+    if (__builtin_cpu_supports("avx512f") && __builtin_cpu_supports("fma"))
+        names[k] = "avx512f,fma", fns[k++] = chunk_avx512;
+    if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma"))
+        names[k] = "avx2,fma", fns[k++] = chunk_avx2;
+    names[k] = "default", fns[k++] = chunk_plain;
+    return k;
+}
+#else
+NOINLINE static void chunk_plain(const Job *jb, Chunk *restrict s, npy_intp start, int m)
+{
+#if defined(FP_FAST_FMA) /* fma is an instruction on this target (aarch64, or x86 built for one with it) */
+    chunk_body(jb, s, start, m, 1);
+#else
+    chunk_body(jb, s, start, m, 0);
+#endif
+}
+static int kernels_of_cpu(const char *names[3], ChunkFn fns[3])
+{
+    names[0] = "default", fns[0] = chunk_plain;
+    return 1;
+}
+#endif
+static ChunkFn convert_chunk;
 
 static int get(PyObject *c, const char *name, double *out)
 {
@@ -630,7 +737,42 @@ static PyObject *stack(PyObject *self, PyObject *args)
     return Py_BuildValue("(NNNN)", w, cond, code, res);
 }
 
+/* kernels(): the names of the versions of the chunk code this CPU runs, the one in use first.
+ * use(name): convert with that version from now on (tests compare their bits); returns None. */
+static PyObject *kernels(PyObject *self, PyObject *args)
+{
+    const char *names[3];
+    ChunkFn fns[3];
+    int k = kernels_of_cpu(names, fns);
+    PyObject *out = PyList_New(0);
+    for (int i = 0; out && i < k; i++) {
+        PyObject *name = PyUnicode_FromString(names[i]);
+        if (!name || (fns[i] == convert_chunk ? PyList_Insert(out, 0, name) : PyList_Append(out, name)) < 0)
+            Py_CLEAR(out);
+        Py_XDECREF(name);
+    }
+    return out;
+}
+
+static PyObject *use(PyObject *self, PyObject *args)
+{
+    const char *want, *names[3];
+    ChunkFn fns[3];
+    if (!PyArg_ParseTuple(args, "s", &want))
+        return NULL;
+    int k = kernels_of_cpu(names, fns);
+    for (int i = 0; i < k; i++)
+        if (strcmp(names[i], want) == 0) {
+            convert_chunk = fns[i];
+            Py_RETURN_NONE;
+        }
+    PyErr_Format(PyExc_ValueError, "rowcode.use: this CPU has no version %s", want);
+    return NULL;
+}
+
 static PyMethodDef methods[] = {
+    {"kernels", kernels, METH_NOARGS, "kernels(): the versions of the chunk code this CPU runs, the one in use first."},
+    {"use", use, METH_VARARGS, "use(name): convert with that version of the chunk code (for tests)."},
     {"stack", stack, METH_VARARGS, "stack(I, H, refined, diagnostics, cond_limit): a small stack, or None."},
     {"one", one, METH_VARARGS, "one(I, nine, H, refined, diagnostics, cond_limit): one body, or None."},
     {"configure", configure, METH_VARARGS, "configure(constants): the constants of hconv's Python modules."},
@@ -644,5 +786,9 @@ static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "rowcode", "hconv's c
 PyMODINIT_FUNC PyInit_rowcode(void)
 {
     import_array();
+    const char *names[3];
+    ChunkFn fns[3];
+    kernels_of_cpu(names, fns);
+    convert_chunk = fns[0];
     return PyModule_Create(&module);
 }
