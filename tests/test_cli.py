@@ -651,6 +651,18 @@ def test_convert_does_not_import_pandas(tmp_path, source, to):
     assert out.exists()
 
 
+def test_convert_quiet_does_not_import_rich(tmp_path):
+    given, out = _pandas_inputs(tmp_path)["csv"], tmp_path / "out.parquet"
+    code = (
+        f"import sys; sys.argv = ['hconv', 'convert', {str(given)!r}, {str(out)!r}, '-q'];"
+        "from hconv.cli import main\ntry: main()\nexcept SystemExit as exc: print(exc.code)\n"
+        "print('rich' in sys.modules)"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=60)
+    assert proc.stdout.decode().split()[-2:] == ["0", "False"], proc.stderr.decode()
+    assert pq.read_table(out).num_rows == 2
+
+
 def test_methods_json_lists_every_method_with_unit(capsys):
     listed = json.loads(hconv_inprocess("methods", "--json", capsys=capsys).stdout)
     assert [m["name"] for m in listed] == list(hconv.METHODS)
