@@ -271,8 +271,9 @@ def convert_cmd(
     ),
 ) -> None:
     """Convert each row of a CSV or Parquet file, or of each file of a dataset: OUT gets its columns, ω, diagnostics."""
-    from hconv import report
     from hconv.tables import dataset, paths
+
+    # the bar and the summary (hconv.report) are rich's, imported only for them: a quiet run never shows them
 
     files = dataset.is_dataset(src, dst)  # the library's rule (paths.convert_path): for the bar and summary
 
@@ -302,6 +303,8 @@ def convert_cmd(
     try:
         if sys.stderr.isatty() and not quiet and (files or dst != "-"):
             # for one file, its name: the path crowded out the bar
+            from hconv import report
+
             description = "converting files" if files else f"converting {os.path.basename(src)}"
             with report.ProgressBar(description, counts=_progress_counts(src, value_of(from_), files)) as bar:
                 result = run(progress=bar)
@@ -309,10 +312,14 @@ def convert_cmd(
             result = run()
     except dataset.DatasetError as exc:
         if not quiet:
+            from hconv import report
+
             report.dataset_summary(exc.result, asked=job.engine)
         raise
     if quiet:
         return
+    from hconv import report
+
     if isinstance(result, dataset.DatasetResult):
         report.dataset_summary(result, asked=job.engine)
     else:

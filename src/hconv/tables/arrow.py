@@ -25,12 +25,13 @@ import pyarrow.parquet as pq
 
 from hconv.errors import InputError, UsageError, first_line
 from hconv.solve import bodies, methods, options, status, units
-from hconv.tables import layout, storage
+from hconv.tables import arrays, layout, storage
 from hconv.tables.job import Job
 from hconv.tables.sets import QUANTITY
 from hconv.version import __version__
 
 _STATUS_TYPE = pa.dictionary(pa.int8(), pa.string())
+_STATUSES = arrays.strings(status.STATUSES)  #: the status column's dictionary
 
 
 def output_fields(job: Job) -> list[pa.Field]:
@@ -239,18 +240,15 @@ def convert_batch(
     scale = job.omega_scale
     if scale != 1.0:
         w = w * w.dtype.type(scale)
-    columns = [pa.array(w[:, k]) for k in range(3)]
+    columns = [arrays.from_numpy(w[:, k]) for k in range(3)]
     if job.diagnostics:
-        columns.append(pa.array(res.residual))
-    columns.append(pa.array(res.cond))
-    columns.append(
-        pa.DictionaryArray.from_arrays(
-            pa.array(res.status_code.astype(np.int8), type=pa.int8()), pa.array(status.STATUSES)
-        )
-    )
-    if res.null_axis is not None:  # degenerate pinv or lock
-        columns += [pa.array(res.null_axis[:, k]) for k in range(3)]
-        columns.append(pa.array(res.null_dim, type=pa.int8()))
+        assert res.residual is not None  # a solve with diagnostics has its residual
+        columns.append(arrays.from_numpy(res.residual))
+    columns.append(arrays.from_numpy(res.cond))
+    columns.append(pa.DictionaryArray.from_arrays(arrays.from_numpy(res.status_code.astype(np.int8)), _STATUSES))
+    if res.null_axis is not None and res.null_dim is not None:  # degenerate pinv or lock: both set
+        columns += [arrays.from_numpy(res.null_axis[:, k]) for k in range(3)]
+        columns.append(arrays.from_numpy(res.null_dim.astype(np.int8, copy=False)))
     return pa.Table.from_arrays(list(data.columns) + columns, schema=result_schema(data.schema, job, plan)), res.engine
 
 

@@ -25,7 +25,7 @@ import pyarrow.csv as pacsv
 from hconv.errors import HconvError, InputError, UsageError, first_line, option
 from hconv.solve import forms, units
 from hconv.tables import csvtypes, layout, sets
-from hconv.tables.inputs import FileStat, Input, ReadMarks, changed_while_read, unreadable
+from hconv.tables.inputs import FileStat, Input, ReadMarks, changed_while_read, read_batches, unreadable
 from hconv.tables.job import DELIMITERS, Job
 from hconv.tables.sets import QUANTITY
 from hconv.tables.sniff import (
@@ -255,25 +255,16 @@ def open_csv(path: str, name: str, job: Job) -> Input:
     schema = pa.schema([_with_unit(fl, dict(dialect.units)) for fl in reader.schema])
     read = ReadMarks(total, CSV_BLOCK_BYTES)
 
+    def failed(exc: Exception) -> InputError:
+        if isinstance(exc, pa.ArrowInvalid):
+            return _csv_value_error(path, name, names, dialect, exc, job.decimal is not None)
+        return InputError(f"{name}: cannot be read ({first_line(exc)}); check the file")
+
     def batches() -> Iterator[pa.RecordBatch]:
-        while True:
-            try:
-                batch = reader.read_next_batch()
-            except StopIteration:
-                break
-            except pa.ArrowInvalid as exc:
-                raise changed_while_read(name, fd, at_open) or _csv_value_error(
-                    path, name, names, dialect, exc, job.decimal is not None
-                ) from None
-            except (OSError, pa.ArrowException, MemoryError) as exc:  # all the reader raises is the input's
-                raise changed_while_read(name, fd, at_open) or InputError(
-                    f"{name}: cannot be read ({first_line(exc)}); check the file"
-                ) from None
+        # all the reader raises is the input's
+        for batch in read_batches(reader, name, fd, at_open, failed, (OSError, pa.ArrowException, MemoryError), False):
             read.add(batch.num_rows)
             yield batch if not dialect.units else pa.RecordBatch.from_arrays(batch.columns, schema=schema)
-        changed = changed_while_read(name, fd, at_open)
-        if changed:
-            raise changed
         read.done()
 
     text = tuple(n for n in names if n not in nums)

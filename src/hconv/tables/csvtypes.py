@@ -35,11 +35,13 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 
+from hconv.tables import arrays
+
 _DEFAULTS = pacsv.ConvertOptions()
 #: Text that is a missing value in a typed column: pyarrow's CSV null markers, less its NaN
 #: spellings, since NaN is a float value.
-NULLS = pa.array([v for v in _DEFAULTS.null_values if v.lstrip("-").lower() != "nan"], pa.string())
-_BOOLS = pa.array(list(_DEFAULTS.true_values) + list(_DEFAULTS.false_values), pa.string())
+NULLS = arrays.strings([v for v in _DEFAULTS.null_values if v.lstrip("-").lower() != "nan"])
+_BOOLS = arrays.strings(list(_DEFAULTS.true_values) + list(_DEFAULTS.false_values))
 
 #: The types a text column may get, in the order pyarrow's CSV reader tries them: the first that
 #: every value fits wins, and a column that fits none stays text.
@@ -82,7 +84,7 @@ def convert(text: pa.Array, to: pa.DataType) -> pa.Array | None:
     try:  # the common case: no null marker in this block
         out = text.cast(to)
     except pa.ArrowInvalid:
-        text = pc.if_else(pc.is_in(text, value_set=NULLS), pa.scalar(None, pa.string()), text)
+        text = pc.if_else(pc.is_in(text, value_set=NULLS), arrays.scalar(None, pa.string()), text)
         try:
             out = text.cast(to)
         except pa.ArrowInvalid:

@@ -1,19 +1,20 @@
 """An open input (:class:`Input`: its schema, batches, plan and progress), what tells that its
-file changed while it was read (:func:`changed_while_read`), and the message for a file that cannot be
-opened. The readers (:mod:`hconv.tables.csvio`, :mod:`hconv.tables.parquetio`) make Inputs;
-:func:`hconv.tables.tableio.open_input` picks the reader."""
+file changed while it was read (:func:`changed_while_read`), the loop every reader takes its
+batches by (:func:`read_batches`), and the message for a file that cannot be opened. The readers
+(:mod:`hconv.tables.csvio`, :mod:`hconv.tables.parquetio`, :mod:`hconv.tables.ipcio`,
+:mod:`hconv.tables.jsonio`) make Inputs; :func:`hconv.tables.tableio.open_input` picks the reader."""
 
 from __future__ import annotations
 
 import os
 from collections import deque
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
 import pyarrow as pa
 
-from hconv.errors import InputError
+from hconv.errors import InputError, first_line
 from hconv.tables import layout
 
 
@@ -120,3 +121,33 @@ def changed_while_read(name: str, fd: int | None, at_open: FileStat | None, why:
         f"{name}: changed while hconv read it (from {at_open.size} to {now.size} bytes{why}); nothing was "
         "written: run again once whatever writes it has finished"
     )
+
+
+def read_batches(
+    reader: Iterable[pa.RecordBatch],
+    name: str,
+    fd: int | None,
+    at_open: FileStat | None,
+    failed: Callable[[Exception], InputError],
+    theirs: tuple[type[Exception], ...] = (Exception,),
+    why: bool = True,
+) -> Iterator[pa.RecordBatch]:
+    """``reader``'s batches, each read here, on the thread that iterates: pyarrow reads and decodes
+    lazily, so whatever it raises while reading is the input's. An exception of ``theirs`` (the
+    kinds the reader raises about its bytes; any other passes as it is) is the file having changed
+    while it was read (``fd``, ``at_open``: :func:`changed_while_read`; ``why``: with the reader's
+    first line), else ``failed(exc)``, which names the file and where in it. Once the reader ends,
+    a file changed meanwhile is refused too: what was read may mix two versions of it."""
+    got = iter(reader)
+    while True:
+        try:
+            batch = next(got)
+        except StopIteration:
+            break
+        except theirs as exc:
+            said = f"; {first_line(exc)}" if why else ""
+            raise changed_while_read(name, fd, at_open, said) or failed(exc) from None
+        yield batch
+    changed = changed_while_read(name, fd, at_open)
+    if changed:
+        raise changed

@@ -20,7 +20,7 @@ import pyarrow.ipc as ipc
 
 from hconv.errors import InputError, first_line
 from hconv.tables import layout
-from hconv.tables.inputs import FileStat, Input, changed_while_read, unreadable
+from hconv.tables.inputs import FileStat, Input, read_batches, unreadable
 from hconv.tables.job import Job
 from hconv.tables.sniff import table_format, what_it_is
 
@@ -109,24 +109,19 @@ def _input(
 
     def batches() -> Iterator[pa.RecordBatch]:
         k = 0
-        while True:
-            try:
-                batch = next(got)
-            except StopIteration:
-                break
-            except Exception as exc:  # noqa: BLE001 - only pyarrow's reading runs in this try
-                raise changed_while_read(name, fd, at_open, f"; {first_line(exc)}") or InputError(
-                    f"{name}: record batch {k + 1} (from data row {done[0] + 1}) cannot be read ({first_line(exc)}); "
-                    "the file is damaged or was not completely written: write it again from its source"
-                ) from None
+
+        def failed(exc: Exception) -> InputError:
+            return InputError(
+                f"{name}: record batch {k + 1} (from data row {done[0] + 1}) cannot be read ({first_line(exc)}); "
+                "the file is damaged or was not completely written: write it again from its source"
+            )
+
+        for batch in read_batches(got, name, fd, at_open, failed):
             k += 1
             for start in range(0, max(batch.num_rows, 1), IPC_BATCH_ROWS):
                 piece = batch.slice(start, IPC_BATCH_ROWS)
                 done[0] += piece.num_rows
                 yield piece
-        changed = changed_while_read(name, fd, at_open)
-        if changed:
-            raise changed
 
     it = batches()
     if any(g.is_list and g.size is None for g in plan.groups.values()):

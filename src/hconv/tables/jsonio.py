@@ -21,7 +21,7 @@ import pyarrow.json as pajson
 
 from hconv.errors import HconvError, InputError, first_line
 from hconv.tables import layout
-from hconv.tables.inputs import FileStat, Input, changed_while_read, unreadable
+from hconv.tables.inputs import FileStat, Input, read_batches, unreadable
 from hconv.tables.job import Job
 from hconv.tables.sniff import what_it_is
 
@@ -168,21 +168,13 @@ def open_jsonl(path: str, name: str, job: Job) -> Input:
     done = [0]
     fd = source.fileno()
 
+    def failed(exc: Exception) -> InputError:
+        return _bad_line(path, name, exc, job, set(schema.names))
+
     def batches() -> Iterator[pa.RecordBatch]:
-        while True:
-            try:
-                batch = reader.read_next_batch()
-            except StopIteration:
-                break
-            except Exception as exc:  # noqa: BLE001 - only pyarrow's reading runs in this try
-                raise changed_while_read(name, fd, at_open, f"; {first_line(exc)}") or _bad_line(
-                    path, name, exc, job, set(schema.names)
-                ) from None
+        for batch in read_batches(reader, name, fd, at_open, failed):
             done[0] += batch.num_rows
             yield batch
-        changed = changed_while_read(name, fd, at_open)
-        if changed:
-            raise changed
 
     it: Iterator[pa.RecordBatch] = batches()
     if any(g.is_list and g.size is None for g in plan.groups.values()):

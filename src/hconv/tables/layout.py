@@ -42,7 +42,7 @@ import pyarrow.compute as pc
 
 from hconv.errors import InputError, UsageError, entry, option
 from hconv.solve import forms, units
-from hconv.tables import columns
+from hconv.tables import arrays, columns
 from hconv.tables.job import Job
 from hconv.tables.sets import OPTIONAL_SETS, QUANTITY, VECTOR_SETS, all_names, header_name
 
@@ -156,7 +156,7 @@ def _list_size(col: pa.Array, g: Group, source: str, first_row: int = 0) -> int 
     ``first_row``: where ``col`` starts in its file, to name a bad row."""
     if pa.types.is_fixed_size_list(col.type):
         return col.type.list_size
-    lengths = pc.fill_null(pc.list_value_length(col), -1).to_numpy(zero_copy_only=False)
+    lengths = arrays.to_numpy(pc.list_value_length(col), null=-1)
     given = np.flatnonzero(lengths >= 0)
     if not given.size:
         return None
@@ -207,10 +207,10 @@ def _list_values(col: pa.Array | None, g: Group, n: int, source: str, first_row:
     if k != size:
         raise InputError(f"{source}: list column {g.columns[0]!r} must hold {size} values per row, but holds {k}")
     values = np.full((n, k), np.nan)
-    valid = col.is_valid().to_numpy(zero_copy_only=False)
-    if valid.any():
-        flat = col.filter(pa.array(valid)).flatten() if not valid.all() else col.flatten()
-        values[valid] = _floats(flat).reshape(-1, k)
+    if col.null_count < len(col):
+        valid = col.is_valid()
+        flat = col.filter(valid).flatten() if col.null_count else col.flatten()
+        values[arrays.to_numpy(valid)] = _floats(flat).reshape(-1, k)
     return values.T
 
 
@@ -219,7 +219,7 @@ def _floats(col: pa.Array | pa.ChunkedArray) -> np.ndarray:
     if pa.types.is_null(col.type):
         return np.full(len(col), np.nan)
     # unsafe: an integer beyond 2^53 rounds to the nearest float64, as the same digits in a CSV do
-    return np.asarray(pc.cast(col, pa.float64(), safe=False).to_numpy(zero_copy_only=False), dtype=np.float64)
+    return arrays.to_numpy(pc.cast(col, pa.float64(), safe=False), null=np.nan)
 
 
 def _is_numeric(t: pa.DataType) -> bool:

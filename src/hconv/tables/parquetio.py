@@ -15,7 +15,7 @@ import pyarrow.parquet as pq
 
 from hconv.errors import InputError, first_line
 from hconv.tables import layout
-from hconv.tables.inputs import FileStat, Input, changed_while_read, unreadable
+from hconv.tables.inputs import FileStat, Input, changed_while_read, read_batches, unreadable
 from hconv.tables.job import Job
 from hconv.tables.sniff import rename_or_pass, what_it_is
 
@@ -71,20 +71,15 @@ def open_parquet(path: str, name: str, job: Job, rows: tuple[int, int] | None = 
     groups, skip = _row_groups(meta, start, stop)
 
     def read(row_groups: list[int]) -> Iterator[pa.RecordBatch]:
-        """``pf``'s batches of ``row_groups``. pyarrow reads and decodes the pages lazily, here, on
-        the reading thread: whatever it raises is the input's fault (before, a damaged page's
-        OSError reached the CLI as the output's, exit 4), named by its row group."""
-        got = pf.iter_batches(batch_size=PARQUET_BATCH_ROWS, row_groups=row_groups)
+        """``pf``'s batches of ``row_groups``; a page pyarrow cannot read is named by its row group
+        (before, a damaged page's OSError reached the CLI as the output's, exit 4)."""
         n = 0  #: rows read, from the first of row_groups
-        while True:
-            try:
-                batch = next(got)
-            except StopIteration:
-                return
-            except Exception as exc:  # noqa: BLE001 - only pyarrow's reading runs in this try
-                raise changed_while_read(name, source.fileno(), at_open, f"; {first_line(exc)}") or _damaged(
-                    pf, name, row_groups, n, exc
-                ) from None
+
+        def failed(exc: Exception) -> InputError:
+            return _damaged(pf, name, row_groups, n, exc)
+
+        got = pf.iter_batches(batch_size=PARQUET_BATCH_ROWS, row_groups=row_groups)
+        for batch in read_batches(got, name, source.fileno(), at_open, failed):
             n += batch.num_rows
             yield batch
 
@@ -93,8 +88,10 @@ def open_parquet(path: str, name: str, job: Job, rows: tuple[int, int] | None = 
         for batch in got if rows is None else _rebatched(got, skip, stop - start):
             done[0] += batch.num_rows
             yield batch
-        changed = changed_while_read(name, source.fileno(), at_open)
-        if changed:  # rewritten in place while read: what was read may mix two versions of it
+        # read checks, once its row groups are read, that the file did not change meanwhile; a
+        # part ends inside its last row group, before that check
+        changed = changed_while_read(name, source.fileno(), at_open) if rows is not None else None
+        if changed:
             raise changed
 
     batches = read_all()

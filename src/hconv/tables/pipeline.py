@@ -24,7 +24,7 @@ import pyarrow as pa
 from hconv import interrupts
 from hconv.errors import StrictError, UsageError, option
 from hconv.solve import engines, methods, options, status
-from hconv.tables import csvio, csvtypes, layout
+from hconv.tables import arrays, csvio, csvtypes, layout
 from hconv.tables.arrow import convert_batch
 from hconv.tables.inputs import Input
 from hconv.tables.job import Job
@@ -51,10 +51,10 @@ class Tally:
         if engine is not None:
             self.engines[engine] = self.engines.get(engine, 0) + table.num_rows
         st = table.column(layout.output_name("status", table.schema)).combine_chunks()
-        self.per_status += np.bincount(st.indices.to_numpy(zero_copy_only=False), minlength=len(status.STATUSES))
+        self.per_status += np.bincount(arrays.to_numpy(st.indices), minlength=len(status.STATUSES))
         residual = layout.output_name("residual", table.schema)
         if residual in table.column_names:
-            res = table.column(residual).to_numpy()
+            res = arrays.to_numpy(table.column(residual), null=np.nan)
             if res.size and not np.isnan(res).all():
                 k = int(np.nanargmax(res))
                 if not res[k] <= self.worst_residual:  # also true while worst is NaN
@@ -359,9 +359,7 @@ STRICT_ROWS_NAMED = 5
 
 
 def _check_strict(table: pa.Table, first_row: int, source: str) -> None:
-    codes = (
-        table.column(layout.output_name("status", table.schema)).combine_chunks().indices.to_numpy(zero_copy_only=False)
-    )
+    codes = arrays.to_numpy(table.column(layout.output_name("status", table.schema)).combine_chunks().indices)
     bad = np.flatnonzero(codes != 0)
     if bad.size:
         named = ", ".join(

@@ -113,14 +113,16 @@ class Model:
         ``principal`` (I1, I2, I3 with qw, qx, qy, qz); then the status and its reason."""
         import pyarrow as pa
 
+        from hconv.tables import arrays
+
         check_choice("form", form, tuple(OUTPUT_FORMS))
         bodies = self.bodies
 
         def col(values: list[float], unit: str) -> tuple[pa.Array, dict]:
-            return pa.array(values, type=pa.float64()), {"unit": unit}
+            return arrays.from_numpy(np.array(values, dtype=np.float64)), {"unit": unit}
 
         cols: dict[str, tuple[pa.Array, dict | None]] = {}
-        cols["body"] = (pa.array([b.name for b in bodies], pa.string()), None)
+        cols["body"] = (arrays.strings([b.name for b in bodies]), None)
         cols["m"] = col([b.m for b in bodies], units.SI["m"])
         for k, name in enumerate(VECTOR_SETS["r"]):
             cols[name] = col([float(b.p_BC_B[k]) for b in bodies], units.SI["r"])
@@ -133,8 +135,8 @@ class Model:
                 cols[name] = col([float(b.moments[k]) for b in bodies], units.SI["I"])
             for k, name in enumerate(VECTOR_SETS["q"]):
                 cols[name] = col([float(b.q_B[k]) for b in bodies], "1")
-        cols[STATUS_COLUMN] = (pa.array([b.status for b in bodies], pa.string()), None)
-        cols[REASON_COLUMN] = (pa.array([b.reason for b in bodies], pa.string()), None)
+        cols[STATUS_COLUMN] = (arrays.strings([b.status for b in bodies]), None)
+        cols[REASON_COLUMN] = (arrays.strings([b.reason for b in bodies]), None)
         fields = [pa.field(n, a.type, metadata=meta) for n, (a, meta) in cols.items()]
         return pa.Table.from_arrays([a for a, _ in cols.values()], schema=pa.schema(fields))
 
