@@ -3,8 +3,9 @@ each, and their ratio (above 1: hconv's is faster), measured in the same run.
 
     python benchmarks/csv_write.py [rows] [--quoted]     # default 2,000,000 rows
 
-The writer formats a table's slices on the cores available (at most 4), pyarrow's on one: on a
-machine whose cores are busy with other work the ratio falls towards 1.
+Both writers format on one core with pyarrow's formatting: where no value needs quotes, hconv's
+is pyarrow's writer, and the ratio is 1 but for noise; where values need quotes, it measures
+what quoting only those costs (hconv.tables.csvwrite).
 
 The table is what `hconv convert` writes for a CSV of H, a sym6 inertia and a text column read
 as text: the input's columns, ω, residual, cond and status (dictionary), and `w_unit`. Each
@@ -27,7 +28,7 @@ import pyarrow.csv as pacsv
 
 import hconv
 from hconv.solve import engines
-from hconv.tables.csvio import CsvWriter
+from hconv.tables.csvwrite import CsvWriter
 from hconv.tools import leftovers
 from hconv.tools.scene import make_scene
 

@@ -26,7 +26,7 @@ import pyarrow as pa
 
 from hconv import interrupts
 from hconv.errors import OutputError, UsageError, first_line, option
-from hconv.tables.csvio import CsvWriter
+from hconv.tables.csvwrite import CsvWriter
 from hconv.tables.formats import EXTENSIONS, NAMES
 from hconv.tables.ipcio import IpcWriter
 from hconv.tables.parquetio import ParquetWriter

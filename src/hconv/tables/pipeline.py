@@ -24,7 +24,7 @@ import pyarrow as pa
 from hconv import interrupts
 from hconv.errors import StrictError, UsageError, option
 from hconv.solve import engines, methods, options, status
-from hconv.tables import csvio, csvtypes, layout
+from hconv.tables import csvio, csvtypes, csvwrite, layout
 from hconv.tables.arrow import convert_batch
 from hconv.tables.inputs import Input
 from hconv.tables.job import Job
@@ -257,7 +257,7 @@ def convert_file(
     t0 = time.perf_counter()
     with open_input(src, fin, job, name, rows) as inp:
         if fout == "csv":
-            csvio.check_csv_columns(inp.schema, inp.name)  # before converting anything
+            csvwrite.check_csv_columns(inp.schema, inp.name)  # before converting anything
         # CSV's text columns get types in Parquet, the first block's (csvtypes); CSV keeps them as they were
         typed = fout != "csv" and bool(inp.text) and not job.keep_text
         run = functools.partial(
