@@ -147,15 +147,22 @@ def test_csv_writer_text_holding_a_stand_in_byte_comes_back_as_it_was(tmp_path):
     assert _written(tmp_path, t) == b'a,b\nx\x01y,1.5\n"b,c",2\n"q""\x02",0.1\n'
 
 
-def test_csv_writer_quoted_rows_longer_than_the_buffer_grow_it(tmp_path):
+def test_csv_writer_quoted_rows_longer_than_the_buffer_grow_it(tmp_path, monkeypatch):
     """The buffer quoted rows are formatted in is sized from the table's bytes; booleans take 1 bit
     there and up to 6 bytes as text: the buffer grows, and every row is written once."""
     import pyarrow as pa
 
+    from hconv.tables import csvwrite
+
+    sizes = []
+    allocate = pa.allocate_buffer
+    monkeypatch.setattr(pa, "allocate_buffer", lambda size: sizes.append(size) or allocate(size))
     n = 100_000
-    t = pa.table({"ok": [k % 3 == 0 for k in range(n)], "t": ["a,b" if k % 1000 == 0 else "a" for k in range(n)]})
+    flags = {f"b{j}": [(k + j) % 3 == 0 for k in range(n)] for j in range(8)}
+    t = pa.table(flags | {"t": ['a,"b"' if k % 1000 == 0 else "a" for k in range(n)]})
     out = _written(tmp_path, t).decode()
-    expected = "".join(
-        ("true" if k % 3 == 0 else "false") + ("," + ('"a,b"' if k % 1000 == 0 else "a")) + "\n" for k in range(n)
-    )
-    assert out == "ok,t\n" + expected
+    assert len(sizes) > 1  # grown
+    rows = [",".join("true" if (k + j) % 3 == 0 else "false" for j in range(8)) for k in range(n)]
+    text = ['"a,""b"""' if k % 1000 == 0 else "a" for k in range(n)]
+    assert out == ",".join(t.column_names) + "\n" + "".join(f"{r},{v}\n" for r, v in zip(rows, text))
+    assert n > csvwrite._SLICE_ROWS  # and in two slices
