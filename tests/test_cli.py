@@ -778,8 +778,9 @@ def test_convert_units_row_csv_takes_the_units(tmp_path, capsys):
     proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.csv"), capsys=capsys)
     assert proc.returncode == 0, proc.stderr
     assert "units from the row under the header" in proc.stderr.decode()
-    rows = list(csv.DictReader(io.StringIO((tmp_path / "out.csv").read_text())))
+    units, *rows = list(csv.DictReader(io.StringIO((tmp_path / "out.csv").read_text())))
     assert len(rows) == 1 and rows[0]["part"] == "wheel"  # the units row is not a data row
+    assert units["part"] == "-" and units["I3"] == "kg*mm^2" and units["wx"] == "rad/s"  # it is the output's
     # 2e7 g*cm^2 = 2 kg*m^2, 4e7 g*cm^2 = 4 kg*m^2, 5e6 kg*mm^2 = 5 kg*m^2
     assert [float(rows[0][c]) for c in ("wx", "wy", "wz")] == [0.5, 0.5, 0.6]
 

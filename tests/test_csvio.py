@@ -28,6 +28,33 @@ def test_convert_file_units_row_gives_the_columns_units_and_keeps_them_in_parque
     assert t.column("wx").to_pylist() == [0.5, 1.0] and t.column("wz").to_pylist() == [0.5, 1.0]
 
 
+def test_convert_file_units_row_comes_out_under_the_header_and_reads_back(tmp_path):
+    """Before: CSV into CSV dropped the row of units, so that the output's H and I read back as SI
+    (g*cm^2 taken for kg*m^2) and ω's unit was in w_unit only. Now the input's row comes out as
+    it was, with ω's unit and 1 for the ratios under hconv's columns, and hconv reads it back."""
+    import pyarrow.parquet as pq
+
+    from hconv.tables.pipeline import convert_file
+
+    src = _wheels(
+        tmp_path,
+        "id,Hx,Hy,Hz,I1,I2,I3\nunit,kg*m^2/s,kg*m^2/s,g*cm^2/s,g*cm^2,g*cm^2,g*cm^2\n7,1,2,3e7,2e7,4e7,6e7\n8,1,1,1e7,1e7,1e7,1e7\n",
+    )
+    convert_file(src, str(tmp_path / "out.csv"))
+    lines = (tmp_path / "out.csv").read_text().splitlines()
+    assert lines[0] == "id,Hx,Hy,Hz,I1,I2,I3,wx,wy,wz,residual,cond,status,w_unit"
+    assert lines[1] == "unit,kg*m^2/s,kg*m^2/s,g*cm^2/s,g*cm^2,g*cm^2,g*cm^2,rad/s,rad/s,rad/s,1,1,,"
+    assert [ln.split(",")[0] for ln in lines[2:]] == ["7", "8"]
+    tally = convert_file(str(tmp_path / "out.csv"), str(tmp_path / "again.parquet"), prefix="again_")
+    assert tally.rows == 2 and "units from the row under the header" in tally.read_as
+    t = pq.read_table(tmp_path / "again.parquet")
+    # H = (1, 2, 3) kg·m²/s over I = (2, 4, 6) kg·m², then all ones: read back in the same units
+    assert t.column("again_wx").to_pylist() == [0.5, 1.0] and t.column("again_wz").to_pylist() == [0.5, 1.0]
+    assert t.schema.field("I1").metadata == {b"unit": b"g*cm^2"}
+    convert_file(src, str(tmp_path / "out.parquet"))  # into Parquet, the units stay field metadata
+    assert pq.read_table(tmp_path / "out.parquet").column("id").to_pylist() == [7, 8]
+
+
 def test_convert_file_units_row_then_bad_rows_are_named_by_data_row(tmp_path):
     """Rows are counted from the first data row: comment lines and the units row are not rows."""
     import pytest

@@ -214,9 +214,9 @@ def open_csv(path: str, name: str, job: Job) -> Input:
     rows = [r for r in csv.reader(lines[1:], delimiter=dialect.delimiter) if r]
     found = _units_row(rows[0], names, plan, name) if rows else ()
     if rows and found:
+        dialect = dataclasses.replace(dialect, units=found, units_row=True, units_text=tuple(rows[0]))
         rows = rows[1:]
         plan = layout.plan(pa.schema([_with_unit(n, dict(found)) for n in names]), job, name)
-        dialect = dataclasses.replace(dialect, units=found, units_row=True)
         ropts = _read_options(dialect)
     if job.decimal is None and dialect.delimiter != ",":
         at = {c: names.index(c) for c in plan.numeric}

@@ -310,6 +310,8 @@ def _convert(
     results = ordered_map(one, _numbered(batches, inp.first_row), threads)
     if inp.dialect is not None:
         tally.read_as = inp.dialect.describe()
+        if inp.dialect.units_row and out.fmt == "csv":  # CSV into CSV keeps its units
+            out.units = dict(zip(inp.schema.names, inp.dialect.units_text))
     if progress is not None:  # the size, before the first batch takes its time
         progress(0, inp.total)
     writing = contextlib.nullcontext(_Direct(out)) if whole else BackgroundWriter(out)

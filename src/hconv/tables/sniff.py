@@ -304,6 +304,7 @@ class Dialect:
     comment_lines: int = 0
     units: tuple = ()
     units_row: bool = False  #: a row of units under the header, not a data row
+    units_text: tuple = ()  #: that row as written, one text a column (CSV output writes it again)
 
     def describe(self) -> str:
         """What the summary says of a dialect that is not plain CSV; "" for plain CSV."""
