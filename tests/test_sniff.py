@@ -3,6 +3,7 @@ contradicts them."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -197,6 +198,38 @@ def test_format_of_names_the_formats_hconv_reads(name, args, message, tmp_path, 
     code, _, err = run_inprocess("convert", name, "out.csv", *args, capsys=capsys)
     assert code in (2, 3) and len(err.strip().splitlines()) == 1, err
     assert message in err
+
+
+@pytest.mark.parametrize(
+    "name, what",
+    [
+        ("book.xlsx", "an Excel workbook"),
+        ("book.xls", "an Excel workbook"),
+        ("book.ods", "an OpenDocument spreadsheet"),
+    ],
+)
+def test_format_of_spreadsheet_by_its_name_says_to_save_it_as_csv(name, what, tmp_path, capsys, monkeypatch):
+    """Before: a workbook named .xlsx got the list of formats hconv reads, while the same file
+    named .csv was told to be saved as CSV UTF-8 from the spreadsheet: now both get that advice."""
+    import zipfile
+
+    monkeypatch.chdir(tmp_path)
+    if name.endswith(".xls"):  # Excel 97-2003: an OLE2 compound file
+        Path(name).write_bytes(b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1" + b"\x00" * 504)
+    else:
+        with zipfile.ZipFile(name, "w") as z:
+            if name.endswith(".ods"):
+                z.writestr("mimetype", "application/vnd.oasis.opendocument.spreadsheet")
+            else:
+                z.writestr("[Content_Types].xml", "<Types/>")
+                z.writestr("xl/workbook.xml", "<workbook/>")
+    code, _, err = run_inprocess("convert", name, "out.csv", capsys=capsys)
+    suffix = name[name.index(".") :]
+    save_as = "open it in the spreadsheet and save the sheet as 'CSV UTF-8 (comma delimited)'"
+    assert (code, err) == (2, f"hconv: error: {name}: is {what} ({suffix}), which hconv does not read; {save_as}\n")
+    code, _, err = run_inprocess("convert", name, "out.csv", "--from", "csv", capsys=capsys)
+    assert code == 3 and save_as in err  # its bytes read as CSV: the same advice
+    assert sorted(os.listdir()) == [name]
 
 
 def test_format_of_json_lines_out_is_refused_naming_what_hconv_writes(tmp_path, capsys, monkeypatch):

@@ -59,6 +59,8 @@ def format_of(path: str, given: str | None, flag: str) -> str:
         _refuse_compressed_name(path, suffix, flag)
         fmts = FORMATS if flag == "src_format" else WRITES
         verb = "reads" if flag == "src_format" else "writes"
+        if suffix in _SPREADSHEETS and flag == "src_format":  # the advice its bytes get under another name
+            raise UsageError(f"{path}: is {FOREIGN[suffix]} ({suffix}), which hconv does not read; {_SAVE_AS_CSV}")
         if suffix in FOREIGN:
             raise UsageError(
                 f"{path}: its name says {FOREIGN[suffix]} ({suffix}), which hconv does not {verb[:-1]}; "
@@ -107,6 +109,7 @@ _COMPRESSIONS = (
 )
 _OLE2 = b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1"  # Excel 97-2003 (.xls)
 _SAVE_AS_CSV = "open it in the spreadsheet and save the sheet as 'CSV UTF-8 (comma delimited)'"
+_SPREADSHEETS = (".xlsx", ".xls", ".ods")  #: spreadsheets by their names, told to be saved as CSV
 
 
 def _refuse_compressed_name(path: str, suffix: str, flag: str) -> None:
