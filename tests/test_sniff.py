@@ -166,18 +166,20 @@ def _feather(path: Path) -> Path:
         (
             "in.dat",
             [],
-            "cannot tell the format of 'in.dat' from its extension; hconv reads CSV (.csv, .tsv, .tab), "
-            "Parquet (.parquet, .pq), "
-            "Arrow IPC (Feather) (.arrow, .feather, .ipc) or JSON lines (.jsonl, .ndjson): pass --from FORMAT "
-            "(csv, parquet, arrow or jsonl) if it is one of them",
+            "in.dat: cannot tell its format from its name; pass --from FORMAT, one of csv, parquet, arrow or jsonl",
         ),
         (
             "in.orc",
             [],
-            "in.orc: its name says ORC (.orc), which hconv does not read; hconv reads CSV (.csv, .tsv, .tab), Parquet "
-            "(.parquet, .pq), Arrow IPC (Feather) (.arrow, .feather, .ipc) or JSON lines (.jsonl, .ndjson)",
+            "in.orc: its name says ORC (.orc), which hconv does not read; hconv reads CSV, Parquet, "
+            "Arrow IPC (Feather) or JSON lines",
         ),
-        ("in.json", [], "if it holds one JSON object per line, pass --from jsonl"),
+        (
+            "in.json",
+            [],
+            "in.json: hconv reads JSON lines, not JSON: for one object per line, pass --from jsonl; for one array "
+            "of objects, first: jq -c '.[]' in.json > in.jsonl",
+        ),
         # Before: pyarrow's "Parquet magic bytes not found in footer"
         (
             "in.feather",
@@ -237,8 +239,6 @@ def test_format_of_json_lines_out_is_refused_naming_what_hconv_writes(tmp_path, 
     code, _, err = run_inprocess("convert", str(SCENE_CSV), "out.jsonl", capsys=capsys)
     assert (code, err) == (
         2,
-        "hconv: error: out.jsonl: hconv reads JSON lines but does not write it; it writes CSV (.csv, .tsv, .tab), "
-        "Parquet "
-        "(.parquet, .pq) or Arrow IPC (Feather) (.arrow, .feather, .ipc): pass --to arrow (or csv, parquet), and "
-        "name OUT for it\n",
+        "hconv: error: out.jsonl: hconv reads JSON lines but does not write it: pass --to arrow (or csv, parquet), "
+        "and name OUT for it\n",
     )

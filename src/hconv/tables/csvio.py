@@ -116,11 +116,10 @@ def _units_row(row: list[str], names: list, plan: layout.Layout, name: str) -> t
                 units.factor(
                     quantity[c],
                     v,
-                    f"{name}: the row under the header has no number in hconv's columns, so it is read as their "
-                    f"units, but column {c!r}",
+                    f"{name}: column {c!r} of the units row under the header",
                 )
             except UsageError as exc:
-                raise InputError(f"{exc}; or remove that row if it is no row of units") from None
+                raise InputError(f"{exc}; or remove that row if it is data") from None
     return tuple((c, v) for c, v in values.items() if v)
 
 

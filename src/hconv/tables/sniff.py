@@ -61,14 +61,15 @@ def format_of(path: str, given: str | None, flag: str) -> str:
         verb = "reads" if flag == "src_format" else "writes"
         if suffix in _SPREADSHEETS and flag == "src_format":  # the advice its bytes get under another name
             raise UsageError(f"{path}: is {FOREIGN[suffix]} ({suffix}), which hconv does not read; {_SAVE_AS_CSV}")
+        if suffix == ".json" and flag == "src_format":
+            raise UsageError(f"{path}: {_JSON_LINES.format(path=path, lines=os.path.splitext(path)[0] + '.jsonl')}")
         if suffix in FOREIGN:
             raise UsageError(
                 f"{path}: its name says {FOREIGN[suffix]} ({suffix}), which hconv does not {verb[:-1]}; "
-                f"hconv {verb} {listing(fmts)}" + (_JSON_LINES if suffix == ".json" and flag == "src_format" else "")
+                f"hconv {verb} {listing(fmts, extensions=False)}"
             )
         raise UsageError(
-            f"cannot tell the format of {path!r} from its extension; hconv {verb} {listing(fmts)}: "
-            f"pass {option(flag, 'FORMAT')} ({choices(fmts)}) if it is one of them"
+            f"{path}: cannot tell its format from its name; pass {option(flag, 'FORMAT')}, one of {choices(fmts)}"
         )
     if flag == "dst_format":
         _check_writes(fmt, flag, path)
@@ -76,8 +77,8 @@ def format_of(path: str, given: str | None, flag: str) -> str:
 
 
 _JSON_LINES = (
-    "; if it holds one JSON object per line, pass --from jsonl; if it is one array of objects, "
-    "write them a line each first: jq -c '.[]' in.json > in.jsonl"
+    "hconv reads JSON lines, not JSON: for one object per line, pass --from jsonl; for one array "
+    "of objects, first: jq -c '.[]' {path} > {lines}"
 )
 
 
@@ -87,7 +88,7 @@ def _check_writes(fmt: str, flag: str, path: str | None = None) -> None:
         return
     where = f"{path}: " if path else ""
     raise UsageError(
-        f"{where}hconv reads {NAMES[fmt]} but does not write it; it writes {listing(WRITES)}: "
+        f"{where}hconv reads {NAMES[fmt]} but does not write it: "
         f"pass {option(flag, 'arrow')} (or csv, parquet)" + (", and name OUT for it" if path else "")
     )
 
