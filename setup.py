@@ -20,6 +20,8 @@ setup(
         Extension(
             "hconv.solve.rowcode",
             ["src/hconv/solve/rowcode.c"],
+            # its chunk code, included by rowcode.c: a change to it rebuilds the extension
+            depends=["src/hconv/solve/rowmath.h"],
             include_dirs=[numpy.get_include()],
             extra_compile_args=flags,
             define_macros=[("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION")],

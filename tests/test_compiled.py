@@ -146,6 +146,63 @@ def test_convert_rows_same_bits_whatever_the_blocks_and_threads(rng, monkeypatch
     assert "MainThread" in names and any(n.startswith("hconv-rows") for n in names)
 
 
+def test_convert_rows_caller_takes_the_blocks_a_late_thread_has_not_begun(rng, monkeypatch):
+    """A pool thread held up in its first block (a busy machine) leaves the other blocks to the
+    caller, who converts them meanwhile: no block waits for a thread that has not begun it."""
+    I, H = physical_bodies(rng, 10_000), rng.normal(size=(10_000, 3))
+    ref = _rows_of(I, H)
+    caller_blocks = []
+    caller_went_on = threading.Event()
+    real = compiled.rowcode.convert
+
+    class HeldUp:
+        configure = compiled.rowcode.configure
+
+        @staticmethod
+        def convert(*args):
+            if threading.current_thread() is threading.main_thread():
+                caller_blocks.append(args[-2:])
+                if len(caller_blocks) == 2:
+                    caller_went_on.set()
+            else:  # the pool's thread: held until the caller has taken a second block (or gives up)
+                caller_went_on.wait(timeout=30)
+            return real(*args)
+
+    monkeypatch.setattr(compiled, "rowcode", HeldUp)
+    monkeypatch.setattr(compiled, "available_cores", lambda: 2)
+    got = _rows_of(I, H)
+    assert caller_went_on.is_set() and len(caller_blocks) >= 2
+    for a, b in zip(got, ref):
+        assert same_bits(a, b)
+
+
+def test_convert_rows_same_bits_whatever_the_instruction_set(rng):
+    """Every version of the chunk code this CPU runs gives the bits of the plain x86-64 one, which
+    takes the residual's product errors from Dekker's splits where the others use fma(): within
+    the safe range both are the exact error. Rows near that range's edges are in the stack
+    (inputs at 2^±120 kg·m², H at 2^±400 kg·m²/s)."""
+    I, H = hard_bodies(rng)
+    edge = physical_bodies(rng, 200)
+    scales = np.repeat([2.0**120, 2.0**-120], 100)
+    H_edge = rng.normal(size=(200, 3)) * np.repeat([2.0**400, 2.0**-400], 100)[:, None]
+    I, H = np.concatenate([I, edge * scales[:, None, None]]), np.concatenate([H, H_edge])
+    names = compiled.rowcode.kernels()
+    assert "default" in names
+    try:
+        for refined in (False, True):
+            compiled.rowcode.use("default")
+            ref = _rows_of(I, H, refined=refined)
+            assert 0 < ref[4].mean() < 0.5  # the edge rows are the compiled engine's own
+            assert not ref[4][-200:].any()
+            for name in names:
+                compiled.rowcode.use(name)
+                got = _rows_of(I, H, refined=refined)
+                for a, b in zip(got, ref):
+                    assert same_bits(a, b), name
+    finally:
+        compiled.rowcode.use(names[0])
+
+
 def test_convert_rows_from_another_thread_stays_on_it(rng, monkeypatch):
     """A call from a thread that is not the main one (the file pipeline's batch threads, a Dask
     task) is already part of its caller's parallelism: it converts on that thread."""

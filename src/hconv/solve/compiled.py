@@ -30,7 +30,6 @@ import math
 import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
-from typing import Any
 
 import numpy as np
 
@@ -44,6 +43,8 @@ from hconv.solve.status import CODE, ILL_CONDITIONED_TOL, SINGULAR_RTOL_EPS, SYM
 #: Rows per thread below which a call stays on its caller's thread (handing rows to another
 #: thread would cost more than it saves).
 BLOCK_ROWS = 4096
+#: A large call's blocks per thread (docs/measurements.md).
+PARTS_PER_THREAD = 8
 
 _EPS = float(np.finfo(np.float64).eps)
 #: The status codes this engine sets, status.py's. The C code writes them in the order of
@@ -115,22 +116,16 @@ def _shared_pool(threads: int) -> ThreadPoolExecutor:
         return _pool
 
 
-def one(
-    I: np.ndarray, nine: bool, H: np.ndarray, refined: bool, diagnostics: bool, cond_limit: float
-) -> tuple[np.ndarray, Any, Any, Any, bool] | None:
-    """One body, ``I`` ``(3, 3)`` or ``(6,)`` and ``H`` ``(3,)`` contiguous float64, in the caller's
-    thread: ``(w (3,), cond, status code, residual or None, fallback)``, numpy scalars as a
-    stacked Result's rows hold them, or None for arrays of another layout."""
-    return rowcode.one(I, nine, H, refined, diagnostics, cond_limit)
-
-
-def stack(
-    I: np.ndarray, H: np.ndarray, refined: bool, diagnostics: bool, cond_limit: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None] | None:
-    """A small stack as numpy users hold it, ``I`` ``(N, 3, 3)`` or ``(N, 6)`` and ``H``
-    ``(N, 3)`` float64, on the caller's thread into new arrays: ``(w (N, 3), cond, status codes,
-    residual or None)``; None when a row is left to the numpy engine, or for another layout."""
-    return rowcode.stack(I, H, refined, diagnostics, cond_limit)
+#: ``one(I, nine, H, refined, diagnostics, cond_limit)``: one body, ``I`` ``(3, 3)`` or ``(6,)``
+#: and ``H`` ``(3,)`` contiguous float64, in the caller's thread: ``(w (3,), cond, status code,
+#: residual or None, fallback)``, numpy scalars as a stacked Result's rows hold them, or None for
+#: arrays of another layout. The C function itself: a wrapper would add a sixth to a one-body call.
+one = rowcode.one
+#: ``stack(I, H, refined, diagnostics, cond_limit)``: a small stack as numpy users hold it, ``I``
+#: ``(N, 3, 3)`` or ``(N, 6)`` and ``H`` ``(N, 3)`` float64, on the caller's thread into new
+#: arrays: ``(w (N, 3), cond, status codes, residual or None)``; None when a row is left to the
+#: numpy engine, or for another layout. The C function itself, as ``one``.
+stack = rowcode.stack
 
 
 def convert_rows(
@@ -157,11 +152,12 @@ def convert_rows(
     threads = _threads(n)
     if threads == 1:
         return rowcode.convert(*args, 0, n)
-    # one block per thread when they are few; more, of at least BLOCK_ROWS, for large calls, so
-    # that a slow core (a shared machine) holds up the others by one block at most. Every thread,
-    # the caller's too, takes the next block until none is left: blocks handed out in advance
-    # left the caller one block and a single pool thread all the others.
-    parts = threads if n < 16 * threads * BLOCK_ROWS else 4 * threads
+    # Every thread, the caller's too, takes the next block until none is left (blocks handed out
+    # in advance left the caller one block and a single pool thread all the others), and blocks
+    # are small enough, a quarter of BLOCK_ROWS and at most PARTS_PER_THREAD a thread, that a
+    # thread which starts late or runs slow (a busy machine) holds up the call by little: one
+    # block a thread left the caller waiting for a pool thread that had not begun its half.
+    parts = max(threads, min(-(-n // max(1, BLOCK_ROWS // 4)), PARTS_PER_THREAD * threads))
     size = -(-n // parts)
     blocks = iter(range(0, n, size))
     lock = threading.Lock()
