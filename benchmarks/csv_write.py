@@ -1,18 +1,19 @@
 """hconv's CSV writer against pyarrow's own, on the same converted table: bytes per second of
 each, and their ratio (above 1: hconv's is faster), measured in the same run.
 
-    python benchmarks/csv_write.py [rows] [--quoted]     # default 2,000,000 rows
+    python benchmarks/csv_write.py [rows] [--quoted] [--repeats N]   # default 2,000,000 rows, 5 repeats
 
-The writer formats a table's slices on the cores available (at most 4), pyarrow's on one: on a
-machine whose cores are busy with other work the ratio falls towards 1.
+Both writers format on one core with pyarrow's formatting: where no value needs quotes, hconv's
+is pyarrow's writer, and the ratio is 1 but for noise; where values need quotes, it measures
+what quoting only those costs (hconv.tables.csvwrite).
 
 The table is what `hconv convert` writes for a CSV of H, a sym6 inertia and a text column read
 as text: the input's columns, ω, residual, cond and status (dictionary), and `w_unit`. Each
-writer writes it three times, in blocks of the pipeline's size, to a file in a temporary folder, and
-the fastest of its writes counts (wall-clock and CPU time apart); pyarrow's writer is given
-the same table with `status` as text and its own default quoting. ``--quoted`` adds a table
-where one id in 100 holds a comma, so that its value needs quotes (the other path of hconv's
-writer).
+writer writes it N times (``--repeats``, 5 by default), interleaved with the other's, in blocks
+of the pipeline's size, to a file in a temporary folder, and the fastest of its writes counts
+(wall-clock and CPU time apart); pyarrow's writer is given the same table with `status` as text
+and its own default quoting. ``--quoted`` adds a table where one id in 100 holds a comma, so
+that its value needs quotes (the other path of hconv's writer).
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ import pyarrow.csv as pacsv
 
 import hconv
 from hconv.solve import engines
-from hconv.tables.csvio import CsvWriter
+from hconv.tables.csvwrite import CsvWriter
 from hconv.tools import leftovers
 from hconv.tools.scene import make_scene
 
@@ -49,7 +50,7 @@ def timed(write) -> tuple[float, float]:
     return time.perf_counter() - t0, time.process_time() - c0
 
 
-def ratio(n: int, quoted: bool) -> None:
+def ratio(n: int, quoted: bool, repeats: int) -> None:
     table = converted(n, quoted)
     blocks = table.to_batches(BLOCK_ROWS)
     with leftovers.temporary_folder("csv-write-") as work:
@@ -69,9 +70,9 @@ def ratio(n: int, quoted: bool) -> None:
                 for b in plain_blocks:
                     w.write_batch(b)
 
-        # interleaved, the fastest of three each: on a shared machine one write can be slowed by others
+        # interleaved, the fastest of each: on a shared machine one write can be slowed by others
         runs_ours, runs_theirs = [], []
-        for _ in range(3):
+        for _ in range(repeats):
             runs_ours.append(timed(hconv_writes))
             runs_theirs.append(timed(pyarrow_writes))
         b_ours, b_theirs = os.path.getsize(ours), os.path.getsize(theirs)
@@ -86,12 +87,14 @@ def ratio(n: int, quoted: bool) -> None:
 
 
 def main() -> None:
-    counts = [a for a in sys.argv[1:] if a.isdigit()]
+    args = sys.argv[1:]
+    repeats = int(args.pop(args.index("--repeats") + 1)) if "--repeats" in args else 5
+    counts = [a for a in args if a.isdigit()]
     n = int(counts[0]) if counts else 2_000_000
     print(f"{engines.available_cores()} cores available")
     leftovers.remove_stale_folders(print)
     for quoted in (False, True) if "--quoted" in sys.argv else (False,):
-        ratio(n, quoted)
+        ratio(n, quoted, repeats)
 
 
 if __name__ == "__main__":

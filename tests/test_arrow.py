@@ -309,7 +309,7 @@ def test_convert_table_prefix_names_every_appended_column_and_output_schema_agre
     H, I = rng.normal(size=(4, 3)), np.abs(rng.normal(size=(4, 3))) + 1
     data = pa.table({"Hx": H[:, 0], "Hy": H[:, 1], "Hz": H[:, 2], "I1": I[:, 0], "I2": I[:, 1], "I3": I[:, 2],
                      "status": ["a", "b", "c", "d"], "wx": np.zeros(4)})  # fmt: skip
-    with pytest.raises(InputError, match=r"or give the columns hconv appends a prefix with prefix='out_'$"):
+    with pytest.raises(InputError, match=r"or pass prefix='out_' for hconv's new ones$"):
         hconv.convert_table(data)
     got = hconv.convert_table(data, prefix="o.")
     appended = ["o.wx", "o.wy", "o.wz", "o.residual", "o.cond", "o.status"]

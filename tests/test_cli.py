@@ -256,7 +256,7 @@ def test_convert_non_numeric_parquet_column(tmp_path, capsys):
     [
         ("empty.csv", b"", "the file is empty"),
         ("empty.parquet", b"", "the file is empty"),
-        ("junk.parquet", b"this is not parquet at all, just text\n" * 20, "not a readable Parquet file"),
+        ("junk.parquet", b"this is not parquet at all, just text\n" * 20, "is CSV text, not Parquet: rename it"),
         ("binary.csv", bytes(range(256)) * 4, "in.csv" if False else "binary.csv"),
     ],
 )
@@ -277,9 +277,7 @@ def test_convert_missing_input_file(tmp_path, capsys):
 def test_convert_unknown_extension_is_usage_error(tmp_path, capsys):
     proc = hconv_inprocess("convert", str(EXAMPLES / "scene.csv"), str(tmp_path / "out.txt"), capsys=capsys)
     # the formats hconv writes, by name: "name it .csv or .parquet" was wrong advice for a file of another format
-    assert_one_line_error(
-        proc, 2, "out.txt", "hconv writes CSV (.csv, .tsv, .tab), Parquet (.parquet, .pq) or Arrow IPC", "--to"
-    )
+    assert_one_line_error(proc, 2, "out.txt", "pass --to FORMAT, one of csv, parquet or arrow")
 
 
 def test_convert_output_directory_missing(tmp_path, capsys):
@@ -826,8 +824,9 @@ def test_convert_units_row_csv_takes_the_units(tmp_path, capsys):
     proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.csv"), capsys=capsys)
     assert proc.returncode == 0, proc.stderr
     assert "units from the row under the header" in proc.stderr.decode()
-    rows = list(csv.DictReader(io.StringIO((tmp_path / "out.csv").read_text())))
+    units, *rows = list(csv.DictReader(io.StringIO((tmp_path / "out.csv").read_text())))
     assert len(rows) == 1 and rows[0]["part"] == "wheel"  # the units row is not a data row
+    assert units["part"] == "-" and units["I3"] == "kg*mm^2" and units["wx"] == "rad/s"  # it is the output's
     # 2e7 g*cm^2 = 2 kg*m^2, 4e7 g*cm^2 = 4 kg*m^2, 5e6 kg*mm^2 = 5 kg*m^2
     assert [float(rows[0][c]) for c in ("wx", "wy", "wz")] == [0.5, 0.5, 0.6]
 

@@ -2,25 +2,6 @@
 
 from __future__ import annotations
 
-import csv
-import io
-
-
-def test_csv_writer_csv_to_csv_text_columns_come_out_byte_for_byte(tmp_path):
-    """Before: one value needing quotes made every text value of its batch quoted (1 -> "1",
-    02134 -> "02134"), though docs/input.md promises them back exactly as they went in."""
-    from hconv.tables.pipeline import convert_file
-
-    rows = ['1,02134,plain text,"a,b",,"say ""hi""",007', '2,00501,x y,z,,"line\nbreak",1e3']
-    text = "id,zip,label,note,empty,quote,code,Hx,Hy,Hz,I1,I2,I3\n" + "".join(r + ",1,2,3,1,2,4\n" for r in rows)
-    (tmp_path / "in.csv").write_text(text)
-    convert_file(str(tmp_path / "in.csv"), str(tmp_path / "out.csv"))
-    out = (tmp_path / "out.csv").read_text()
-    assert out.startswith("id,zip,label,note,empty,quote,code,Hx,")
-    body = out.split("\n", 1)[1]
-    assert body.startswith(rows[0] + ",1,2,3,1,2,4,")
-    assert "\n" + rows[1] + ",1,2,3,1,2,4," in body
-
 
 def _wheels(tmp_path, text: str, name: str = "in.csv"):
     path = tmp_path / name
@@ -47,6 +28,33 @@ def test_convert_file_units_row_gives_the_columns_units_and_keeps_them_in_parque
     assert t.column("wx").to_pylist() == [0.5, 1.0] and t.column("wz").to_pylist() == [0.5, 1.0]
 
 
+def test_convert_file_units_row_comes_out_under_the_header_and_reads_back(tmp_path):
+    """Before: CSV into CSV dropped the row of units, so that the output's H and I read back as SI
+    (g*cm^2 taken for kg*m^2) and ω's unit was in w_unit only. Now the input's row comes out as
+    it was, with ω's unit and 1 for the ratios under hconv's columns, and hconv reads it back."""
+    import pyarrow.parquet as pq
+
+    from hconv.tables.pipeline import convert_file
+
+    src = _wheels(
+        tmp_path,
+        "id,Hx,Hy,Hz,I1,I2,I3\nunit,kg*m^2/s,kg*m^2/s,g*cm^2/s,g*cm^2,g*cm^2,g*cm^2\n7,1,2,3e7,2e7,4e7,6e7\n8,1,1,1e7,1e7,1e7,1e7\n",
+    )
+    convert_file(src, str(tmp_path / "out.csv"))
+    lines = (tmp_path / "out.csv").read_text().splitlines()
+    assert lines[0] == "id,Hx,Hy,Hz,I1,I2,I3,wx,wy,wz,residual,cond,status,w_unit"
+    assert lines[1] == "unit,kg*m^2/s,kg*m^2/s,g*cm^2/s,g*cm^2,g*cm^2,g*cm^2,rad/s,rad/s,rad/s,1,1,,"
+    assert [ln.split(",")[0] for ln in lines[2:]] == ["7", "8"]
+    tally = convert_file(str(tmp_path / "out.csv"), str(tmp_path / "again.parquet"), prefix="again_")
+    assert tally.rows == 2 and "units from the row under the header" in tally.read_as
+    t = pq.read_table(tmp_path / "again.parquet")
+    # H = (1, 2, 3) kg·m²/s over I = (2, 4, 6) kg·m², then all ones: read back in the same units
+    assert t.column("again_wx").to_pylist() == [0.5, 1.0] and t.column("again_wz").to_pylist() == [0.5, 1.0]
+    assert t.schema.field("I1").metadata == {b"unit": b"g*cm^2"}
+    convert_file(src, str(tmp_path / "out.parquet"))  # into Parquet, the units stay field metadata
+    assert pq.read_table(tmp_path / "out.parquet").column("id").to_pylist() == [7, 8]
+
+
 def test_convert_file_units_row_then_bad_rows_are_named_by_data_row(tmp_path):
     """Rows are counted from the first data row: comment lines and the units row are not rows."""
     import pytest
@@ -62,18 +70,6 @@ def test_convert_file_units_row_then_bad_rows_are_named_by_data_row(tmp_path):
     with pytest.raises(InputError, match=r"data row 2 has 5 values, but the header names 6 columns.*semicolon\)"):
         convert_file(src, str(tmp_path / "out.csv"))
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in.csv"]
-
-
-def test_csv_writer_tsv_quotes_tabs_not_commas(tmp_path):
-    import pyarrow as pa
-
-    from hconv.tables.csvio import CsvWriter
-
-    t = pa.table({"a": ["x,y", "p\tq", 'say "hi"'], "b": [1.5, 2.0, 0.1]})
-    w = CsvWriter(str(tmp_path / "out.tsv"), t.schema, "\t")
-    w.write(t)
-    w.close()
-    assert (tmp_path / "out.tsv").read_text() == 'a\tb\nx,y\t1.5\n"p\tq"\t2\n"say ""hi"""\t0.1\n'
 
 
 def test_convert_file_progress_counts_bytes_of_the_rows_converted(tmp_path, monkeypatch):
@@ -96,53 +92,6 @@ def test_convert_file_progress_counts_bytes_of_the_rows_converted(tmp_path, monk
     assert len(calls) == 1 + -(-size // block)  # the size, then one call per block of the file
     # the k-th batch is the k-th block: it reports k blocks in, never the reader's read-ahead
     assert done[1:-1] == [block * k for k in range(1, len(calls) - 1)]
-
-
-def test_csv_writer_slices_write_the_bytes_of_the_whole_table(tmp_path, monkeypatch):
-    """Values that need quotes are joined a slice of rows at a time: the bytes are those of the
-    whole table joined at once (a column's nulls beside empty strings are decided on the whole
-    table, though a slice may hold only one of them), and every value comes back as it was."""
-    import numpy as np
-    import pyarrow as pa
-
-    from hconv.tables import csvio
-
-    n = 3 * csvio._QUOTED_ROWS
-    rng = np.random.default_rng(1)
-    words = np.array(["", "a", "b,c", 'say "hi"', "x\ny", "007"], dtype=object)
-    text = words[rng.integers(0, len(words), n)]
-    text[: n // 2][text[: n // 2] == ""] = None  # nulls in the first half only, empty strings in the second
-    t = pa.table({"t": pa.array(text, pa.string()), "x": rng.normal(size=n), "d": pa.array(["p"] * n)})
-    written = {}
-    for rows in (csvio._QUOTED_ROWS, 10 * n):
-        monkeypatch.setattr(csvio, "_QUOTED_ROWS", rows)
-        w = csvio.CsvWriter(str(tmp_path / f"{rows}.csv"), t.schema)
-        w.write(t)
-        w.close()
-        written[rows] = (tmp_path / f"{rows}.csv").read_bytes()
-    assert written[10 * n] == written[csvio._QUOTED_ROWS]
-    rows = list(csv.reader(io.StringIO(written[10 * n].decode(), newline="")))
-    assert [r[0] for r in rows[1:]] == ["" if v is None else v for v in text]  # every value back as it was
-    assert b'\n"",' in written[10 * n] and b"\n," in written[10 * n]  # "" an empty string, nothing a null
-
-
-def test_csv_writer_a_value_pyarrow_refuses_unquoted_takes_its_rows_back(tmp_path, monkeypatch):
-    """pyarrow's writer writes a table's rows straight into the file, 1024 at a time, and refuses
-    a value that needs quotes only when it gets there: the rows it wrote are taken back, and the
-    table written with quotes, as if it had been seen first."""
-    import pyarrow as pa
-
-    from hconv.tables import csvio
-
-    t = pa.table({"t": ["a"] * 5000 + ["b,c"], "x": [0.5] * 5001})
-    expected = "t,x\n" + "a,0.5\n" * 5000 + '"b,c",0.5\n'
-    for seen in (True, False):
-        monkeypatch.setattr(csvio, "_needs_quoting", lambda t, d, seen=seen: seen)
-        w = csvio.CsvWriter(str(tmp_path / "out.csv"), t.schema)
-        w.write(t.slice(0, 10))
-        w.write(t)
-        w.close()
-        assert (tmp_path / "out.csv").read_text() == "t,x\n" + "a,0.5\n" * 10 + expected[4:]
 
 
 def test_convert_delimiter_comma_on_a_semicolon_file_names_the_semicolon(tmp_path, capsys):

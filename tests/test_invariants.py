@@ -21,7 +21,7 @@ import pytest
 from helpers import StopAt, run_inprocess
 
 from hconv import METHODS
-from hconv.tables import csvio, parquetio
+from hconv.tables import csvio, csvwrite, parquetio
 from hconv.tools.scene import make_scene
 
 TRICKY_TEXT = ["007", "a,b", 'say "hi"', "", "1.50", " padded ", "ünï", "NaN", "-0", "1e400"]
@@ -113,7 +113,7 @@ def test_convert_csv_passthrough_is_byte_for_byte(tmp_path, capsys):
 @pytest.mark.parametrize("when", ["write", "close"])
 def test_convert_full_disk_is_one_line_and_leaves_nothing(inputs, tmp_path, capsys, monkeypatch, fmt, when):
     d, _ = inputs
-    writer = csvio.CsvWriter if fmt == "csv" else parquetio.ParquetWriter
+    writer = csvwrite.CsvWriter if fmt == "csv" else parquetio.ParquetWriter
     real = getattr(writer, when)
     calls = []
 

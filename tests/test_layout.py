@@ -408,8 +408,8 @@ def test_plan_input_with_hconv_s_output_names_converts_with_a_prefix(tmp_path, c
     proc = hconv_inprocess("convert", str(src), str(out), capsys=capsys)
     err = proc.stderr.decode().strip()
     assert proc.returncode == 3 and len(err.splitlines()) == 1
-    assert err.endswith("already has output columns wx, status; rename or drop them (is this hconv's own output?), "
-                        "or give the columns hconv appends a prefix with --prefix out_")  # fmt: skip
+    assert err.endswith("already has output columns wx, status; rename or drop them (hconv's own output?), "
+                        "or pass --prefix out_ for hconv's new ones")  # fmt: skip
     proc = hconv_inprocess("convert", str(src), str(out), "--prefix", "out_", capsys=capsys)
     assert proc.returncode == 0, proc.stderr.decode()
     lines = out.read_text().splitlines()
@@ -418,9 +418,7 @@ def test_plan_input_with_hconv_s_output_names_converts_with_a_prefix(tmp_path, c
     assert "ok\t2" in proc.stderr.decode()  # the tally counts hconv's status, not the input's
     # converting the output again needs another prefix, and says so
     again = hconv_inprocess("convert", str(out), str(tmp_path / "o2.csv"), "--prefix", "out_", capsys=capsys)
-    assert again.returncode == 3 and "or give the columns hconv appends a prefix with another --prefix" in (
-        again.stderr.decode()
-    )
+    assert again.returncode == 3 and "or pass another --prefix for hconv's new ones" in (again.stderr.decode())
 
 
 def test_plan_reads_the_unit_a_struct_field_stores_as_its_metadata():

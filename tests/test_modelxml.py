@@ -102,6 +102,32 @@ def test_read_model_root_must_be_a_folder_holding_the_model(tmp_path):
         models.read_model(model, root=tmp_path / "none")
 
 
+def test_cli_bodies_root_on_urdf_or_sdf_is_refused_naming_it(tmp_path, capsys):
+    """Before: --root was taken and did nothing for URDF and SDF (hconv reads them from their one
+    file, SDF's includes noted, not followed), so a user could believe it had found what their
+    includes name. Now it is refused in one line that names it and why, exit 2, as in Python."""
+    (tmp_path / "m").mkdir()
+    urdf = tmp_path / "m" / "arm.urdf"
+    urdf.write_text(
+        '<robot name="a"><link name="l"><inertial><mass value="1"/>'
+        '<inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link></robot>'
+    )
+    sdf = tmp_path / "m" / "arm.sdf"
+    sdf.write_text(
+        '<sdf version="1.9"><model name="a"><include><uri>model://base</uri></include>'
+        "<link name='l'><inertial><mass>1</mass><inertia><ixx>1</ixx><iyy>1</iyy><izz>1</izz>"
+        "<ixy>0</ixy><ixz>0</ixz><iyz>0</iyz></inertia></inertial></link></model></sdf>"
+    )
+    for model, why in ((urdf, "URDF has no includes"), (sdf, "SDF is read without its includes")):
+        assert hconv_inprocess("bodies", str(model), capsys=capsys).returncode == 0  # without it, read
+        got = hconv_inprocess("bodies", str(model), "--root", str(tmp_path), capsys=capsys)
+        err = got.stderr.decode().strip()
+        assert got.returncode == 2 and "\n" not in err
+        assert err == f"hconv: error: {model}: --root is for MJCF includes; {why}: drop --root"
+        with pytest.raises(UsageError, match=f"root is for MJCF includes; {why}: drop root$"):
+            models.read_model(model, root=tmp_path)
+
+
 def windows_include(tmp_path: Path, written: str) -> Path:
     (tmp_path / "assets").mkdir()
     (tmp_path / "assets" / "table_dependencies.xml").write_text(

@@ -59,9 +59,9 @@ def test_output_full_disk_names_the_output(fmt, tmp_path, capsys, monkeypatch):
     ``output: Error writing bytes to file. Detail: [errno 28] ...``)."""
     import errno
 
-    from hconv.tables import csvio, parquetio
+    from hconv.tables import csvwrite, parquetio
 
-    writer = csvio.CsvWriter if fmt == "csv" else parquetio.ParquetWriter
+    writer = csvwrite.CsvWriter if fmt == "csv" else parquetio.ParquetWriter
 
     def full(self, table):
         raise OSError(errno.ENOSPC, "Error writing bytes to file. Detail: [errno 28] No space left on device")

@@ -3,6 +3,7 @@ contradicts them."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -165,18 +166,20 @@ def _feather(path: Path) -> Path:
         (
             "in.dat",
             [],
-            "cannot tell the format of 'in.dat' from its extension; hconv reads CSV (.csv, .tsv, .tab), "
-            "Parquet (.parquet, .pq), "
-            "Arrow IPC (Feather) (.arrow, .feather, .ipc) or JSON lines (.jsonl, .ndjson): pass --from FORMAT "
-            "(csv, parquet, arrow or jsonl) if it is one of them",
+            "in.dat: cannot tell its format from its name; pass --from FORMAT, one of csv, parquet, arrow or jsonl",
         ),
         (
             "in.orc",
             [],
-            "in.orc: its name says ORC (.orc), which hconv does not read; hconv reads CSV (.csv, .tsv, .tab), Parquet "
-            "(.parquet, .pq), Arrow IPC (Feather) (.arrow, .feather, .ipc) or JSON lines (.jsonl, .ndjson)",
+            "in.orc: its name says ORC (.orc), which hconv does not read; hconv reads CSV, Parquet, "
+            "Arrow IPC (Feather) or JSON lines",
         ),
-        ("in.json", [], "if it holds one JSON object per line, pass --from jsonl"),
+        (
+            "in.json",
+            [],
+            "in.json: hconv reads JSON lines, not JSON: for one object per line, pass --from jsonl; for one array "
+            "of objects, first: jq -c '.[]' in.json > in.jsonl",
+        ),
         # Before: pyarrow's "Parquet magic bytes not found in footer"
         (
             "in.feather",
@@ -199,13 +202,43 @@ def test_format_of_names_the_formats_hconv_reads(name, args, message, tmp_path, 
     assert message in err
 
 
+@pytest.mark.parametrize(
+    "name, what",
+    [
+        ("book.xlsx", "an Excel workbook"),
+        ("book.xls", "an Excel workbook"),
+        ("book.ods", "an OpenDocument spreadsheet"),
+    ],
+)
+def test_format_of_spreadsheet_by_its_name_says_to_save_it_as_csv(name, what, tmp_path, capsys, monkeypatch):
+    """Before: a workbook named .xlsx got the list of formats hconv reads, while the same file
+    named .csv was told to be saved as CSV UTF-8 from the spreadsheet: now both get that advice."""
+    import zipfile
+
+    monkeypatch.chdir(tmp_path)
+    if name.endswith(".xls"):  # Excel 97-2003: an OLE2 compound file
+        Path(name).write_bytes(b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1" + b"\x00" * 504)
+    else:
+        with zipfile.ZipFile(name, "w") as z:
+            if name.endswith(".ods"):
+                z.writestr("mimetype", "application/vnd.oasis.opendocument.spreadsheet")
+            else:
+                z.writestr("[Content_Types].xml", "<Types/>")
+                z.writestr("xl/workbook.xml", "<workbook/>")
+    code, _, err = run_inprocess("convert", name, "out.csv", capsys=capsys)
+    suffix = name[name.index(".") :]
+    save_as = "open it in the spreadsheet and save the sheet as 'CSV UTF-8 (comma delimited)'"
+    assert (code, err) == (2, f"hconv: error: {name}: is {what} ({suffix}), which hconv does not read; {save_as}\n")
+    code, _, err = run_inprocess("convert", name, "out.csv", "--from", "csv", capsys=capsys)
+    assert code == 3 and save_as in err  # its bytes read as CSV: the same advice
+    assert sorted(os.listdir()) == [name]
+
+
 def test_format_of_json_lines_out_is_refused_naming_what_hconv_writes(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     code, _, err = run_inprocess("convert", str(SCENE_CSV), "out.jsonl", capsys=capsys)
     assert (code, err) == (
         2,
-        "hconv: error: out.jsonl: hconv reads JSON lines but does not write it; it writes CSV (.csv, .tsv, .tab), "
-        "Parquet "
-        "(.parquet, .pq) or Arrow IPC (Feather) (.arrow, .feather, .ipc): pass --to arrow (or csv, parquet), and "
-        "name OUT for it\n",
+        "hconv: error: out.jsonl: hconv reads JSON lines but does not write it: pass --to arrow (or csv, parquet), "
+        "and name OUT for it\n",
     )

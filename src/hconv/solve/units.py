@@ -98,10 +98,9 @@ def factor(quantity: str, unit: str, where: str = "unit") -> float:
     ureg = _registry()
     try:
         one = ureg.Quantity(1.0, unit)
-    except Exception as exc:  # pint raises several kinds for text it cannot parse
+    except Exception:  # pint raises several kinds for text it cannot parse
         raise UsageError(
-            f"{where}: pint does not understand the unit {unit!r} ({type(exc).__name__}); "
-            "write it like g*cm**2 or lb*ft**2/s"
+            f"{where}: pint does not understand the unit {unit!r}; write it like g*cm**2 or lb*ft**2/s"
         ) from None
     return _to_si(quantity, one, repr(unit), where)
 

@@ -1,8 +1,8 @@
-"""CSV in and out. Reading refuses, with the reason, a file that is not comma-separated UTF-8
-text, reads the columns hconv does not use as text (:attr:`~hconv.tables.inputs.Input.text`) so
+"""CSV in (out: :mod:`hconv.tables.csvwrite`). Reading refuses, with the reason, a file that is
+not UTF-8 text, reads the columns hconv does not use as text (:attr:`~hconv.tables.inputs.Input.text`) so
 that CSV output gives them back exactly as they went in (into Parquet the pipeline gives them
 types: :mod:`hconv.tables.csvtypes`), and names the row, column and value of what pyarrow cannot
-read. Writing quotes only the values that must be, and puts ω's unit into a ``w_unit`` column.
+read.
 
 pyarrow is given native files only (see :func:`open_csv`)."""
 
@@ -10,16 +10,10 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-import io
-import os
 import re
-import stat
 from collections.abc import Iterator
-from typing import Any
 
-import numpy as np
 import pyarrow as pa
-import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 
 from hconv.errors import HconvError, InputError, UsageError, first_line, option
@@ -41,7 +35,6 @@ from hconv.tables.sniff import (
 )
 
 CSV_BLOCK_BYTES = 4 << 20
-UNIT_COLUMN = layout.UNIT_COLUMN
 
 
 def _sniff_csv(path: str, name: str) -> str:
@@ -123,11 +116,10 @@ def _units_row(row: list[str], names: list, plan: layout.Layout, name: str) -> t
                 units.factor(
                     quantity[c],
                     v,
-                    f"{name}: the row under the header has no number in hconv's columns, so it is read as their "
-                    f"units, but column {c!r}",
+                    f"{name}: column {c!r} of the units row under the header",
                 )
             except UsageError as exc:
-                raise InputError(f"{exc}; or remove that row if it is no row of units") from None
+                raise InputError(f"{exc}; or remove that row if it is data") from None
     return tuple((c, v) for c, v in values.items() if v)
 
 
@@ -221,9 +213,9 @@ def open_csv(path: str, name: str, job: Job) -> Input:
     rows = [r for r in csv.reader(lines[1:], delimiter=dialect.delimiter) if r]
     found = _units_row(rows[0], names, plan, name) if rows else ()
     if rows and found:
+        dialect = dataclasses.replace(dialect, units=found, units_row=True, units_text=tuple(rows[0]))
         rows = rows[1:]
         plan = layout.plan(pa.schema([_with_unit(n, dict(found)) for n in names]), job, name)
-        dialect = dataclasses.replace(dialect, units=found, units_row=True)
         ropts = _read_options(dialect)
     if job.decimal is None and dialect.delimiter != ",":
         at = {c: names.index(c) for c in plan.numeric}
@@ -407,185 +399,3 @@ def _csv_value_error(
         f"{name}: column {col!r} must be numeric but holds {value!r}{where}; "
         "fix or blank that value (a blank becomes a row with status invalid_input)"
     )
-
-
-def check_csv_columns(schema: pa.Schema, name: str) -> None:
-    """InputError, before anything is converted, for a column CSV cannot hold: a struct, map or
-    union (lists are written as text, :func:`_list_as_text`)."""
-    for f in schema:
-        t = f.type.value_type if pa.types.is_dictionary(f.type) else f.type
-        if pa.types.is_struct(t) or pa.types.is_map(t) or pa.types.is_union(t):
-            raise InputError(_csv_cannot_hold(name, f))
-
-
-def _csv_cannot_hold(name: str, f: pa.Field, why: str = "") -> str:
-    return (
-        f"{name + ': ' if name else ''}column {f.name!r} is {f.type}{why}, which CSV cannot hold; "
-        "write Parquet instead (OUT named .parquet), or drop the column first"
-    )
-
-
-def _binary_as_text(col: pa.ChunkedArray, f: pa.Field) -> pa.ChunkedArray:
-    """A binary column as text, which it must be to go into CSV: InputError if it holds bytes that
-    are not UTF-8 (a Parquet byte array without the string annotation usually is text)."""
-    try:
-        return col.cast(pa.string())
-    except pa.ArrowInvalid:
-        raise InputError(_csv_cannot_hold("", f, " and holds bytes that are not UTF-8 text")) from None
-
-
-def _list_as_text(col: pa.ChunkedArray) -> pa.ChunkedArray | pa.Array:
-    """A list column as text, ``[1.5, 2.0, 3.0]``, since CSV has no lists; other columns as they are."""
-    t = col.type
-    if not (pa.types.is_list(t) or pa.types.is_large_list(t) or pa.types.is_fixed_size_list(t)):
-        return col
-    return pa.array(
-        [None if v is None else "[" + ", ".join(repr(x) for x in v) + "]" for v in col.to_pylist()], type=pa.string()
-    )
-
-
-def _needs_quotes(delimiter: str) -> str:
-    """The characters that make a value need quotes: the delimiter, a quote, a line break."""
-    return "[" + re.escape(delimiter) + '"\\r\\n]'
-
-
-def _empty_beside_null(col: pa.ChunkedArray) -> bool:
-    """A text column holding both nulls and empty strings, which unquoted CSV would merge."""
-    return (
-        (pa.types.is_string(col.type) or pa.types.is_large_string(col.type))
-        and col.null_count > 0
-        and bool(pc.any(pc.equal(col, "")).as_py())
-    )
-
-
-def _is_number(t: pa.DataType) -> bool:
-    """A type whose text never holds a delimiter, a quote or a line break."""
-    return pa.types.is_integer(t) or pa.types.is_floating(t) or pa.types.is_boolean(t)
-
-
-def _csv_rows(t: pa.Table, delimiter: str, with_nulls: frozenset) -> pa.Buffer:
-    """``t`` as CSV rows, each value quoted only if it must be: one holding the delimiter, a
-    quote or a line break, and, in a column that also holds nulls (``with_nulls``: their
-    indices, in the whole table written), the empty string (``""``; a null is empty). pyarrow's
-    own quoting (``needed``) quotes every text value, so that ``1`` became ``"1"``; the values are
-    formatted by the same cast pyarrow's writer uses, so the bytes match its unquoted output
-    otherwise. The rows are joined by pyarrow, not Python: the last column gets the line end,
-    then each row's values are joined into one text whose data buffer is the rows' bytes."""
-
-    def text_of(v: str) -> pa.Scalar:
-        return pa.scalar(v, pa.large_string())
-
-    cols = []
-    for k, col in enumerate(t.columns):
-        text = pc.cast(col, pa.large_string())  # 64-bit offsets: a block's text may pass 2 GiB
-        if not _is_number(col.type):
-            needs = pc.match_substring_regex(text, _needs_quotes(delimiter))
-            if pc.any(needs).as_py():
-                quoted = pc.binary_join_element_wise(
-                    text_of('"'), pc.replace_substring(text, '"', '""'), text_of('"'), text_of("")
-                )
-                text = pc.if_else(needs, quoted, text)
-        if k in with_nulls:
-            text = pc.if_else(pc.equal(text, ""), text_of('""'), text)
-        cols.append(pc.fill_null(text, text_of("")))
-    if not cols:
-        return pa.py_buffer(b"\n" * t.num_rows)
-    cols[-1] = pc.binary_join_element_wise(cols[-1], text_of("\n"), text_of(""))
-    lines = pc.binary_join_element_wise(*cols, text_of(delimiter)) if len(cols) > 1 else cols[0]
-    lines = lines.combine_chunks() if isinstance(lines, pa.ChunkedArray) else lines
-    if len(lines) == 0:
-        return pa.py_buffer(b"")
-    offsets = np.frombuffer(lines.buffers()[1], dtype=np.int64)
-    return lines.buffers()[2][int(offsets[lines.offset]) : int(offsets[lines.offset + len(lines)])]
-
-
-#: Rows formatted at once where values need quotes: a slice's text stays in the CPU's cache, as
-#: pyarrow's writer formats 1024 rows at a time (a whole 4 MB block's text did not, and cost more).
-_QUOTED_ROWS = 8192
-
-
-def _needs_quoting(t: pa.Table, delimiter: str) -> bool:
-    """Whether a value of ``t`` may hold the delimiter, a quote or a line break: looked for in the
-    bytes of each text column's values at once (a slice's buffer may hold more values than the
-    slice: a value outside it can only send the table to the quoted path, which writes the same
-    bytes for values that need no quotes)."""
-    marks = (delimiter.encode(), b'"', b"\n", b"\r")
-    for col in t.columns:
-        if _is_number(col.type):
-            continue
-        text = col if pa.types.is_string(col.type) or pa.types.is_large_string(col.type) else pc.cast(col, pa.string())
-        for chunk in text.chunks if isinstance(text, pa.ChunkedArray) else [text]:
-            data = chunk.buffers()[2]
-            raw = data.to_pybytes() if data is not None else b""  # a copy, then memchr: 1 ms a MB
-            if any(m in raw for m in marks):
-                return True
-    return False
-
-
-class CsvWriter:
-    """CSV with a minimal-quoting header, ``status`` as text and ω's unit in a ``w_unit`` column;
-    ``delimiter``: a comma, or a tab for ``.tsv``.
-
-    Where no value needs quotes, pyarrow's own writer writes the rows straight into the file (it
-    formats 1024 rows at a time, in the CPU's cache): pyarrow's speed. Where one does, the rows
-    are joined by pyarrow in slices (:func:`_csv_rows`)."""
-
-    def __init__(self, path: str, schema: pa.Schema, delimiter: str = ","):
-        self._delimiter, self._path = delimiter, path
-        # a pipe (stdout straight to its reader) cannot seek, which a native file needs: its
-        # rows are formatted into memory first, so that a late refusal has written nothing
-        self._seekable = not os.path.exists(path) or stat.S_ISREG(os.stat(path).st_mode)
-        self._f: Any = pa.OSFile(path, "wb") if self._seekable else open(path, "wb")  # noqa: SIM115 - close() closes it
-        wx, self._unit_column = layout.output_name("wx", schema), layout.output_name(UNIT_COLUMN, schema)
-        meta = schema.field(wx).metadata or {} if wx in schema.names else {}
-        self._unit = meta[b"unit"].decode() if b"unit" in meta else None  # only tables with ω have one
-        names = schema.names + ([self._unit_column] if self._unit else [])
-        buf = io.StringIO()
-        csv.writer(buf, lineterminator="\n", delimiter=delimiter).writerow(names)
-        self._f.write(buf.getvalue().encode())
-        self._plain = pacsv.WriteOptions(include_header=False, quoting_style="none", delimiter=delimiter)
-
-    def write(self, table: pa.Table) -> None:
-        check_csv_columns(table.schema, "")  # the callers check the input first, naming it
-        cols = [
-            c.cast(pa.string())
-            if pa.types.is_dictionary(c.type)
-            else _binary_as_text(c, f)
-            if pa.types.is_binary(f.type) or pa.types.is_large_binary(f.type) or pa.types.is_fixed_size_binary(f.type)
-            else _list_as_text(c)
-            for c, f in zip(table.columns, table.schema, strict=True)
-        ]
-        names = table.schema.names
-        if self._unit:
-            cols.append(pa.repeat(self._unit, table.num_rows))
-            names = names + [self._unit_column]
-        t = pa.Table.from_arrays(cols, names=names)
-        # decided on the whole table, so that its slices are written alike
-        if any(_empty_beside_null(c) for c in t.columns) or _needs_quoting(t, self._delimiter):
-            self._quoted(t)
-            return
-        if not self._seekable:
-            try:
-                sink = pa.BufferOutputStream()
-                pacsv.write_csv(t, sink, self._plain)
-            except pa.ArrowInvalid:  # a value pyarrow would quote after all: quote those values
-                self._quoted(t)
-            else:
-                self._f.write(sink.getvalue())
-            return
-        at = self._f.tell()
-        try:
-            pacsv.write_csv(t, self._f, self._plain)
-        except pa.ArrowInvalid:  # a value pyarrow would quote after all: take back its rows, quote those values
-            self._f.close()
-            os.truncate(self._path, at)
-            self._f = pa.OSFile(self._path, "ab")
-            self._quoted(t)
-
-    def _quoted(self, t: pa.Table) -> None:
-        with_nulls = frozenset(k for k, c in enumerate(t.columns) if c.null_count)
-        for k in range(0, t.num_rows, _QUOTED_ROWS):
-            self._f.write(_csv_rows(t.slice(k, _QUOTED_ROWS), self._delimiter, with_nulls))
-
-    def close(self) -> None:
-        self._f.close()

@@ -26,9 +26,10 @@ WRITES = ("csv", "parquet", "arrow")  #: what hconv writes
 NAMES = {"csv": "CSV", "parquet": "Parquet", "arrow": "Arrow IPC (Feather)", "jsonl": "JSON lines"}
 
 
-def listing(fmts: tuple = FORMATS) -> str:
-    """``fmts`` with their extensions, for a message: ``CSV (.csv, .tsv, .tab), Parquet (.parquet, .pq) ...``."""
-    named = [f"{NAMES.get(f, f)} ({', '.join(EXTENSIONS.get(f, ()))})" for f in fmts]
+def listing(fmts: tuple = FORMATS, extensions: bool = True) -> str:
+    """``fmts`` with their extensions, for a message: ``CSV (.csv, .tsv, .tab), Parquet (.parquet, .pq) ...``;
+    without (``extensions=False``): ``CSV, Parquet ...``."""
+    named = [f"{NAMES.get(f, f)} ({', '.join(EXTENSIONS.get(f, ()))})" if extensions else NAMES.get(f, f) for f in fmts]
     return ", ".join(named[:-1]) + " or " + named[-1] if len(named) > 1 else named[0]
 
 

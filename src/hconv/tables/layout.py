@@ -293,8 +293,8 @@ def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
         again = f"another {option('prefix')}" if job.prefix else option("prefix", "out_")
         raise InputError(
             f"{source}: already has output column{_plural(clash)} {', '.join(clash)}; "
-            f"rename or drop {'them' if len(clash) > 1 else 'it'} (is this hconv's own output?), or give the "
-            f"columns hconv appends a prefix with {again}"
+            f"rename or drop {'them' if len(clash) > 1 else 'it'} (hconv's own output?), "
+            f"or pass {again} for hconv's new ones"
         )
     for g in groups.values():
         for c in g.columns:

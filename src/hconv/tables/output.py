@@ -26,7 +26,7 @@ import pyarrow as pa
 
 from hconv import interrupts
 from hconv.errors import OutputError, UsageError, first_line, option
-from hconv.tables.csvio import CsvWriter
+from hconv.tables.csvwrite import CsvWriter
 from hconv.tables.formats import EXTENSIONS, NAMES
 from hconv.tables.ipcio import IpcWriter
 from hconv.tables.parquetio import ParquetWriter
@@ -55,6 +55,8 @@ class Output:
         #: the output as messages name it: ``path``, or the file that a dataset's staged ``path`` becomes
         self.shown = shown or ("stdout" if path == "-" else path)
         self._writer: CsvWriter | ParquetWriter | IpcWriter | None = None
+        #: into CSV, the input's row of units by column, written under the header; None: no such row
+        self.units: dict[str, str] | None = None
         self._tmp: str | None = None
         self._open = False  #: inside the with block
         self._target = path  #: where the file goes: ``path``, or the file a link at ``path`` names
@@ -138,7 +140,7 @@ class Output:
         path = f"/dev/fd/{sys.stdout.fileno()}" if self.direct else self._tmp
         assert path is not None
         if self.fmt == "csv":  # out.tsv gets tabs
-            return CsvWriter(path, schema, delimiter_by_name(self.shown) or ",")
+            return CsvWriter(path, schema, delimiter_by_name(self.shown) or ",", self.units)
         if self.fmt == "arrow":
             return IpcWriter(path, schema, stream=self.path == "-")
         return ParquetWriter(path, schema)

@@ -34,10 +34,12 @@ def _not_parquet(path: str, name: str, exc: Exception) -> InputError:
         return InputError(f"{name}: {what}")
     first = head.split(b"\n", 1)[0]
     looks_csv = b"," in first and b"\x00" not in head and not head.startswith(b"PAR1")
-    hint = f" (it looks like CSV text: {rename_or_pass(name, 'csv')})" if looks_csv else ""
+    if looks_csv:
+        return InputError(f"{name}: is CSV text, not Parquet: {rename_or_pass(name, 'csv')}")
+    # pyarrow's "Parquet magic bytes not found in footer. Either the file is corrupted or ...", said short
+    why = "no Parquet footer" if "magic bytes not found in footer" in str(exc) else first_line(exc)
     return InputError(
-        f"{name}: not a readable Parquet file ({first_line(exc)}){hint}; "
-        "check that it is Parquet and was completely written"
+        f"{name}: not a readable Parquet file ({why}); check that it is Parquet and was completely written"
     )
 
 

@@ -24,7 +24,7 @@ import pyarrow as pa
 from hconv import interrupts
 from hconv.errors import StrictError, UsageError, option
 from hconv.solve import engines, methods, options, status
-from hconv.tables import arrays, csvio, csvtypes, layout
+from hconv.tables import arrays, csvio, csvtypes, csvwrite, layout
 from hconv.tables.arrow import convert_batch
 from hconv.tables.inputs import Input
 from hconv.tables.job import Job
@@ -257,7 +257,7 @@ def convert_file(
     t0 = time.perf_counter()
     with open_input(src, fin, job, name, rows) as inp:
         if fout == "csv":
-            csvio.check_csv_columns(inp.schema, inp.name)  # before converting anything
+            csvwrite.check_csv_columns(inp.schema, inp.name)  # before converting anything
         # CSV's text columns get types in Parquet, the first block's (csvtypes); CSV keeps them as they were
         typed = fout != "csv" and bool(inp.text) and not job.keep_text
         run = functools.partial(
@@ -310,6 +310,8 @@ def _convert(
     results = ordered_map(one, _numbered(batches, inp.first_row), threads)
     if inp.dialect is not None:
         tally.read_as = inp.dialect.describe()
+        if inp.dialect.units_row and out.fmt == "csv":  # CSV into CSV keeps its units
+            out.units = dict(zip(inp.schema.names, inp.dialect.units_text))
     if progress is not None:  # the size, before the first batch takes its time
         progress(0, inp.total)
     writing = contextlib.nullcontext(_Direct(out)) if whole else BackgroundWriter(out)

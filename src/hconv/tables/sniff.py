@@ -59,14 +59,17 @@ def format_of(path: str, given: str | None, flag: str) -> str:
         _refuse_compressed_name(path, suffix, flag)
         fmts = FORMATS if flag == "src_format" else WRITES
         verb = "reads" if flag == "src_format" else "writes"
+        if suffix in _SPREADSHEETS and flag == "src_format":  # the advice its bytes get under another name
+            raise UsageError(f"{path}: is {FOREIGN[suffix]} ({suffix}), which hconv does not read; {_SAVE_AS_CSV}")
+        if suffix == ".json" and flag == "src_format":
+            raise UsageError(f"{path}: {_JSON_LINES.format(path=path, lines=os.path.splitext(path)[0] + '.jsonl')}")
         if suffix in FOREIGN:
             raise UsageError(
                 f"{path}: its name says {FOREIGN[suffix]} ({suffix}), which hconv does not {verb[:-1]}; "
-                f"hconv {verb} {listing(fmts)}" + (_JSON_LINES if suffix == ".json" and flag == "src_format" else "")
+                f"hconv {verb} {listing(fmts, extensions=False)}"
             )
         raise UsageError(
-            f"cannot tell the format of {path!r} from its extension; hconv {verb} {listing(fmts)}: "
-            f"pass {option(flag, 'FORMAT')} ({choices(fmts)}) if it is one of them"
+            f"{path}: cannot tell its format from its name; pass {option(flag, 'FORMAT')}, one of {choices(fmts)}"
         )
     if flag == "dst_format":
         _check_writes(fmt, flag, path)
@@ -74,8 +77,8 @@ def format_of(path: str, given: str | None, flag: str) -> str:
 
 
 _JSON_LINES = (
-    "; if it holds one JSON object per line, pass --from jsonl; if it is one array of objects, "
-    "write them a line each first: jq -c '.[]' in.json > in.jsonl"
+    "hconv reads JSON lines, not JSON: for one object per line, pass --from jsonl; for one array "
+    "of objects, first: jq -c '.[]' {path} > {lines}"
 )
 
 
@@ -85,7 +88,7 @@ def _check_writes(fmt: str, flag: str, path: str | None = None) -> None:
         return
     where = f"{path}: " if path else ""
     raise UsageError(
-        f"{where}hconv reads {NAMES[fmt]} but does not write it; it writes {listing(WRITES)}: "
+        f"{where}hconv reads {NAMES[fmt]} but does not write it: "
         f"pass {option(flag, 'arrow')} (or csv, parquet)" + (", and name OUT for it" if path else "")
     )
 
@@ -107,6 +110,7 @@ _COMPRESSIONS = (
 )
 _OLE2 = b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1"  # Excel 97-2003 (.xls)
 _SAVE_AS_CSV = "open it in the spreadsheet and save the sheet as 'CSV UTF-8 (comma delimited)'"
+_SPREADSHEETS = (".xlsx", ".xls", ".ods")  #: spreadsheets by their names, told to be saved as CSV
 
 
 def _refuse_compressed_name(path: str, suffix: str, flag: str) -> None:
@@ -304,6 +308,7 @@ class Dialect:
     comment_lines: int = 0
     units: tuple = ()
     units_row: bool = False  #: a row of units under the header, not a data row
+    units_text: tuple = ()  #: that row as written, one text a column (CSV output writes it again)
 
     def describe(self) -> str:
         """What the summary says of a dialect that is not plain CSV; "" for plain CSV."""

@@ -146,9 +146,9 @@ def read_model(path: str | os.PathLike, *, root: str | os.PathLike | None = None
     each one; InputError (one line: file, line, element and the fix) for a file it cannot read.
 
     ``root``: a folder holding the model's, within which MJCF includes may go (metaworld's
-    models include ``../scene/basic_scene.xml``); by default the model's own folder."""
+    models include ``../scene/basic_scene.xml``); by default the model's own folder. UsageError
+    for a URDF or SDF model, which hconv reads from its one file: a root would change nothing."""
     shown = os.fspath(path)
-    include_root = None if root is None else _include_root(Path(root), Path(path))
     budget = Budget(shown)
     top = read(Path(path), shown, budget)
     if top.tag not in _READERS:
@@ -158,6 +158,10 @@ def read_model(path: str | os.PathLike, *, root: str | os.PathLike | None = None
             "give a URDF (<robot>), SDF (<sdf>) or MJCF (<mujoco>) file",
         )
     fmt, reader = _READERS[top.tag]
+    if root is not None and fmt != "MJCF":
+        why = "has no includes" if fmt == "URDF" else "is read without its includes"
+        raise UsageError(f"{shown}: {option('root')} is for MJCF includes; {fmt} {why}: drop {option('root')}")
+    include_root = None if root is None else _include_root(Path(root), Path(path))
     if fmt == "MJCF":
         raws, notes = mjcf.bodies(top, Path(path), shown, budget, include_root=include_root)
     else:

@@ -1,0 +1,168 @@
+"""CSV out (hconv.tables.csvwrite)."""
+
+from __future__ import annotations
+
+import csv
+import io
+
+
+def test_csv_writer_csv_to_csv_text_columns_come_out_byte_for_byte(tmp_path):
+    """Before: one value needing quotes made every text value of its batch quoted (1 -> "1",
+    02134 -> "02134"), though docs/input.md promises them back exactly as they went in."""
+    from hconv.tables.pipeline import convert_file
+
+    rows = ['1,02134,plain text,"a,b",,"say ""hi""",007', '2,00501,x y,z,,"line\nbreak",1e3']
+    text = "id,zip,label,note,empty,quote,code,Hx,Hy,Hz,I1,I2,I3\n" + "".join(r + ",1,2,3,1,2,4\n" for r in rows)
+    (tmp_path / "in.csv").write_text(text)
+    convert_file(str(tmp_path / "in.csv"), str(tmp_path / "out.csv"))
+    out = (tmp_path / "out.csv").read_text()
+    assert out.startswith("id,zip,label,note,empty,quote,code,Hx,")
+    body = out.split("\n", 1)[1]
+    assert body.startswith(rows[0] + ",1,2,3,1,2,4,")
+    assert "\n" + rows[1] + ",1,2,3,1,2,4," in body
+
+
+def test_csv_writer_tsv_quotes_tabs_not_commas(tmp_path):
+    import pyarrow as pa
+
+    from hconv.tables.csvwrite import CsvWriter
+
+    t = pa.table({"a": ["x,y", "p\tq", 'say "hi"'], "b": [1.5, 2.0, 0.1]})
+    w = CsvWriter(str(tmp_path / "out.tsv"), t.schema, "\t")
+    w.write(t)
+    w.close()
+    assert (tmp_path / "out.tsv").read_text() == 'a\tb\nx,y\t1.5\n"p\tq"\t2\n"say ""hi"""\t0.1\n'
+
+
+def test_csv_writer_slices_write_the_bytes_of_the_whole_table(tmp_path, monkeypatch):
+    """A table whose text holds a stand-in byte has its rows joined a slice at a time: the bytes
+    are those of the whole table joined at once (a column's nulls beside empty strings are decided
+    on the whole table, though a slice may hold only one of them), and every value comes back as
+    it was."""
+    import numpy as np
+    import pyarrow as pa
+
+    from hconv.tables import csvwrite
+
+    n = 3 * csvwrite._QUOTED_ROWS
+    rng = np.random.default_rng(1)
+    words = np.array(["", "a", "b,c", 'say "hi"', "x\ny", "007", "bell\x01"], dtype=object)
+    text = words[rng.integers(0, len(words), n)]
+    text[: n // 2][text[: n // 2] == ""] = None  # nulls in the first half only, empty strings in the second
+    t = pa.table({"t": pa.array(text, pa.string()), "x": rng.normal(size=n), "d": pa.array(["p"] * n)})
+    written = {}
+    for rows in (csvwrite._QUOTED_ROWS, 10 * n):
+        monkeypatch.setattr(csvwrite, "_QUOTED_ROWS", rows)
+        w = csvwrite.CsvWriter(str(tmp_path / f"{rows}.csv"), t.schema)
+        w.write(t)
+        w.close()
+        written[rows] = (tmp_path / f"{rows}.csv").read_bytes()
+    assert written[10 * n] == written[csvwrite._QUOTED_ROWS]
+    rows = list(csv.reader(io.StringIO(written[10 * n].decode(), newline="")))
+    assert [r[0] for r in rows[1:]] == ["" if v is None else v for v in text]  # every value back as it was
+    assert b'\n"",' in written[10 * n] and b"\n," in written[10 * n]  # "" an empty string, nothing a null
+
+
+def test_csv_writer_a_value_pyarrow_refuses_unquoted_takes_its_rows_back(tmp_path, monkeypatch):
+    """pyarrow's writer writes a table's rows straight into the file, 1024 at a time, and refuses
+    a value that needs quotes only when it gets there: the rows it wrote are taken back, and the
+    table written with quotes, as if it had been seen first."""
+    import pyarrow as pa
+
+    from hconv.tables import csvwrite
+
+    t = pa.table({"t": ["a"] * 5000 + ["b,c"], "x": [0.5] * 5001})
+    expected = "t,x\n" + "a,0.5\n" * 5000 + '"b,c",0.5\n'
+    scan = csvwrite._scan
+    for seen in (True, False):
+        monkeypatch.setattr(csvwrite, "_scan", lambda t, d, seen=seen, scan=scan: scan(t, d) if seen else ({}, False))
+        w = csvwrite.CsvWriter(str(tmp_path / "out.csv"), t.schema)
+        w.write(t.slice(0, 10))
+        w.write(t)
+        w.close()
+        assert (tmp_path / "out.csv").read_text() == "t,x\n" + "a,0.5\n" * 10 + expected[4:]
+
+
+def _written(tmp_path, t, delimiter: str = ",", name: str = "out.csv") -> bytes:
+    from hconv.tables.csvwrite import CsvWriter
+
+    w = CsvWriter(str(tmp_path / name), t.schema, delimiter)
+    w.write(t)
+    w.close()
+    return (tmp_path / name).read_bytes()
+
+
+def test_csv_writer_quoted_values_are_the_bytes_of_rows_joined_one_by_one(tmp_path):
+    """Values that need quotes go through pyarrow's writer quoted already, with stand-in bytes put
+    back after: the bytes are those of the rows joined value by value (the writer's other path,
+    :func:`_csv_rows`), for every kind of column and both delimiters, one value in 100 or every
+    value needing quotes, and Python's csv module reads every value back."""
+    import datetime
+
+    import numpy as np
+    import pyarrow as pa
+
+    from hconv.tables import csvwrite
+
+    rng = np.random.default_rng(7)
+    n = 3000
+    for delimiter in (",", "\t"):
+        for every in (100, 1):
+            words = np.array([f"id-{k}" for k in range(n)], dtype=object)
+            tricky = ["a,b", 'say "hi"', "x\ny", "cr\r\nlf", "tab\there", "", "ünï, ok", '"']
+            at = np.arange(0, n, every)
+            words[at] = [tricky[k % len(tricky)] for k in range(len(at))]
+            words[rng.integers(0, n, 50)] = None  # nulls beside empty texts: those are quoted
+            t = pa.table(
+                {
+                    "text": pa.array(words, pa.string()),
+                    "x": pa.array(np.where(rng.random(n) < 0.1, np.nan, rng.normal(size=n) * 1e5)),
+                    "k": pa.array(rng.integers(-(10**12), 10**12, n)),
+                    "ok": pa.array(rng.random(n) < 0.5),
+                    "label": pa.array(["p,q" if k % 7 == 0 else "p" for k in range(n)]).dictionary_encode(),
+                    "when": pa.array([datetime.datetime(2026, 1, 1) + datetime.timedelta(seconds=k) for k in range(n)]),
+                    "big": pa.array(words, pa.large_string()),
+                }
+            )
+            out = _written(tmp_path, t, delimiter)
+            header, body = out.split(b"\n", 1)
+            joined = csvwrite._csv_rows(
+                pa.Table.from_arrays(
+                    [t[c].cast(pa.string()) if c == "label" else t[c] for c in t.column_names], names=t.column_names
+                ),
+                delimiter,
+                frozenset(k for k, c in enumerate(t.columns) if c.null_count),
+            )
+            assert body == joined.to_pybytes()
+            rows = list(csv.reader(io.StringIO(out.decode(), newline=""), delimiter=delimiter))
+            assert [r[0] for r in rows[1:]] == ["" if v is None else v for v in words]
+
+
+def test_csv_writer_text_holding_a_stand_in_byte_comes_back_as_it_was(tmp_path):
+    """A text that holds one of the stand-in bytes itself is written by joining the rows, so that
+    putting the stand-ins back does not change it."""
+    import pyarrow as pa
+
+    t = pa.table({"a": ["x\x01y", "b,c", 'q"\x02'], "b": [1.5, 2.0, 0.1]})
+    assert _written(tmp_path, t) == b'a,b\nx\x01y,1.5\n"b,c",2\n"q""\x02",0.1\n'
+
+
+def test_csv_writer_quoted_rows_longer_than_the_buffer_grow_it(tmp_path, monkeypatch):
+    """The buffer quoted rows are formatted in is sized from the table's bytes; booleans take 1 bit
+    there and up to 6 bytes as text: the buffer grows, and every row is written once."""
+    import pyarrow as pa
+
+    from hconv.tables import csvwrite
+
+    sizes = []
+    allocate = pa.allocate_buffer
+    monkeypatch.setattr(pa, "allocate_buffer", lambda size: sizes.append(size) or allocate(size))
+    n = 100_000
+    flags = {f"b{j}": [(k + j) % 3 == 0 for k in range(n)] for j in range(8)}
+    t = pa.table(flags | {"t": ['a,"b"' if k % 1000 == 0 else "a" for k in range(n)]})
+    out = _written(tmp_path, t).decode()
+    assert len(sizes) > 1  # grown
+    rows = [",".join("true" if (k + j) % 3 == 0 else "false" for j in range(8)) for k in range(n)]
+    text = ['"a,""b"""' if k % 1000 == 0 else "a" for k in range(n)]
+    assert out == ",".join(t.column_names) + "\n" + "".join(f"{r},{v}\n" for r, v in zip(rows, text))
+    assert n > csvwrite._SLICE_ROWS  # and in two slices
