@@ -614,13 +614,16 @@ def test_one_does_not_import_pyarrow_rich_pint_or_a_jit():
 
 
 def _pandas_inputs(folder: Path) -> dict[str, Path]:
-    """A CSV with a blank value and a text column, a Parquet file with a list column and a null
-    row: the paths where pyarrow's conversions reach pandas (docs/engines.md, start-up)."""
-    (folder / "in.csv").write_text("id,body,Hx,Hy,Hz,I1,I2,I3\n1,rod,1,2,3,1,2,3\n2,007,,2,3,1,2,2.5\n")
+    """A CSV with a blank value and a text column whose values need quotes, the same under a row
+    of units, a Parquet file with a list column and a null row: the paths where pyarrow's
+    conversions reach pandas (docs/engines.md, start-up)."""
+    rows = '1,rod,1,2,3,1,2,3\n2,007,,2,3,1,2,2.5\n3,"arm, ""left""",1,2,3,1,2,3\n'
+    (folder / "in.csv").write_text("id,body,Hx,Hy,Hz,I1,I2,I3\n" + rows)
+    (folder / "units.csv").write_text("id,body,Hx,Hy,Hz,I1,I2,I3\n,,kg*m^2/s,,,kg*m^2,,\n" + rows)
     lists = pa.list_(pa.float64())
     table = pa.table({"H": pa.array([[1.0, 2.0, 3.0], None], lists), "I": pa.array([[1.0, 2.0, 3.0]] * 2, lists)})
     pq.write_table(table.append_column("w", pa.array([1, None], pa.int64())), folder / "in.parquet")
-    return {"csv": folder / "in.csv", "parquet": folder / "in.parquet"}
+    return {"csv": folder / "in.csv", "units": folder / "units.csv", "parquet": folder / "in.parquet"}
 
 
 @pytest.mark.parametrize(
@@ -630,9 +633,9 @@ def _pandas_inputs(folder: Path) -> dict[str, Path]:
         ("csv", "arrow"),
         ("parquet", "parquet"),
         ("parquet", "arrow"),
-        # the CSV writer still hands pyarrow Python strings (the w_unit column, quoted values)
-        pytest.param("csv", "csv", marks=pytest.mark.xfail(strict=True, reason="the CSV writer's Python scalars")),
-        pytest.param("parquet", "csv", marks=pytest.mark.xfail(strict=True, reason="the CSV writer's Python scalars")),
+        ("csv", "csv"),
+        ("units", "csv"),
+        ("parquet", "csv"),
     ],
 )
 def test_convert_does_not_import_pandas(tmp_path, source, to):
@@ -658,7 +661,7 @@ def test_convert_quiet_does_not_import_rich(tmp_path):
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=60)
     assert proc.stdout.decode().split()[-2:] == ["0", "False"], proc.stderr.decode()
-    assert pq.read_table(out).num_rows == 2
+    assert pq.read_table(out).num_rows == 3
 
 
 def test_methods_json_lists_every_method_with_unit(capsys):

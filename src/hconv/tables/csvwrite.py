@@ -24,7 +24,7 @@ import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 
 from hconv.errors import InputError
-from hconv.tables import layout
+from hconv.tables import arrays, layout
 
 UNIT_COLUMN = layout.UNIT_COLUMN
 
@@ -64,9 +64,7 @@ def _list_as_text(col: pa.ChunkedArray) -> pa.ChunkedArray | pa.Array:
     t = col.type
     if not (pa.types.is_list(t) or pa.types.is_large_list(t) or pa.types.is_fixed_size_list(t)):
         return col
-    return pa.array(
-        [None if v is None else "[" + ", ".join(repr(x) for x in v) + "]" for v in col.to_pylist()], type=pa.string()
-    )
+    return arrays.strings([None if v is None else "[" + ", ".join(repr(x) for x in v) + "]" for v in col.to_pylist()])
 
 
 def _needs_quotes(delimiter: str) -> str:
@@ -90,7 +88,9 @@ def _is_text(t: pa.DataType) -> bool:
 
 def _empty_beside_null(col: pa.ChunkedArray) -> bool:
     """A text column holding both nulls and empty strings, which unquoted CSV would merge."""
-    return _is_text(col.type) and col.null_count > 0 and bool(pc.any(pc.equal(col, "")).as_py())
+    if not (_is_text(col.type) and col.null_count > 0):
+        return False
+    return bool(pc.any(pc.equal(col, arrays.scalar("", col.type))).as_py())
 
 
 def _csv_rows(t: pa.Table, delimiter: str, with_nulls: frozenset) -> pa.Buffer:
@@ -102,7 +102,7 @@ def _csv_rows(t: pa.Table, delimiter: str, with_nulls: frozenset) -> pa.Buffer:
     text holds a stand-in (:data:`STAND_INS`)."""
 
     def text_of(v: str) -> pa.Scalar:
-        return pa.scalar(v, pa.large_string())
+        return arrays.scalar(v, pa.large_string())
 
     cols = []
     for k, col in enumerate(t.columns):
@@ -115,7 +115,7 @@ def _csv_rows(t: pa.Table, delimiter: str, with_nulls: frozenset) -> pa.Buffer:
                 )
                 text = pc.if_else(needs, quoted, text)
         if k in with_nulls:
-            text = pc.if_else(pc.equal(text, ""), text_of('""'), text)
+            text = pc.if_else(pc.equal(text, text_of("")), text_of('""'), text)
         cols.append(pc.fill_null(text, text_of("")))
     if not cols:
         return pa.py_buffer(b"\n" * t.num_rows)
@@ -179,10 +179,11 @@ def _rows_to_quote(text: pa.Array, delimiter: str, with_null: bool) -> np.ndarra
         offsets = np.frombuffer(text.buffers()[1], wide)[text.offset : text.offset + n + 1].astype(np.int64)
         mask[np.searchsorted(offsets, hits + offsets[0], side="right") - 1] = True
     if text.null_count:
-        valid = text.is_valid().to_numpy(zero_copy_only=False)
+        valid = arrays.to_numpy(text.is_valid())
         mask &= valid  # a null's slot may hold bytes: it is written blank all the same
         if with_null:
-            mask |= valid & (pc.binary_length(text).fill_null(1).to_numpy(zero_copy_only=False) == 0)
+            lengths = pc.binary_length(text)
+            mask |= valid & (arrays.to_numpy(lengths.fill_null(arrays.scalar(1, lengths.type))) == 0)
     return mask
 
 
@@ -192,8 +193,8 @@ def _quoted_with_stand_ins(values: pa.Array, delimiter: str) -> pa.Array:
     quote, delimiter_by, lf_by, cr_by = (chr(b) for b in STAND_INS)
     for ch, by in (('"', quote * 2), (delimiter, delimiter_by), ("\n", lf_by), ("\r", cr_by)):
         values = pc.replace_substring(values, ch, by)
-    wrap = pa.scalar(quote, values.type)
-    return pc.binary_join_element_wise(wrap, values, wrap, pa.scalar("", values.type))
+    wrap = arrays.scalar(quote, values.type)
+    return pc.binary_join_element_wise(wrap, values, wrap, arrays.scalar("", values.type))
 
 
 def _put_back(a: np.ndarray, delimiter: str) -> None:
@@ -266,7 +267,7 @@ class CsvWriter:
         ]
         names = table.schema.names
         if self._unit:
-            cols.append(pa.repeat(self._unit, table.num_rows))
+            cols.append(pa.repeat(arrays.scalar(self._unit, pa.string()), table.num_rows))
             names = names + [self._unit_column]
         t = pa.Table.from_arrays(cols, names=names)
         # decided on the whole table, so that its slices are written alike
@@ -276,8 +277,8 @@ class CsvWriter:
             return
         for k, text in marked.items():
             mask = _rows_to_quote(text, self._delimiter, text.null_count > 0)
-            quoted = _quoted_with_stand_ins(pc.filter(text, mask), self._delimiter)
-            cols[k] = pc.replace_with_mask(text, pa.array(mask), quoted.cast(text.type))
+            quoted = _quoted_with_stand_ins(pc.filter(text, arrays.from_numpy(mask)), self._delimiter)
+            cols[k] = pc.replace_with_mask(text, arrays.from_numpy(mask), quoted.cast(text.type))
         if marked or not self._seekable:
             self._through_buffer(t, pa.Table.from_arrays(cols, names=names) if marked else t, bool(marked))
             return
