@@ -95,6 +95,27 @@ def test_convert_dataset_directory_keeps_hive_folders_and_each_file_is_its_singl
     assert f"worst residual {worst['value']:.3g} (data/{worst['input']}, data row {worst['row']})" in err
 
 
+def test_convert_dataset_outputs_get_the_usual_permissions_and_the_umask_is_not_set_per_file(tmp_path, monkeypatch):
+    """Each output is written into its temporary file (mkstemp's, 0600) and renamed into place:
+    it gets 0666 less the umask, as a file the shell makes; the umask is read once for the run,
+    since reading it sets it, for a moment, for every thread making files beside."""
+    _dataset(tmp_path / "data")
+    old = os.umask(0o027)
+    swaps = []
+    real_umask = os.umask
+    monkeypatch.setattr(os, "umask", lambda mask: swaps.append(mask) or real_umask(mask))
+    try:
+        hconv.convert_dataset(str(tmp_path / "data"), str(tmp_path / "out"))
+    finally:
+        real_umask(old)
+    outputs = [p for p in (tmp_path / "out").rglob("*") if p.is_file()]
+    assert len(outputs) == 5  # four outputs and the manifest
+    assert {oct(p.stat().st_mode & 0o777) for p in outputs} == {oct(0o640)}
+    # read (umask(0), then the mask put back) once for the files, once for the last manifest,
+    # written when the files' threads have ended; not once per file
+    assert swaps == [0, 0o027, 0, 0o027], swaps
+
+
 def test_convert_dataset_worst_residual_names_the_input_file(tmp_path, capsys, monkeypatch):
     """The summary named the output, which a newcomer could not open beside the row they meant
     to check (here another format); it names the input as IN spells it, the manifest both."""

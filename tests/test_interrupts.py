@@ -271,6 +271,23 @@ def test_interrupt_convert_dataset_at_any_moment_exits_0_complete_or_130_keeping
     assert all(c == 0 for p, c in outcomes if p in ("settled", "returned", "exit", "shutdown")), outcomes
 
 
+def test_interrupt_convert_dataset_after_its_last_file_waits_for_the_manifest_and_exits_0(server, tmp_path):
+    """Every file done, an interrupt before the last manifest is written (the last group's commit,
+    a cluster's shutdown) waits for it, then finds the run settled: exit 0, OUT complete. Before,
+    it exited 130 with OUT complete and no word of what was kept."""
+    args = ["convert", "data", "out", "-q", "--threads", "1"]
+    _dataset(tmp_path / "first")
+    code, err, points = server.run(args, tmp_path / "first", None, 0, "at")
+    assert code == 0 and "files done" in points, (code, err, points)
+    _dataset(tmp_path / "work")
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        shutil.rmtree(tmp_path / "work" / "out", ignore_errors=True)
+        code, err, _ = server.run(args, tmp_path / "work", points.index("files done"), sig, "at")
+        assert code == 0 and err == "", (signal.Signals(sig).name, code, err)
+        m = json.loads((tmp_path / "work" / "out" / MANIFEST).read_text())
+        assert m["complete"] is True and sorted(f["output"] for f in m["files"]) == PARTS
+
+
 def test_interrupt_convert_dataset_before_its_first_file_leaves_no_out(server, tmp_path):
     """Interrupted before any file is done, a dataset run removes the OUT it made (and its
     manifest, which claimed the paths): there is nothing to keep."""

@@ -32,6 +32,21 @@ def test_plan_is_pure_and_its_layout_immutable():
         a.form = "sym6"
 
 
+def test_plan_of_a_schema_seen_before_is_kept_but_named_and_unit_metadata_tells_schemas_apart():
+    """Plans are kept by schema and Job (a dataset's files share one): the kept plan names the
+    file asked about, and a schema that differs only in a field's unit metadata (which pyarrow's
+    == and hash leave out) gets its own plan."""
+    fields = [(c, pa.float64()) for c in ("Hx", "Hy", "Hz", "I1", "I2", "I3")]
+    grams = pa.schema([pa.field(c, t, metadata={"unit": "g*m^2"}) if c == "I1" else (c, t) for c, t in fields])
+    si = pa.schema(fields)
+    assert grams == si  # pyarrow's equality: what the kept plans must not go by
+    first, again, other = layout.plan(si, Job(), "a.parquet"), layout.plan(si, Job(), "b.parquet"), None
+    assert (first.source, again.source) == ("a.parquet", "b.parquet") and again.groups is first.groups
+    other = layout.plan(grams, Job(), "c.parquet")
+    assert other.groups["I"].factors == (1e-3, 1.0, 1.0) and first.groups["I"].factors == (1.0, 1.0, 1.0)
+    assert layout.plan(si, Job(method="refined"), "d.parquet").groups is not first.groups
+
+
 def test_resolve_fixes_list_lengths_in_a_new_layout():
     t = _list_table([[1.0, 2.0, 3.0]], [[1.0, 2.0, 3.0, 0.0, 0.0, 0.0]])
     plan = layout.plan(t.schema, Job(), "t")

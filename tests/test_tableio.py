@@ -18,6 +18,8 @@ from helpers import StopAt, run_hconv, run_inprocess, terminal_signals
 
 import hconv
 import hconv.errors
+from hconv.tables.job import Job
+from hconv.tables.tableio import open_input
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE_CSV = ROOT / "examples" / "data" / "scene.csv"
@@ -631,10 +633,56 @@ def test_open_input_parquet_damaged_page_names_the_input_and_its_row_group(
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in.parquet"]
 
 
-@pytest.mark.parametrize("fmt", ["csv", "parquet"])
-def test_convert_file_input_rewritten_while_read_is_refused(fmt, tmp_path, monkeypatch):
+def test_open_input_parquet_whole_damaged_page_names_the_input_and_its_row_group(tmp_path):
+    """A small file read into memory at once (``whole``) names a damaged page as one streamed does."""
+    src = tmp_path / "in.parquet"
+    _scene_parquet(src, groups=4, checksums=True)
+    _overwrite_chunk(src, 2, "Hx", b"\xff\x00\x13")
+    with (
+        open_input(str(src), "parquet", Job(), "in.parquet", whole=True) as inp,
+        pytest.raises(hconv.errors.InputError) as err,
+    ):
+        list(inp.batches)
+    assert str(err.value).startswith("in.parquet: row group 3 of 4 (data rows 101-150) cannot be read (")
+    assert "CRC checksum verification failed" in str(err.value)
+
+
+def test_open_input_parquet_whole_reads_the_batches_a_streamed_read_does(tmp_path, monkeypatch):
+    """Batches of PARQUET_BATCH_ROWS across row groups, the same whether the file is streamed
+    or read into memory at once: a dataset's small file gives its single conversion's output."""
+    from hconv.tables import parquetio
+
+    monkeypatch.setattr(parquetio, "PARQUET_BATCH_ROWS", 70)
+    src = tmp_path / "in.parquet"
+    table = _scene_parquet(src, groups=3)
+    got = {}
+    for whole in (False, True):
+        with open_input(str(src), "parquet", Job(), whole=whole) as inp:
+            got[whole] = list(inp.batches)
+    assert [b.num_rows for b in got[True]] == [b.num_rows for b in got[False]] == [70, 70, 10]
+    assert pa.Table.from_batches(got[True]).equals(table) and pa.Table.from_batches(got[False]).equals(table)
+
+
+def test_parquet_writer_writes_the_bytes_pyarrow_writes_with_hconvs_options(tmp_path):
+    """hconv's writer buffers what pyarrow writes; the file is byte for byte pyarrow's own."""
+    from hconv.tables.parquetio import ParquetWriter, parquet_write_options
+
+    table = _scene_parquet(tmp_path / "in.parquet", groups=2)
+    writer = ParquetWriter(str(tmp_path / "hconv.parquet"), table.schema)
+    writer.write(table.slice(0, 60))
+    writer.write(table.slice(60))
+    writer.close()
+    with pq.ParquetWriter(tmp_path / "pyarrow.parquet", table.schema, **parquet_write_options(table.schema)) as w:
+        w.write_table(table.slice(0, 60))
+        w.write_table(table.slice(60))
+    assert (tmp_path / "hconv.parquet").read_bytes() == (tmp_path / "pyarrow.parquet").read_bytes()
+
+
+@pytest.mark.parametrize(("fmt", "whole"), [("csv", False), ("parquet", False), ("parquet", True)])
+def test_convert_file_input_rewritten_while_read_is_refused(fmt, whole, tmp_path, monkeypatch):
     """A file appended to, cut or rewritten in place while hconv reads it: what was read may mix
-    two versions of it, which no later check would see."""
+    two versions of it, which no later check would see. ``whole``: a dataset's small file, read
+    into memory at once, is checked after its last batch as well."""
     from hconv.tables import csvio, parquetio, pipeline
 
     src = tmp_path / f"in.{fmt}"
@@ -654,7 +702,7 @@ def test_convert_file_input_rewritten_while_read_is_refused(fmt, tmp_path, monke
 
     changed = rf"in\.{fmt}: changed while hconv read it \(from \d+ to \d+ bytes"
     with pytest.raises(hconv.errors.InputError, match=changed):
-        pipeline.convert_file(str(src), str(tmp_path / "out.parquet"), progress=progress, threads=1)
+        pipeline.convert_file(str(src), str(tmp_path / "out.parquet"), progress=progress, threads=1, whole=whole)
     assert len(calls) >= 1
     assert sorted(p.name for p in tmp_path.iterdir()) == [f"in.{fmt}"]
 

@@ -215,9 +215,22 @@ def units_of(source: pa.Schema | str | os.PathLike, *, endpoint_url: str | None 
     return {c: found[c][0] for c in names}
 
 
+#: result schemas of recent (input schema, Job, plan): one for each batch cost a small file 0.1 ms
+_RESULTS = layout.SchemaMemo()
+
+
 def result_schema(schema: pa.Schema, job: Job, plan: layout.Layout) -> pa.Schema:
     """The schema of a conversion of a table of ``schema`` planned as ``plan``: the one owner of
     it, for :func:`output_schema` and for every converted batch."""
+    # plan.groups is kept with the value, so that its id names it while the value is kept
+    # (a plan of the memo of plans shares its groups across files)
+    groups, result = _RESULTS.value(
+        schema, (job, id(plan.groups)), lambda: (plan.groups, _result_schema(schema, job, plan))
+    )
+    return result if groups is plan.groups else _result_schema(schema, job, plan)
+
+
+def _result_schema(schema: pa.Schema, job: Job, plan: layout.Layout) -> pa.Schema:
     meta = dict(schema.metadata or {})
     meta.update({b"hconv.method": methods.get(job.method).name.encode(), b"hconv.version": __version__.encode()})
     meta.pop(layout.PREFIX_KEY, None)  # an input hconv wrote with a prefix: this run's is its own

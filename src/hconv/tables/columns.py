@@ -38,6 +38,9 @@ def columns_of(schema: pa.Schema) -> dict[str, pa.Field]:
 def column(data: pa.Table, name: str) -> pa.ChunkedArray:
     """Column ``name`` of ``data``: a top-level column, or a struct's field by its dotted path
     (:func:`columns_of`); a row whose struct is null is null in each of its fields."""
+    k = data.schema.get_field_index(name)  # -1 if missing or not unique; a list of the names cost 10x
+    if k >= 0:
+        return data.column(k)
     if name in data.column_names:
         return data.column(name)
     for top in data.column_names:

@@ -252,7 +252,10 @@ def convert_dataset(
     # cannot be written, an interrupt before the first file): a failed run leaves no output.
     created = plan.dst.local and not os.path.lexists(plan.dst.root)
     try:
-        with contextlib.ExitStack() as stack:
+        # From the end of the files to the last manifest, interrupts wait (settling): one
+        # that landed there (the last group's commit, the cluster's shutdown) exited 130 with OUT
+        # complete and no word of what was kept; it now acts after the settle, so is ignored.
+        with contextlib.ExitStack() as settling, contextlib.ExitStack() as stack:
             stack.enter_context(temporaries.sweeping_once())
             if cluster is not None and plan.todo:
                 # connected (and the workers' hconv checked) before anything is written
@@ -297,14 +300,16 @@ def convert_dataset(
             finally:
                 if hasattr(outcomes, "close"):  # stopped early: no further file starts
                     outcomes.close()
+            settling.enter_context(interrupts.held())
+            interrupts.point("files done")
             commit.close()  # a run stopped by a full disk: the files committed meanwhile
             if ran_on is not None:
                 ran_on = session.describe_end()
                 split_files, split_parts = session.split_files, session.parts
-        if plan.todo or plan.refused or manifest_stale(plan, records, failed):
-            # The last manifest settles the run: from here an interrupt cannot make it exit 130
-            # with OUT complete (hconv.interrupts.settle), which a caller would retry and fail.
-            with interrupts.held():  # an interrupt from the last group's commit on acts after the settle
+            stack.close()  # the cluster shut down (and the sweep's scope ended), still held
+            if plan.todo or plan.refused or manifest_stale(plan, records, failed):
+                # The last manifest settles the run: from here an interrupt cannot make it exit
+                # 130 with OUT complete (hconv.interrupts.settle), which a caller would retry and fail.
                 interrupts.point("manifest")
                 write_manifest(plan, records, failed, written, t0)
                 interrupts.settle()

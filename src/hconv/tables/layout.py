@@ -33,8 +33,10 @@ is fixed by :meth:`Layout.resolve` from the first batch, before any batch is con
 from __future__ import annotations
 
 import json
+import threading
 from collections.abc import Callable, Sized
 from dataclasses import dataclass, replace
+from typing import TypeVar
 
 import numpy as np
 import pyarrow as pa
@@ -58,6 +60,7 @@ RESERVED = OUTPUT_COLUMNS + NULL_COLUMNS + (UNIT_COLUMN,)
 #: The schema metadata key of a converted table that records the Job's ``prefix`` (only when one
 #: was given), so that a writer finds hconv's columns by :func:`output_name`.
 PREFIX_KEY = b"hconv.prefix"
+T = TypeVar("T")
 #: The file metadata key under which Spark stores its schema, field metadata included, in the
 #: Parquet files it writes. Spark writes no Arrow schema, so pyarrow reads its fields bare.
 SPARK_SCHEMA_KEY = b"org.apache.spark.sql.parquet.row.metadata"
@@ -218,6 +221,8 @@ def _floats(col: pa.Array | pa.ChunkedArray) -> np.ndarray:
     """A numeric column or array as float64 with nulls as NaN, shape ``(N,)``."""
     if pa.types.is_null(col.type):
         return np.full(len(col), np.nan)
+    if col.type == pa.float64():  # nulls come out NaN as they are; the cast would only copy it
+        return np.asarray(col.to_numpy(zero_copy_only=False), dtype=np.float64)
     # unsafe: an integer beyond 2^53 rounds to the nearest float64, as the same digits in a CSV do
     return arrays.to_numpy(pc.cast(col, pa.float64(), safe=False), null=np.nan)
 
@@ -234,11 +239,50 @@ def _plural(items: Sized) -> str:
     return "s" if len(items) > 1 else ""
 
 
+class SchemaMemo:
+    """The values last computed from a few schemas (each with a hashable key, such as the Job):
+    a dataset's files mostly share one schema, and planning it again cost more than converting
+    a file of a few hundred rows. A schema matches only with its metadata, where the units are
+    (pyarrow's ``==`` and ``hash`` leave metadata out). Safe on several threads at once (two
+    that miss together both compute)."""
+
+    def __init__(self, size: int = 16):
+        self._size = size
+        self._entries: dict = {}
+        self._lock = threading.Lock()
+
+    def value(self, schema: pa.Schema, key: object, compute: Callable[[], T]) -> T:
+        """The value for ``schema`` and ``key``: the one kept, else ``compute()``, kept."""
+        try:
+            k = (hash(schema), key)
+            hit = self._entries.get(k)
+        except (TypeError, pa.ArrowException):  # a key that cannot be hashed: computed every time
+            return compute()
+        if hit is not None and hit[0].equals(schema, check_metadata=True):
+            return hit[1]
+        value = compute()
+        with self._lock:
+            self._entries[k] = (schema, value)
+            while len(self._entries) > self._size:
+                del self._entries[next(iter(self._entries))]
+        return value
+
+
+_PLANS = SchemaMemo()
+
+
 def plan(schema: pa.Schema, job: Job, source: str = "input") -> Layout:
     """Find the column sets ``job`` needs in ``schema``; InputError or UsageError naming the fix.
 
-    A pure function: it reads ``schema`` and ``job`` and returns a new :class:`Layout`.
+    A pure function: it reads ``schema`` and ``job`` and returns a new :class:`Layout`; the
+    plans of recent schemas are kept (:class:`SchemaMemo`), and given ``source`` for their messages.
     """
+    found = _PLANS.value(schema, job, lambda: _plan(schema, job, source))
+    return found if found.source == source else replace(found, source=source)
+
+
+def _plan(schema: pa.Schema, job: Job, source: str) -> Layout:
+    """:func:`plan`, computed."""
     names = list(schema.names)
     dupes = sorted({c for c in names if names.count(c) > 1})
     if dupes:

@@ -14,7 +14,7 @@ import numpy as np
 
 from hconv import interrupts
 from hconv.errors import OutputError
-from hconv.tables import output, storage
+from hconv.tables import output, storage, temporaries
 from hconv.tables.job import Job
 from hconv.tables.manifest import FileRecord
 from hconv.tables.pipeline import convert_file
@@ -77,6 +77,7 @@ def convert_one(
             name=name,
             dst_name=shown_output(dst, task.output, staged),
             whole=whole,
+            staged=True,
         )
         worst = tally.worst_residual
         record = FileRecord(
@@ -133,6 +134,8 @@ def stage_output(dst: Place, rel: str, cleanup: contextlib.ExitStack, run: str |
             err.errno = exc.errno  # a full disk stops the run (convert_dataset)
             raise err from None
         cleanup.callback(_remove, staged)
+    if dst.local:  # mkstemp makes it 0600; renamed into place, it is the output, with the usual permissions
+        os.chmod(staged, 0o666 & ~temporaries.umask())
     return staged
 
 

@@ -31,7 +31,7 @@ from hconv.tables.formats import EXTENSIONS, NAMES
 from hconv.tables.ipcio import IpcWriter
 from hconv.tables.parquetio import ParquetWriter
 from hconv.tables.sniff import delimiter_by_name, format_of
-from hconv.tables.temporaries import temporary_file
+from hconv.tables.temporaries import temporary_file, umask
 
 
 class Output:
@@ -50,8 +50,13 @@ class Output:
         input_path: str | None = None,
         shown: str | None = None,
         stream: bool = False,
+        staged: bool = False,
     ):
         self.path, self.fmt = path, fmt
+        #: ``path`` is the caller's own temporary file (a dataset's output, staged beside it:
+        #: :func:`hconv.tables.onefile.stage_output`): written in place, since a second temporary
+        #: file would only be renamed onto the first; the caller commits it, or removes it
+        self.staged = staged
         #: the output as messages name it: ``path``, or the file that a dataset's staged ``path`` becomes
         self.shown = shown or ("stdout" if path == "-" else path)
         self._writer: CsvWriter | ParquetWriter | IpcWriter | None = None
@@ -62,6 +67,8 @@ class Output:
         self._target = path  #: where the file goes: ``path``, or the file a link at ``path`` names
         #: batches go straight to stdout, a pipe (the module's docstring); else through a temporary file
         self.direct = path == "-" and stream and fmt != "parquet" and _stdout_is_pipe()
+        if staged:
+            return
         if path == "-":
             if fmt != "csv" and sys.stdout is not None and sys.stdout.isatty():
                 raise UsageError(
@@ -98,6 +105,9 @@ class Output:
         self._open = True
         if self.direct:
             return self
+        if self.staged:
+            self._tmp = self.path
+            return self
         if self.path == "-":
             fd, self._tmp = temporary_file("hconv-stdout-")
         else:
@@ -113,9 +123,7 @@ class Output:
         try:  # __exit__ does not run when __enter__ fails: remove the file here
             os.close(fd)
             if self.path != "-":  # mkstemp makes the file 0600; the output should get the usual permissions
-                umask = os.umask(0)
-                os.umask(umask)
-                os.chmod(self._tmp, 0o666 & ~umask)
+                os.chmod(self._tmp, 0o666 & ~umask())
         except BaseException:
             os.unlink(self._tmp)
             raise
@@ -158,11 +166,14 @@ class Output:
         except OSError as err:
             if exc_type is None:
                 raise write_failure(self.shown, err) from None
-        finally:
-            if self._tmp and os.path.exists(self._tmp):
+        finally:  # a staged file is the caller's to remove
+            if self._tmp and not self.staged and os.path.exists(self._tmp):
                 os.unlink(self._tmp)
 
     def _commit(self) -> None:
+        if self.staged:  # in place: the caller commits it
+            self._tmp = None
+            return
         if self.direct:
             interrupts.committed()
             return

@@ -5,6 +5,7 @@ file's shape from its footer, parts joined into one file, and hconv's Parquet se
 
 from __future__ import annotations
 
+import io
 import itertools
 import os
 from collections.abc import Iterator
@@ -43,30 +44,69 @@ def _not_parquet(path: str, name: str, exc: Exception) -> InputError:
     )
 
 
-def open_parquet(path: str, name: str, job: Job, rows: tuple[int, int] | None = None) -> Input:
+def open_parquet(path: str, name: str, job: Job, rows: tuple[int, int] | None = None, whole: bool = False) -> Input:
     """The Parquet file ``path``, in batches of :data:`PARQUET_BATCH_ROWS` rows counted from its
     first row; with ``rows`` (start, stop), only those rows, reading only the row groups that hold
     them, in the batches the whole file's reading gives them when ``start`` is a multiple of
     :data:`PARQUET_BATCH_ROWS` (so that a part's output row groups are the whole file's:
-    :func:`hconv.tables.parts.split`)."""
+    :func:`hconv.tables.parts.split`). ``whole``: a small file (a dataset's), read into memory
+    at once, then decoded from there: the same batches, without a buffered read per column."""
+    closers: list = []
     try:
-        if os.path.getsize(path) == 0:
+        if whole:
+            fd = os.open(path, os.O_RDONLY | getattr(os, "O_BINARY", 0))
+            closers.append(lambda: os.close(fd))
+            with io.FileIO(fd, closefd=False) as f:
+                source: pa.NativeFile = pa.BufferReader(f.readall())
+        else:
+            source = pa.OSFile(path)
+            fd = source.fileno()
+        closers.append(source.close)
+        at_open = FileStat.of(fd)
+        if at_open.size == 0:
             raise InputError(f"{name}: the file is empty (0 bytes); it is not a Parquet file")
-        source = pa.OSFile(path)
-        at_open = FileStat.of(source.fileno())
         # Stream pages rather than pre-buffering whole row groups, so that peak memory does not
-        # grow with the writer's row-group size (docs/measurements.md).
-        # Pages that carry a checksum (pyarrow writes them with write_page_checksum=True) are
-        # checked: a damaged page of plain floats otherwise reads as other numbers, silently.
-        pf = pq.ParquetFile(source, pre_buffer=False, buffer_size=1 << 20, page_checksum_verification=True)
+        # grow with the writer's row-group size (docs/measurements.md); a whole file in memory
+        # needs no buffer. Pages that carry a checksum (pyarrow writes them with
+        # write_page_checksum=True) are checked: a damaged page of plain floats otherwise reads
+        # as other numbers, silently.
+        buffered = {} if whole else {"pre_buffer": False, "buffer_size": 1 << 20}
+        pf = pq.ParquetFile(source, page_checksum_verification=True, **buffered)
+        closers.append(pf.close)
         schema = pf.schema_arrow  # a footer whose column metadata is damaged fails here
         meta = pf.metadata
-    except pa.ArrowException as exc:
-        raise _not_parquet(path, name, exc) from None
-    except OSError as exc:
-        if exc.errno is None and os.path.isfile(path):  # pyarrow's own errors about the bytes
+    except BaseException as exc:
+        for close in reversed(closers):
+            close()
+        if isinstance(exc, pa.ArrowException):
             raise _not_parquet(path, name, exc) from None
-        raise unreadable(name, exc) from None
+        if isinstance(exc, OSError):
+            if exc.errno is None and os.path.isfile(path):  # pyarrow's own errors about the bytes
+                raise _not_parquet(path, name, exc) from None
+            raise unreadable(name, exc) from None
+        raise
+    try:
+        return _opened(pf, fd, at_open, schema, meta, name, job, rows, closers, whole)
+    except BaseException:
+        for close in reversed(closers):
+            close()
+        raise
+
+
+def _opened(
+    pf: pq.ParquetFile,
+    fd: int,
+    at_open: FileStat,
+    schema: pa.Schema,
+    meta: pq.FileMetaData,
+    name: str,
+    job: Job,
+    rows: tuple[int, int] | None,
+    closers: list,
+    whole: bool,
+) -> Input:
+    """:func:`open_parquet`'s Input, once the file is open as ``pf`` (and as ``fd``, which tells
+    whether it changes while read)."""
     plan = layout.plan(schema, job, name)
     done = [0]
     start, stop = rows if rows is not None else (0, meta.num_rows)
@@ -80,8 +120,9 @@ def open_parquet(path: str, name: str, job: Job, rows: tuple[int, int] | None = 
         def failed(exc: Exception) -> InputError:
             return _damaged(pf, name, row_groups, n, exc)
 
-        got = pf.iter_batches(batch_size=PARQUET_BATCH_ROWS, row_groups=row_groups)
-        for batch in read_batches(got, name, source.fileno(), at_open, failed):
+        # a small file's columns decoded on this thread: handing each to Arrow's pool cost more
+        got = pf.iter_batches(batch_size=PARQUET_BATCH_ROWS, row_groups=row_groups, use_threads=not whole)
+        for batch in read_batches(got, name, fd, at_open, failed):
             n += batch.num_rows
             yield batch
 
@@ -92,7 +133,7 @@ def open_parquet(path: str, name: str, job: Job, rows: tuple[int, int] | None = 
             yield batch
         # read checks, once its row groups are read, that the file did not change meanwhile; a
         # part ends inside its last row group, before that check
-        changed = changed_while_read(name, source.fileno(), at_open) if rows is not None else None
+        changed = changed_while_read(name, fd, at_open) if rows is not None else None
         if changed:
             raise changed
 
@@ -105,7 +146,6 @@ def open_parquet(path: str, name: str, job: Job, rows: tuple[int, int] | None = 
             plan = plan.resolve(pa.Table.from_batches([first]))
             if start == 0:
                 batches = itertools.chain([first], batches)
-    closers = [pf.close, source.close]
     return Input(name, schema, batches, stop - start, lambda: done[0], plan, closers, first_row=start)
 
 
@@ -220,12 +260,29 @@ def parquet_write_options(schema: pa.Schema) -> dict:
     }
 
 
+#: The writer's buffer: pyarrow writes each page and each column chunk's header with a call of
+#: its own, dozens of system calls for a small file's output, which the buffer makes one.
+WRITE_BUFFER_BYTES = 1 << 20
+
+
 class ParquetWriter:
+    """hconv's Parquet writer: :func:`parquet_write_options`, through :data:`WRITE_BUFFER_BYTES`."""
+
     def __init__(self, path: str, schema: pa.Schema):
-        self._w = pq.ParquetWriter(path, schema, **parquet_write_options(schema))
+        self._file = pa.OSFile(path, "wb")
+        try:
+            self._sink = pa.BufferedOutputStream(self._file, WRITE_BUFFER_BYTES)
+            self._w = pq.ParquetWriter(self._sink, schema, **parquet_write_options(schema))
+        except BaseException:
+            self._file.close()
+            raise
 
     def write(self, table: pa.Table) -> None:
         self._w.write_table(table)
 
     def close(self) -> None:
-        self._w.close()
+        try:
+            self._w.close()
+            self._sink.close()  # flushes the buffer: a full disk may refuse it here
+        finally:
+            self._file.close()

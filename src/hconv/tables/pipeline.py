@@ -219,6 +219,7 @@ def convert_file(
     dst_name: str | None = None,
     prefix: str | None = None,
     whole: bool = False,
+    staged: bool = False,
 ) -> Tally:
     """Convert the table in ``src`` into ``dst`` ("-" for stdin/stdout); returns the tally.
 
@@ -239,6 +240,8 @@ def convert_file(
     ``whole``: a small file, read, converted and written on the calling thread, with no threads
     of its own (starting and joining them cost more than such a file's conversion; a dataset's
     pool converts several such files side by side: :mod:`hconv.tables.runners`).
+    ``staged``: ``dst`` is the caller's own temporary file, written in place (not through another
+    one) and left for the caller to commit or remove (:func:`hconv.tables.onefile.convert_one`).
     Raises :class:`hconv.errors.HconvError` subclasses with one-line messages.
     """
     check_threads(threads)
@@ -247,15 +250,16 @@ def convert_file(
     job = options.configure(
         Job, "convert_file", job, method=method, precision=precision, diagnostics=diagnostics, prefix=prefix
     )
-    dst = into_directory(src, dst, src_format, dst_format)  # an existing directory: the file in it, as cp
+    if not staged:
+        dst = into_directory(src, dst, src_format, dst_format)  # an existing directory: the file in it, as cp
     fin = format_of(src, src_format, "src_format")
     fout = format_of(dst, dst_format, "dst_format")
     # Straight into a pipe's reader where one pass writes it all: CSV keeps its text, and only
     # CSV's text columns can make a second pass (csvtypes.Retype); --strict promises nothing written.
     stream = not strict and (fout == "csv" or fin != "csv")
-    out = Output(dst, fout, force=force, input_path=src, shown=dst_name, stream=stream)  # refuses early
+    out = Output(dst, fout, force=force, input_path=src, shown=dst_name, stream=stream, staged=staged)  # refuses early
     t0 = time.perf_counter()
-    with open_input(src, fin, job, name, rows) as inp:
+    with open_input(src, fin, job, name, rows, whole) as inp:
         if fout == "csv":
             csvwrite.check_csv_columns(inp.schema, inp.name)  # before converting anything
         # CSV's text columns get types in Parquet, the first block's (csvtypes); CSV keeps them as they were
@@ -271,7 +275,8 @@ def convert_file(
             inp.batches = iter(())
             types = csvtypes.whole_file(csvio.text_batches(inp))
             with csvio.reopen(inp, job) as again:
-                tally = run(again, Output(dst, fout, force=force, input_path=src, shown=dst_name), types=types)
+                again_out = Output(dst, fout, force=force, input_path=src, shown=dst_name, staged=staged)
+                tally = run(again, again_out, types=types)
     tally.seconds = time.perf_counter() - t0
     return tally
 

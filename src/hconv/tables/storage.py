@@ -440,7 +440,7 @@ def write_bytes(where: Place, rel: str, data: bytes) -> None:
                 f.write(data)
                 f.flush()
                 os.fsync(f.fileno())
-            os.chmod(tmp, 0o666 & ~_umask())
+            os.chmod(tmp, 0o666 & ~temporaries.umask())
             os.replace(tmp, target)
         except OSError as exc:
             raise OutputError(f"{where.name(rel)}: could not be written ({exc.strerror or exc})") from None
@@ -473,9 +473,3 @@ def read_bytes(where: Place, rel: str) -> bytes | None:
         if not where.local and file_info(where, rel).type == pafs.FileType.NotFound:
             return None
         raise OutputError(f"{where.name(rel)}: cannot read it {store_failure(exc)}") from None
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask

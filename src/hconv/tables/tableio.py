@@ -29,12 +29,19 @@ from hconv.tables.sniff import input_kind
 from hconv.tables.temporaries import temporary_file
 
 
-def open_input(path: str, fmt: str, job: Job, name: str | None = None, rows: tuple[int, int] | None = None) -> Input:
+def open_input(
+    path: str,
+    fmt: str,
+    job: Job,
+    name: str | None = None,
+    rows: tuple[int, int] | None = None,
+    whole: bool = False,
+) -> Input:
     """Open ``path`` ("-" for stdin) as ``fmt``, planned for ``job`` (:func:`hconv.tables.layout.plan`);
     InputError with a fix if it can't be. Stdin, or a pipe given by name, is spooled first.
     ``name``: what messages call the input (default: ``path``), such as the URI of an object
     that was fetched into ``path``. ``rows``: (start, stop), only those rows of a Parquet file
-    (:func:`open_parquet`)."""
+    (:func:`open_parquet`). ``whole``: a small file, read at once (Parquet: :func:`open_parquet`)."""
     closers = []
     name = name or path
     if path == "-":
@@ -62,7 +69,7 @@ def open_input(path: str, fmt: str, job: Job, name: str | None = None, rows: tup
         if rows is not None and fmt != "parquet":
             raise ValueError("rows is for Parquet input")
         if fmt == "parquet":
-            inp = open_parquet(path, name, job, rows)
+            inp = open_parquet(path, name, job, rows, whole)
         else:
             inp = {"csv": open_csv, "arrow": open_ipc, "jsonl": open_jsonl}[fmt](path, name, job)
     except BaseException:

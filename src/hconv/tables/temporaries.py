@@ -169,20 +169,36 @@ def _names(directory: str) -> list[str]:
 
 #: The directories swept during a :func:`sweeping_once` block (None outside one: every call sweeps).
 _swept: set[str] | None = None
+#: The umask, as read when the outermost :func:`sweeping_once` block began (None outside one).
+_umask: int | None = None
 
 
 @contextlib.contextmanager
 def sweeping_once() -> Iterator[None]:
     """Inside the block, :func:`temporary_file` sweeps each directory once, not at every file: a
-    dataset run makes two temporary files per output, and listing a folder of thousands of
-    outputs for each cost more than converting a small file. A process killed after the sweep
-    leaves its files to the next run, as before."""
-    global _swept
+    dataset run makes a temporary file per output, and listing a folder of thousands of outputs
+    for each cost more than converting a small file. A process killed after the sweep leaves its
+    files to the next run, as before. :func:`umask` is read once, here, before the run's threads
+    start."""
+    global _swept, _umask
     outer, _swept = _swept, set() if _swept is None else _swept
+    outer_mask, _umask = _umask, umask()
     try:
         yield
     finally:
-        _swept = outer
+        _swept, _umask = outer, outer_mask
+
+
+def umask() -> int:
+    """The process's umask, which a file mkstemp made (0600) is given an output's permissions by.
+    Reading it means setting it for a moment: a file or folder another thread made in that moment
+    would get no umask at all (0666, 0777). So inside a :func:`sweeping_once` block (a dataset
+    run, whose threads make files side by side) it is the value read when the block began."""
+    if _umask is not None:
+        return _umask
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def temporary_file(prefix: str, directory: str | None = None) -> tuple[int, str]:
