@@ -623,7 +623,16 @@ def _pandas_inputs(folder: Path) -> dict[str, Path]:
     lists = pa.list_(pa.float64())
     table = pa.table({"H": pa.array([[1.0, 2.0, 3.0], None], lists), "I": pa.array([[1.0, 2.0, 3.0]] * 2, lists)})
     pq.write_table(table.append_column("w", pa.array([1, None], pa.int64())), folder / "in.parquet")
-    return {"csv": folder / "in.csv", "units": folder / "units.csv", "parquet": folder / "in.parquet"}
+    (folder / "folder").mkdir()  # a dataset: files of float64 columns, read whole
+    floats = pa.table({c: pa.array([1.0, 2.0, 3.0]) for c in ("Hx", "Hy", "Hz", "I1", "I2", "I3")})
+    for k in range(2):
+        pq.write_table(floats, folder / "folder" / f"part{k}.parquet")
+    return {
+        "csv": folder / "in.csv",
+        "units": folder / "units.csv",
+        "parquet": folder / "in.parquet",
+        "folder": folder / "folder",
+    }
 
 
 @pytest.mark.parametrize(
@@ -636,6 +645,7 @@ def _pandas_inputs(folder: Path) -> dict[str, Path]:
         ("csv", "csv"),
         ("units", "csv"),
         ("parquet", "csv"),
+        ("folder", "dataset"),
     ],
 )
 def test_convert_does_not_import_pandas(tmp_path, source, to):

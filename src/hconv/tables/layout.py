@@ -221,8 +221,8 @@ def _floats(col: pa.Array | pa.ChunkedArray) -> np.ndarray:
     """A numeric column or array as float64 with nulls as NaN, shape ``(N,)``."""
     if pa.types.is_null(col.type):
         return np.full(len(col), np.nan)
-    if col.type == pa.float64():  # nulls come out NaN as they are; the cast would only copy it
-        return np.asarray(col.to_numpy(zero_copy_only=False), dtype=np.float64)
+    if col.type == pa.float64():  # the cast would only copy it
+        return arrays.to_numpy(col, null=np.nan)
     # unsafe: an integer beyond 2^53 rounds to the nearest float64, as the same digits in a CSV do
     return arrays.to_numpy(pc.cast(col, pa.float64(), safe=False), null=np.nan)
 
