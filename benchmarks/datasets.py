@@ -6,6 +6,10 @@ server mode, the ``test-s3`` extra), if installed.
     python benchmarks/datasets.py --small-files            # issue 28's targets, one run each
     python benchmarks/datasets.py --small-files --profile  # and where a small file's time goes
 
+``--small-files`` ends with a floor: pyarrow alone reading and writing each of the small files
+(hconv's settings, nothing converted), on one thread and on one per core, with a start-up; what
+any design writing one output per input with pyarrow costs at least.
+
 ``--small-files`` converts the same 2M rows as one Parquet file, as 40 files of 50k rows and as
 4,000 files of 500 rows, and the 4,000 files again with ``--cluster local --workers 2``; one run
 each, and prints each ratio against its target (wall times of the real command). ``--scale``
@@ -37,6 +41,7 @@ import warnings
 from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
@@ -200,9 +205,53 @@ def small_files(work: Path, scale: float, profile: bool) -> None:
     for what, against, target in SMALL_TARGETS:
         ratio = walls[what] / walls[against]
         print(f"  {what} / {against}: {ratio:.2f}x (target <= {target}x: {'met' if ratio <= target else 'NOT met'})")
+    floor(work / f"s{files}", work / "out-floor", walls["1 file"])
     if profile:
         profile_small(work / f"s{files}", work / "out-profile")
     model(work / f"s{files}", one)
+
+
+def floor(small: Path, out: Path, one_file: float) -> None:
+    """The least the 4,000 files can cost with one output written per input by pyarrow: each
+    file read whole, the six columns hconv appends added, written with hconv's Parquet settings
+    to a temporary name and renamed, on one thread and on a pool of one thread per core, with
+    nothing converted, checked or recorded; beside it a process's start-up (importing hconv's
+    CLI). Their sum over the one file's wall time bounds the 4,000-file ratio from below."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from hconv.tables.parquetio import parquet_write_options
+
+    out.mkdir(exist_ok=True)
+    paths = sorted(small.rglob("*.parquet"))
+
+    def copy(path: Path) -> None:
+        t = pq.ParquetFile(path).read(use_threads=False)
+        n = t.num_rows
+        for name in ("wx", "wy", "wz", "residual", "cond"):
+            t = t.append_column(name, pa.array(np.zeros(n)))
+        t = t.append_column("status", pa.array(["ok"] * n).dictionary_encode())
+        tmp = out / (path.name + ".tmp")
+        pq.write_table(t, tmp, **parquet_write_options(t.schema))
+        os.replace(tmp, out / path.name)
+
+    t0 = time.perf_counter()
+    for path in paths:
+        copy(path)
+    serial = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    with ThreadPoolExecutor(os.cpu_count() or 1) as pool:
+        list(pool.map(copy, paths))
+    pooled = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-c", "import hconv.cli"], check=True)
+    start = time.perf_counter() - t0
+    best = min(serial, pooled)
+    print(
+        f"  floor, pyarrow alone on the {len(paths)} files: {serial / len(paths) * 1e3:.2f} ms a file on one thread, "
+        f"{pooled:.2f} s on {os.cpu_count()} threads; with a start-up of {start:.2f} s that is "
+        f"{(best + start) / one_file:.2f}x the one file, the least the 4,000-file ratio can be"
+    )
+    shutil.rmtree(out, ignore_errors=True)
 
 
 def model(small: Path, one: Path) -> None:
