@@ -225,13 +225,17 @@ def floor(small: Path, out: Path, one_file: float) -> None:
     paths = sorted(small.rglob("*.parquet"))
 
     def copy(path: Path) -> None:
-        t = pq.ParquetFile(path).read(use_threads=False)
+        # the quickest pyarrow ways measured: the file's bytes read at once and decoded on this
+        # thread; the output made in memory and written with one call
+        t = pq.ParquetFile(pa.BufferReader(path.read_bytes())).read(use_threads=False)
         n = t.num_rows
         for name in ("wx", "wy", "wz", "residual", "cond"):
             t = t.append_column(name, pa.array(np.zeros(n)))
         t = t.append_column("status", pa.array(["ok"] * n).dictionary_encode())
+        sink = pa.BufferOutputStream()
+        pq.write_table(t, sink, **parquet_write_options(t.schema))
         tmp = out / (path.name + ".tmp")
-        pq.write_table(t, tmp, **parquet_write_options(t.schema))
+        tmp.write_bytes(sink.getvalue().to_pybytes())
         os.replace(tmp, out / path.name)
 
     t0 = time.perf_counter()
