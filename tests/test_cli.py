@@ -923,6 +923,23 @@ def test_cli_reader_closing_pipe_early_is_quiet(args):
     assert "error" not in proc.stderr.decode() and "Traceback" not in proc.stderr.decode()
 
 
+@pytest.mark.parametrize("to", ["parquet", "arrow"])
+def test_convert_into_pipe_reader_closing_early_is_quiet(tmp_path, rng, to):
+    """A Parquet or Arrow file output into a pipe is spooled and copied at the end; a reader that
+    stops early (`| head -c 10`) stops the command as it stops one writing CSV: exit 0, quietly,
+    no summary of rows that never reached it."""
+    n = 200_000
+    t = pa.table({c: rng.normal(size=n) + (3.0 if c in ("Ixx", "Iyy", "Izz") else 0.0) for c in CONTRACT[:9]})
+    pq.write_table(t, tmp_path / "in.parquet")
+    convert = f'"{sys.executable}" -m hconv convert in.parquet - --to {to}'
+    cmd = f"{convert} | head -c 10 > /dev/null; echo ${{PIPESTATUS[0]}}"
+    proc = subprocess.run(cmd, shell=True, capture_output=True, timeout=120, executable="/bin/bash", cwd=tmp_path)
+    err = proc.stderr.decode()
+    assert proc.stdout.decode().split() == ["0"], err
+    assert "# time" not in err and "error" not in err and "Traceback" not in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.parquet"]  # no spool left
+
+
 def test_version_is_one_source(capsys):
     import importlib.metadata
 

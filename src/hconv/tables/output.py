@@ -184,9 +184,11 @@ class Output:
                 try:
                     shutil.copyfileobj(f, sys.stdout.buffer, 1 << 20)
                     sys.stdout.buffer.flush()
-                except BrokenPipeError:  # the reader stopped early (e.g. `| head`): not our failure
-                    devnull = os.open(os.devnull, os.O_WRONLY)
-                    os.dup2(devnull, sys.stdout.fileno())
+                except BrokenPipeError:  # the reader stopped early (e.g. `| head`): not our failure,
+                    # but no summary either (the rows never reached it): the command stops quietly,
+                    # as it does when the reader of a CSV goes away
+                    os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+                    raise
             interrupts.committed()
         else:
             # held: an interrupt during the rename acts after it, when the command may be settled
