@@ -39,7 +39,7 @@ from hconv.commandline import (
 )
 from hconv.errors import INTERRUPTED, StrictError, UsageError
 from hconv.kernels import allocator
-from hconv.solve import forms, options
+from hconv.solve import forms, options, units
 from hconv.tables.body import UNIT_SETS
 from hconv.tools.scene import SCENES
 
@@ -596,6 +596,7 @@ def _main() -> None:
     if not interrupts.starting():  # in the hconv command SIGTERM ends it until friendly hands it over
         signal.signal(signal.SIGTERM, _sigterm)
     allocator.tune()
+    units.PINT_WITHOUT_DASK = True
     if os.environ.get("_HCONV_COMPLETE"):  # the shell asks for completions (hconv --install-completion)
         from typer import completion
 
