@@ -16,7 +16,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 import pytest
-from helpers import StopAt, hconv_inprocess, need, run_hconv, run_inprocess, run_on_terminal
+from helpers import StopAt, command_imports, hconv_inprocess, need, run_hconv, run_inprocess, run_on_terminal
 
 import hconv
 
@@ -652,25 +652,15 @@ def test_convert_does_not_import_pandas(tmp_path, source, to):
     need("pandas")  # installed, so that a path to it would import it
     given = _pandas_inputs(tmp_path)[source]
     out = tmp_path / f"out.{to}"
-    code = (
-        f"import sys; sys.argv = ['hconv', 'convert', {str(given)!r}, {str(out)!r}, '--quiet'];"
-        "from hconv.cli import main\ntry: main()\nexcept SystemExit as exc: print(exc.code)\n"
-        "print('pandas' in sys.modules)"
-    )
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=60)
-    assert proc.stdout.decode().split()[-2:] == ["0", "False"], proc.stderr.decode()
+    exit_code, imported, err = command_imports(["convert", given, out, "--quiet"], "pandas")
+    assert (exit_code, imported) == (0, False), err
     assert out.exists()
 
 
 def test_convert_quiet_does_not_import_rich(tmp_path):
     given, out = _pandas_inputs(tmp_path)["csv"], tmp_path / "out.parquet"
-    code = (
-        f"import sys; sys.argv = ['hconv', 'convert', {str(given)!r}, {str(out)!r}, '-q'];"
-        "from hconv.cli import main\ntry: main()\nexcept SystemExit as exc: print(exc.code)\n"
-        "print('rich' in sys.modules)"
-    )
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=60)
-    assert proc.stdout.decode().split()[-2:] == ["0", "False"], proc.stderr.decode()
+    exit_code, imported, err = command_imports(["convert", given, out, "-q"], "rich")
+    assert (exit_code, imported) == (0, False), err
     assert pq.read_table(out).num_rows == 3
 
 

@@ -11,7 +11,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
-from helpers import hconv_inprocess, mp_solve, need, physical_bodies, rel_err, six, vec, w_of
+from helpers import command_imports, hconv_inprocess, mp_solve, need, physical_bodies, rel_err, six, vec, w_of
 
 import hconv
 from hconv.errors import UsageError
@@ -367,12 +367,8 @@ def test_factor_imports_pint_without_dask_only_in_the_command(where):
     assert (imported, supported) == (("False", "False") if where == "command" else ("True", "True"))
 
 
-def test_command_with_units_does_not_import_dask(tmp_path):
+def test_command_with_units_does_not_import_dask():
     need("dask")
-    code = (
-        "import sys; sys.argv = ['hconv', 'one', '--H', '1,2,3', '--I', '25000,25000,40000', '--unit', 'I=g*cm**2']\n"
-        "from hconv.cli import main\ntry: main()\nexcept SystemExit as exc: print(exc.code)\n"
-        "print('dask' in sys.modules)"
-    )
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=60)
-    assert proc.stdout.decode().split()[-2:] == ["0", "False"], proc.stderr.decode()
+    args = ["one", "--H", "1,2,3", "--I", "25000,25000,40000", "--unit", "I=g*cm**2"]
+    exit_code, imported, err = command_imports(args, "dask")
+    assert (exit_code, imported) == (0, False), err
