@@ -229,9 +229,19 @@ def units_row(schema: pa.Schema, plan: layout.Layout, job: Job, written: tuple[s
             if said != read_in:
                 kept.pop(column, None)
                 overridden = overridden or bool(said)
-    if not (written or layout.stored_units(schema) or job.field_units or overridden):
+    if not (
+        written
+        or job.field_units
+        or overridden
+        or _STORES_UNITS.value(schema, None, lambda: bool(layout.stored_units(schema)))
+    ):
         return None
     return kept
+
+
+#: whether recent schemas store a unit: looking costs more than the memo (Spark's schema is parsed),
+#: and a dataset's files mostly share one schema
+_STORES_UNITS = layout.SchemaMemo()
 
 
 def units_line(schema: pa.Schema, units: Mapping[str, str]) -> list[str]:
