@@ -244,7 +244,10 @@ def open_csv(path: str, name: str, job: Job) -> Input:
             path, name, names, dialect, exc, job.decimal is not None
         ) from None
     total = f.size()
-    schema = pa.schema([_with_unit(fl, dict(dialect.units)) for fl in reader.schema])
+    # every column's unit from the row, not only hconv's: the output carries them all (field
+    # metadata in Parquet and Arrow), so that no column's numbers lose what they meant
+    row_units = {n: u.strip() for n, u in zip(names, dialect.units_text, strict=False) if u.strip()}
+    schema = pa.schema([_with_unit(fl, row_units) for fl in reader.schema])
     read = ReadMarks(total, CSV_BLOCK_BYTES)
 
     def failed(exc: Exception) -> InputError:
@@ -256,7 +259,7 @@ def open_csv(path: str, name: str, job: Job) -> Input:
         # all the reader raises is the input's
         for batch in read_batches(reader, name, fd, at_open, failed, (OSError, pa.ArrowException, MemoryError), False):
             read.add(batch.num_rows)
-            yield batch if not dialect.units else pa.RecordBatch.from_arrays(batch.columns, schema=schema)
+            yield batch if not row_units else pa.RecordBatch.from_arrays(batch.columns, schema=schema)
         read.done()
 
     text = tuple(n for n in names if n not in nums)
@@ -276,7 +279,8 @@ def _for_errors(dialect: Dialect, lines: list[str], job: Job, name: str) -> Dial
 
 def _with_unit(field: str | pa.Field, found: dict) -> pa.Field:
     """A column as a float field (``field``: a name) or as it is, with the unit a units row gave
-    it as its metadata, where hconv reads a column's unit from (hconv.tables.layout)."""
+    it as its metadata: where hconv reads a column's unit from (hconv.tables.layout), and where
+    Parquet and Arrow output keep it."""
     f = pa.field(field, pa.float64()) if isinstance(field, str) else field
     return f.with_metadata({"unit": found[f.name]}) if f.name in found else f
 

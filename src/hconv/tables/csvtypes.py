@@ -158,7 +158,7 @@ def apply(table: pa.Table, types: dict[str, pa.DataType]) -> pa.Table:
         typed = convert(text, to)
         if typed is None:
             raise Retype(name, _misfit(text, to))
-        table = table.set_column(k, pa.field(name, to), typed)
+        table = table.set_column(k, table.schema.field(k).with_type(to), typed)  # its unit kept
     return table
 
 

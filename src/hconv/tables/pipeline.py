@@ -315,8 +315,9 @@ def _convert(
     results = ordered_map(one, _numbered(batches, inp.first_row), threads)
     if inp.dialect is not None:
         tally.read_as = inp.dialect.describe()
-        if inp.dialect.units_row and out.fmt == "csv":  # CSV into CSV keeps its units
-            out.units = dict(zip(inp.schema.names, inp.dialect.units_text))
+    if out.fmt == "csv":  # a row of units, where the input carried units: they stay with the numbers
+        written = inp.dialect.units_text if inp.dialect is not None and inp.dialect.units_row else ()
+        out.units = csvwrite.units_row(inp.schema, inp.plan, job, written)
     if progress is not None:  # the size, before the first batch takes its time
         progress(0, inp.total)
     writing = contextlib.nullcontext(_Direct(out)) if whole else BackgroundWriter(out)
