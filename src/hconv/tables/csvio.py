@@ -89,6 +89,16 @@ def _dialect(head: str, name: str, job: Job) -> tuple[Dialect, list[str]]:
     return Dialect(delimiter=delimiter, decimal=job.decimal or ".", comment_lines=comments), body
 
 
+def header_names(path: str, job: Job) -> list[str] | None:
+    """The column names of the CSV at ``path``, from its first 64 KiB alone (None for an empty
+    file); InputError for a file that is not CSV text."""
+    head = _sniff_csv(path, path)
+    if not head:
+        return None
+    dialect, body = _dialect(head, path, job)
+    return next(csv.reader(body[:1], delimiter=dialect.delimiter), None)
+
+
 def _looks_numeric(text: str) -> bool:
     """Whether a field reads as a number (or starts as one: ``1 kg``), with either decimal mark."""
     t = text.strip()

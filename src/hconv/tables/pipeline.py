@@ -257,7 +257,8 @@ def convert_file(
     # Straight into a pipe's reader where one pass writes it all: CSV keeps its text, and only
     # CSV's text columns can make a second pass (csvtypes.Retype); --strict promises nothing written.
     stream = not strict and (fout == "csv" or fin != "csv")
-    out = Output(dst, fout, force=force, input_path=src, shown=dst_name, stream=stream, staged=staged)  # refuses early
+    # refuses early, and with --force an OUT that looks like an input rather than hconv's output
+    out = Output(dst, fout, force=force, input_path=src, shown=dst_name, stream=stream, staged=staged, reads=job)
     t0 = time.perf_counter()
     with open_input(src, fin, job, name, rows, whole) as inp:
         if fout == "csv":
