@@ -83,7 +83,7 @@ def convert(text: pa.Array, to: pa.DataType) -> pa.Array | None:
         return text
     if pa.types.is_null(to):
         # blanks only: nothing written is lost; a null marker written out (NA, null) is text
-        return pa.nulls(len(text)) if pc.all(pc.equal(text, "")).as_py() is not False else None
+        return pa.nulls(len(text)) if pc.max(pc.binary_length(text)).as_py() in (None, 0) else None
     try:  # the common case: no null marker in this block
         out = text.cast(to)
     except pa.ArrowInvalid:
