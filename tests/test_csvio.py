@@ -139,3 +139,17 @@ def test_convert_non_number_keeps_fix_or_blank_advice(tmp_path, capsys):
     err = proc.stderr.decode()
     assert proc.returncode == 3
     assert "fix or blank that value" in err and "--decimal ," not in err
+
+
+def test_convert_long_bad_value_is_quoted_short(tmp_path, capsys):
+    """Before: a value of 5,000 characters was quoted whole in the "must be numeric" line."""
+    from helpers import hconv_inprocess
+
+    src = tmp_path / "long.csv"
+    value = "9" * 10 + "x" * 4990
+    src.write_text(f"Hx,Hy,Hz,I1,I2,I3\n1,2,3,1,1,{value}\n")
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.csv"), capsys=capsys)
+    err = proc.stderr.decode()
+    assert proc.returncode == 3 and err.count("\n") == 1
+    assert f"column 'I3' must be numeric but holds '{'9' * 10}{'x' * 16}…{'x' * 13}' in data row 1; " in err
+    assert len(err) - len(str(src)) < 200

@@ -16,7 +16,7 @@ from collections.abc import Iterator
 import pyarrow as pa
 import pyarrow.csv as pacsv
 
-from hconv.errors import HconvError, InputError, UsageError, first_line, option
+from hconv.errors import HconvError, InputError, UsageError, first_line, option, quoted
 from hconv.solve import forms, units
 from hconv.tables import csvtypes, layout, sets
 from hconv.tables.inputs import FileStat, Input, ReadMarks, changed_while_read, read_batches, unreadable
@@ -402,10 +402,10 @@ def _csv_value_error(
     if dialect.decimal == "." and dialect.delimiter != "," and decimal_comma(value):
         drop = f" or drop {option('decimal')}" if decimal_given else ""
         return InputError(
-            f"{name}: column {col!r} must be numeric but holds {value!r}{where}, a number written with a "
+            f"{name}: column {col!r} must be numeric but holds {quoted(value)}{where}, a number written with a "
             f"decimal comma; pass {option('decimal', ',')}{drop}"
         )
     return InputError(
-        f"{name}: column {col!r} must be numeric but holds {value!r}{where}; "
+        f"{name}: column {col!r} must be numeric but holds {quoted(value)}{where}; "
         "fix or blank that value (a blank becomes a row with status invalid_input)"
     )

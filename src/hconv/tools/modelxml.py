@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from xml.parsers import expat
 
+from hconv import errors
 from hconv.errors import InputError, on_command_line, option
 
 #: The largest model file hconv reads [bytes]. Real URDF, SDF and MJCF files are kilobytes to a
@@ -71,10 +72,7 @@ _NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
 def clip(text: str, limit: int = QUOTED) -> str:
     """``text`` whole if it has at most ``limit`` characters, else its start and its end either
     side of "…" in ``limit`` characters: a value from a file can be megabytes long."""
-    if len(text) <= limit:
-        return text
-    tail = (limit - 1) // 3
-    return f"{text[: limit - 1 - tail]}…{text[len(text) - tail :]}"
+    return errors.clip(text, limit)
 
 
 def quote(value: str) -> str:
