@@ -455,6 +455,11 @@ def test_one_singular_json_has_null_w_and_inf_cond(capsys):
         (["--H", "[[1,2,3]]", "--I", "1,1,1"], "--H takes nested brackets only for an inertia matrix"),
         (["--H", "[1,2,3]", "--I", "[[1,0,0][0,1,0],[0,0,1]]"], "needs a comma between the rows"),
         (["--H", "[1 2 3]", "--I", "1,1,1"], "--H takes comma-separated numbers"),
+        # numpy's print of a matrix (before: "needs a comma between the rows", as if rows were the only lack)
+        (
+            ["--H", "1,2,3", "--I", "[[1. 0. 0.]\n [0. 2. 0.]\n [0. 0. 3.]]"],
+            "needs commas between the numbers of each row and between the rows, like [[1,0,0],[0,2,0],[0,0,3]]",
+        ),
     ],
 )
 def test_one_bad_arguments_one_line_exit_2(args, needle, capsys):

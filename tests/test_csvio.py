@@ -153,3 +153,14 @@ def test_convert_long_bad_value_is_quoted_short(tmp_path, capsys):
     assert proc.returncode == 3 and err.count("\n") == 1
     assert f"column 'I3' must be numeric but holds '{'9' * 10}{'x' * 16}…{'x' * 13}' in data row 1; " in err
     assert len(err) - len(str(src)) < 200
+
+
+def test_convert_row_against_a_header_of_one_column_says_column(tmp_path, capsys):
+    """Before: "the header names 1 columns"."""
+    from helpers import hconv_inprocess
+
+    src = tmp_path / "q.csv"
+    src.write_text("Hx\n1,2\n")
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.csv"), capsys=capsys)
+    assert proc.returncode == 3
+    assert ": data row 1 has 2 values, but the header names 1 column; every row needs" in proc.stderr.decode()

@@ -339,3 +339,16 @@ def test_output_missing_input_is_the_inputs_error_whatever_out_is(force, tmp_pat
     code, _, err = run_inprocess("convert", "nosuch.csv", "o.csv", *force, capsys=capsys)
     assert (code, err) == (3, "hconv: error: nosuch.csv: does not exist; check the path\n")
     assert Path("o.csv").read_text() == "kept\n"
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc")
+def test_output_in_a_folder_that_takes_no_files_says_so(tmp_path, capsys, monkeypatch):
+    """Before: "cannot write in '/proc' (No such file or directory); check its permissions"."""
+    monkeypatch.chdir(tmp_path)
+    Path("q.csv").write_bytes(SCENE_CSV.read_bytes())
+    code, _, err = run_inprocess("convert", "q.csv", "/proc/x.csv", "-q", capsys=capsys)
+    assert (code, err) == (
+        4,
+        "hconv: error: /proc/x.csv: cannot create a file in '/proc': it takes no new files (a pseudo file "
+        "system, as /proc and /sys are); write OUT in another directory\n",
+    )

@@ -29,6 +29,7 @@ from hconv.commandline import (
     OutFmt,
     body_forms,
     completes,
+    extra_arguments,
     fill,
     friendly,
     job_options,
@@ -37,7 +38,7 @@ from hconv.commandline import (
     numbers,
     value_of,
 )
-from hconv.errors import INTERRUPTED, StrictError, UsageError, quoted
+from hconv.errors import INTERRUPTED, StrictError, UsageError
 from hconv.kernels import allocator
 from hconv.solve import forms, options
 from hconv.tables.body import UNIT_SETS
@@ -70,14 +71,7 @@ class _PlainUsage(TyperCommand):
         rest = super().parse_args(ctx, args)
         ctx.allow_extra_args = allowed
         if rest and not allowed and not ctx.resilient_parsing:
-            n = len(rest)
-            what = f"{n} extra argument{'s' if n > 1 else ''}"
-            if ctx.command_path.endswith(" convert"):  # the shell expanded a glob: hconv expands one in quotes
-                what += (
-                    " after IN and OUT: for several files, quote the glob so that hconv expands it, "
-                    "or give their directory"
-                )
-            ctx.fail(f"{what} ({'the first: ' if n > 1 else ''}{quoted(rest[0])})")
+            ctx.fail(extra_arguments(ctx.command_path, rest))
         return rest
 
 

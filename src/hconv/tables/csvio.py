@@ -360,7 +360,8 @@ def _csv_parse_error(path: str, name: str, exc: Exception, dialect: Dialect, hin
             "is it a CSV?"
         )
     return InputError(
-        f"{name}: {row or 'a row'} has {m.group(2)} values, but the header names {expected} columns; "
+        f"{name}: {row or 'a row'} has {m.group(2)} values, but the header names {expected} "
+        f"column{'' if expected == 1 else 's'}; "
         "every row needs one value per column"
         + (hint or f" (quote a value that holds a {DELIMITERS[dialect.delimiter]})")
     )

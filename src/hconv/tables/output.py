@@ -26,7 +26,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from hconv import interrupts
-from hconv.errors import HconvError, OutputError, UsageError, first_line, option
+from hconv.errors import HconvError, InputError, OutputError, UsageError, first_line, option
 from hconv.tables import csvio, layout
 from hconv.tables.csvwrite import CsvWriter
 from hconv.tables.formats import EXTENSIONS, NAMES
@@ -55,6 +55,7 @@ class Output:
         stream: bool = False,
         staged: bool = False,
         reads: Job | None = None,
+        source: str | None = None,
     ):
         self.path, self.fmt = path, fmt
         #: ``path`` is the caller's own temporary file (a dataset's output, staged beside it:
@@ -63,6 +64,8 @@ class Output:
         self.staged = staged
         #: the output as messages name it: ``path``, or the file that a dataset's staged ``path`` becomes
         self.shown = shown or ("stdout" if path == "-" else path)
+        #: the input as messages name it, for a value of it that OUT's format cannot hold
+        self.source = source
         self._writer: CsvWriter | ParquetWriter | IpcWriter | None = None
         #: into CSV, the input's row of units by column, written under the header; None: no such row
         self.units: dict[str, str] | None = None
@@ -129,8 +132,14 @@ class Output:
             try:
                 fd, self._tmp = temporary_file(f".{name}.", str(target.parent))
             except OSError as exc:
+                where = str(target.parent)
+                if exc.errno == errno.ENOENT:  # the folder is there, yet takes no file: /proc, a pseudo file system
+                    raise OutputError(
+                        f"{self.path}: cannot create a file in {where!r}: it takes no new files (a pseudo file "
+                        "system, as /proc and /sys are); write OUT in another directory"
+                    ) from None
                 raise OutputError(
-                    f"{self.path}: cannot write in {str(target.parent)!r} ({exc.strerror}); check its permissions"
+                    f"{self.path}: cannot write in {where!r} ({exc.strerror}); check its permissions"
                 ) from None
         try:  # __exit__ does not run when __enter__ fails: remove the file here
             os.close(fd)
@@ -153,6 +162,10 @@ class Output:
             raise
         except OSError as exc:  # a full disk, a quota: the output named, not the temporary file
             raise write_failure(self.shown, exc) from None
+        except InputError as exc:  # a column the format cannot hold: the writer knows no file name
+            if self.source is None or str(exc).startswith(f"{self.source}: "):
+                raise
+            raise InputError(f"{self.source}: {exc}") from None
 
     def _new_writer(self, schema: pa.Schema) -> CsvWriter | ParquetWriter | IpcWriter:
         # Straight to stdout through its path, so that each writer opens a native file as ever
