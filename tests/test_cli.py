@@ -455,6 +455,11 @@ def test_one_singular_json_has_null_w_and_inf_cond(capsys):
         (["--H", "[[1,2,3]]", "--I", "1,1,1"], "--H takes nested brackets only for an inertia matrix"),
         (["--H", "[1,2,3]", "--I", "[[1,0,0][0,1,0],[0,0,1]]"], "needs a comma between the rows"),
         (["--H", "[1 2 3]", "--I", "1,1,1"], "--H takes comma-separated numbers"),
+        # numpy's print of a matrix (before: "needs a comma between the rows", as if rows were the only lack)
+        (
+            ["--H", "1,2,3", "--I", "[[1. 0. 0.]\n [0. 2. 0.]\n [0. 0. 3.]]"],
+            "needs commas between the numbers of each row and between the rows, like [[1,0,0],[0,2,0],[0,0,3]]",
+        ),
     ],
 )
 def test_one_bad_arguments_one_line_exit_2(args, needle, capsys):
@@ -1036,3 +1041,21 @@ def test_help_usage_lines_name_arguments_plainly_and_generate_says_stdout(capsys
     assert "the random draw; the same seed gives" in out
     code, _, err = run_inprocess("generate", "-", "--rows", "3", "--to", "csv", capsys=capsys)
     assert code == 0 and err.startswith("hconv generate: 3 rows to stdout in "), err
+
+
+def test_convert_unquoted_glob_of_many_files_is_one_short_line(tmp_path, capsys):
+    """Before: typer's message listed every file (99 files: 2,421 columns), the hint at its end."""
+    files = []
+    for k in range(99):
+        f = tmp_path / f"part-{k:02d}.csv"
+        f.write_bytes((EXAMPLES / "scene.csv").read_bytes()[:200])
+        files.append(str(f))
+    proc = hconv_inprocess("convert", *files, capsys=capsys)
+    err = proc.stderr.decode()
+    assert (proc.returncode, err.count("\n")) == (2, 1)
+    assert err.startswith(
+        "hconv: error: 97 extra arguments after IN and OUT: for several files, quote the glob so that hconv "
+        "expands it, or give their directory (the first: '"
+    )
+    assert len(err) < 250
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(os.path.basename(f) for f in files)

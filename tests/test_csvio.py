@@ -177,3 +177,28 @@ def test_convert_file_units_row_gives_every_column_its_unit_in_parquet_and_arrow
     w_back = np.column_stack([t.column(c).to_numpy() for c in ("c_wx", "c_wy", "c_wz")])
     np.testing.assert_allclose(w_back, w_si, rtol=1e-12)
     assert t.schema.field("wx").metadata == {b"unit": b"deg/s"}  # the previous run's ω, still in deg/s
+
+
+def test_convert_long_bad_value_is_quoted_short(tmp_path, capsys):
+    """Before: a value of 5,000 characters was quoted whole in the "must be numeric" line."""
+    from helpers import hconv_inprocess
+
+    src = tmp_path / "long.csv"
+    value = "9" * 10 + "x" * 4990
+    src.write_text(f"Hx,Hy,Hz,I1,I2,I3\n1,2,3,1,1,{value}\n")
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.csv"), capsys=capsys)
+    err = proc.stderr.decode()
+    assert proc.returncode == 3 and err.count("\n") == 1
+    assert f"column 'I3' must be numeric but holds '{'9' * 10}{'x' * 16}…{'x' * 13}' in data row 1; " in err
+    assert len(err) - len(str(src)) < 200
+
+
+def test_convert_row_against_a_header_of_one_column_says_column(tmp_path, capsys):
+    """Before: "the header names 1 columns"."""
+    from helpers import hconv_inprocess
+
+    src = tmp_path / "q.csv"
+    src.write_text("Hx\n1,2\n")
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.csv"), capsys=capsys)
+    assert proc.returncode == 3
+    assert ": data row 1 has 2 values, but the header names 1 column; every row needs" in proc.stderr.decode()

@@ -16,7 +16,7 @@ from collections.abc import Iterator
 import pyarrow as pa
 import pyarrow.csv as pacsv
 
-from hconv.errors import HconvError, InputError, UsageError, first_line, option
+from hconv.errors import HconvError, InputError, UsageError, first_line, option, quoted
 from hconv.solve import forms, units
 from hconv.tables import csvtypes, layout, sets
 from hconv.tables.inputs import FileStat, Input, ReadMarks, changed_while_read, read_batches, unreadable
@@ -87,6 +87,16 @@ def _dialect(head: str, name: str, job: Job) -> tuple[Dialect, list[str]]:
     given = job.delimiter or delimiter_by_name(name)
     delimiter = given or sniff_delimiter(body, name, frozenset(sets.all_names()))
     return Dialect(delimiter=delimiter, decimal=job.decimal or ".", comment_lines=comments), body
+
+
+def header_names(path: str, job: Job) -> list[str] | None:
+    """The column names of the CSV at ``path``, from its first 64 KiB alone (None for an empty
+    file); InputError for a file that is not CSV text."""
+    head = _sniff_csv(path, path)
+    if not head:
+        return None
+    dialect, body = _dialect(head, path, job)
+    return next(csv.reader(body[:1], delimiter=dialect.delimiter), None)
 
 
 def _looks_numeric(text: str) -> bool:
@@ -354,7 +364,8 @@ def _csv_parse_error(path: str, name: str, exc: Exception, dialect: Dialect, hin
             "is it a CSV?"
         )
     return InputError(
-        f"{name}: {row or 'a row'} has {m.group(2)} values, but the header names {expected} columns; "
+        f"{name}: {row or 'a row'} has {m.group(2)} values, but the header names {expected} "
+        f"column{'' if expected == 1 else 's'}; "
         "every row needs one value per column"
         + (hint or f" (quote a value that holds a {DELIMITERS[dialect.delimiter]})")
     )
@@ -396,10 +407,10 @@ def _csv_value_error(
     if dialect.decimal == "." and dialect.delimiter != "," and decimal_comma(value):
         drop = f" or drop {option('decimal')}" if decimal_given else ""
         return InputError(
-            f"{name}: column {col!r} must be numeric but holds {value!r}{where}, a number written with a "
+            f"{name}: column {col!r} must be numeric but holds {quoted(value)}{where}, a number written with a "
             f"decimal comma; pass {option('decimal', ',')}{drop}"
         )
     return InputError(
-        f"{name}: column {col!r} must be numeric but holds {value!r}{where}; "
+        f"{name}: column {col!r} must be numeric but holds {quoted(value)}{where}; "
         "fix or blank that value (a blank becomes a row with status invalid_input)"
     )
