@@ -36,6 +36,8 @@ from hconv.commandline import (
     json_number,
     listing,
     numbers,
+    progress_counts,
+    usage_failure,
     value_of,
 )
 from hconv.errors import INTERRUPTED, StrictError, UsageError
@@ -317,7 +319,7 @@ def convert_cmd(
             from hconv import report
 
             description = "converting files" if files else f"converting {os.path.basename(src)}"
-            with report.ProgressBar(description, counts=_progress_counts(src, value_of(from_), files)) as bar:
+            with report.ProgressBar(description, counts=progress_counts(src, value_of(from_), files)) as bar:
                 result = run(progress=bar)
         else:
             result = run()
@@ -335,19 +337,6 @@ def convert_cmd(
         report.dataset_summary(result, asked=job.engine)
     else:
         report.summary(result, asked=job.engine)
-
-
-def _progress_counts(src: str, fmt: str | None, files: bool) -> str:
-    """What a convert run's progress counts: a CSV file's bytes read, else rows or files."""
-    from hconv.errors import HconvError
-    from hconv.tables.sniff import format_of
-
-    if files:
-        return "files"
-    try:
-        return "bytes" if format_of(src, fmt, "src_format") == "csv" else "rows"
-    except HconvError:  # the run says what is wrong with the input
-        return "rows"
 
 
 @app.command("diagnose")
@@ -617,15 +606,7 @@ def _main() -> None:
     except Exception as exc:  # click's usage errors: one line, like every other hconv error
         if not (hasattr(exc, "format_message") and hasattr(exc, "exit_code")):
             raise
-        interrupts.settle()  # the exit code is decided: an interrupt now changes nothing
-        ctx = getattr(exc, "ctx", None)
-        if type(exc).__name__ == "NoArgsIsHelpError" and ctx is not None:
-            print(ctx.get_help())
-            sys.exit(0)
-        command = getattr(ctx, "command_path", "hconv")
-        message = " ".join(exc.format_message().split())
-        print(f"hconv: error: {message} (see '{command} --help')", file=sys.stderr)
-        sys.exit(exc.exit_code)
+        usage_failure(exc)
     sys.exit(rv if isinstance(rv, int) else 0)
 
 

@@ -19,7 +19,7 @@ import re
 import sys
 from collections.abc import Callable, Iterable
 from enum import Enum
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NoReturn
 
 import typer
 
@@ -434,3 +434,30 @@ def listing(entries: list[tuple[str, ...]]) -> None:
         for k, text in enumerate(paragraphs):
             first = f"{name:<{width}}" if k == 0 else " " * width
             print(fill(text, sys.stdout, " " * width, first))
+
+
+def usage_failure(exc: Any) -> NoReturn:
+    """Exit on click's usage error ``exc`` (it has ``format_message`` and ``exit_code``) with one
+    line, like every other hconv error, naming the command's help; a command that needs arguments
+    and got none prints its help and exits 0."""
+    interrupts.settle()  # the exit code is decided: an interrupt now changes nothing
+    ctx = getattr(exc, "ctx", None)
+    if type(exc).__name__ == "NoArgsIsHelpError" and ctx is not None:
+        print(ctx.get_help())
+        sys.exit(0)
+    command = getattr(ctx, "command_path", "hconv")
+    message = " ".join(exc.format_message().split())
+    print(f"hconv: error: {message} (see '{command} --help')", file=sys.stderr)
+    sys.exit(exc.exit_code)
+
+
+def progress_counts(src: str, fmt: str | None, files: bool) -> str:
+    """What a convert run's progress counts: a CSV file's bytes read, else rows or files."""
+    from hconv.tables.sniff import format_of
+
+    if files:
+        return "files"
+    try:
+        return "bytes" if format_of(src, fmt, "src_format") == "csv" else "rows"
+    except HconvError:  # the run says what is wrong with the input
+        return "rows"
