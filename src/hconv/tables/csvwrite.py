@@ -6,7 +6,12 @@ if it is the empty text in a column that also holds nulls (``""``; a null is a b
 values are formatted by pyarrow's writer (the same cast its own ``CSVWriter`` uses), which quotes
 either every text value or none, and refuses a value that needs quotes when told to quote none.
 So the values that need quotes are given to it quoted already, with stand-ins for the characters
-it refuses (:data:`STAND_INS`), which are put back in the bytes it wrote."""
+it refuses (:data:`STAND_INS`), which are put back in the bytes it wrote.
+
+pyarrow's writer formats on one thread, without the GIL: a table of many rows is cut into pieces,
+one per core, each formatted into a buffer of its own on a thread of a pool shared by every writer
+(:func:`_shared_pool`), and the buffers go to the file in order, so the bytes are those of one
+thread's writing."""
 
 from __future__ import annotations
 
@@ -15,7 +20,9 @@ import io
 import os
 import re
 import stat
-from collections.abc import Mapping
+import threading
+from collections.abc import Callable, Mapping
+from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
@@ -24,6 +31,7 @@ import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 
 from hconv.errors import InputError
+from hconv.solve.engines import available_cores
 from hconv.tables import arrays, layout
 
 UNIT_COLUMN = layout.UNIT_COLUMN
@@ -219,9 +227,72 @@ def units_line(schema: pa.Schema, units: Mapping[str, str]) -> list[str]:
     return row
 
 
-#: Rows formatted into the writer's buffer at once, which bounds its size (a Parquet or Arrow IPC
-#: input may hand the writer a whole row group or record batch); fewer at a time cost more.
+#: Rows formatted into one of the writer's buffers at once, which bounds its size (a Parquet or
+#: Arrow IPC input may hand the writer a whole row group or record batch); fewer at a time cost more.
 _SLICE_ROWS = 65_536
+#: The fewest rows a piece formatted on a thread of its own has: below, handing it to a thread
+#: costs more than it saves, and a table of fewer than twice as many stays on one thread.
+_PIECE_ROWS = 2048
+
+_pool: ThreadPoolExecutor | None = None
+_pool_threads = 0
+_pool_pid = 0
+_pool_lock = threading.Lock()
+
+
+def _shared_pool(threads: int) -> ThreadPoolExecutor:
+    """One pool for the process's writers, started on the first table that is cut into pieces (a
+    pool per table would start threads every time), and again in a process forked from it, which
+    inherits the pool but not its threads."""
+    global _pool, _pool_threads, _pool_pid
+    with _pool_lock:
+        if _pool is None or _pool_threads < threads or _pool_pid != os.getpid():
+            _pool = ThreadPoolExecutor(threads, thread_name_prefix="hconv-csv")
+            _pool_threads, _pool_pid = threads, os.getpid()
+        return _pool
+
+
+def _pieces(n: int) -> int:
+    """How many pieces ``n`` rows are formatted in: one per core, each of :data:`_PIECE_ROWS` rows
+    at least."""
+    return max(1, min(available_cores(), n // _PIECE_ROWS))
+
+
+def _on_threads(jobs: int, job: Callable[[int], None]) -> None:
+    """``job(0)`` … ``job(jobs - 1)``, the caller's thread and the pool's each taking the next
+    until none is left (a pool thread that starts late, on a busy machine, leaves its share to
+    the others rather than the caller waiting for it); returns when every job has ended, so that
+    none still writes into a buffer, and re-raises the first job's exception."""
+    if jobs == 1:
+        job(0)
+        return
+    taken = iter(range(jobs))
+    lock = threading.Lock()
+
+    def take() -> None:
+        while True:
+            with lock:
+                j = next(taken, None)
+            if j is None:
+                return
+            try:
+                job(j)
+            except BaseException:
+                with lock:  # the rows are written another way: the jobs left are not needed
+                    for _ in taken:
+                        pass
+                raise
+
+    futures: list[Future[None]] = [_shared_pool(jobs - 1).submit(take) for _ in range(jobs - 1)]
+    error: BaseException | None = None
+    try:
+        take()
+    except BaseException as exc:  # every piece ended first: the pool's may still write
+        error = exc
+    for f in futures:
+        error = error or f.exception()
+    if error is not None:
+        raise error
 
 
 class CsvWriter:
@@ -242,7 +313,7 @@ class CsvWriter:
         # rows go through the buffer, so that a late refusal has written none of them
         self._seekable = not os.path.exists(path) or stat.S_ISREG(os.stat(path).st_mode)
         self._f: Any = pa.OSFile(path, "wb") if self._seekable else open(path, "wb")  # noqa: SIM115 - close() closes it
-        self._buf: pa.Buffer | None = None
+        self._bufs: list[pa.Buffer | None] = []  # one a piece (:func:`_pieces`), used again for every table
         wx, self._unit_column = layout.output_name("wx", schema), layout.output_name(UNIT_COLUMN, schema)
         meta = schema.field(wx).metadata or {} if wx in schema.names else {}
         self._unit = meta[b"unit"].decode() if b"unit" in meta else None  # only tables with ω have one
@@ -279,7 +350,7 @@ class CsvWriter:
             mask = _rows_to_quote(text, self._delimiter, text.null_count > 0)
             quoted = _quoted_with_stand_ins(pc.filter(text, arrays.from_numpy(mask)), self._delimiter)
             cols[k] = pc.replace_with_mask(text, arrays.from_numpy(mask), quoted.cast(text.type))
-        if marked or not self._seekable:
+        if marked or not self._seekable or _pieces(t.num_rows) > 1:
             self._through_buffer(t, pa.Table.from_arrays(cols, names=names) if marked else t, bool(marked))
             return
         at = self._f.tell()
@@ -292,32 +363,46 @@ class CsvWriter:
             self._joined(t, 0)
 
     def _through_buffer(self, t: pa.Table, given: pa.Table, stand_ins: bool) -> None:
-        """``given`` (``t`` with the values that need quotes given quoted) written a slice at a
-        time through the buffer, the stand-ins put back where there are any."""
-        for k in range(0, t.num_rows, _SLICE_ROWS):
+        """``given`` (``t`` with the values that need quotes given quoted) written through the
+        buffers, :data:`_SLICE_ROWS` rows a piece at most, the pieces of a slice formatted on
+        threads (:func:`_pieces`) and written in order, the stand-ins put back where there are any."""
+        step = _SLICE_ROWS * _pieces(t.num_rows)
+        for k in range(0, t.num_rows, step):
+            part = given.slice(k, step)
+            pieces = _pieces(part.num_rows)
+            size = -(-part.num_rows // pieces)
+            written: list[pa.Buffer] = [pa.py_buffer(b"")] * pieces
+
+            def format_piece(j: int, part: pa.Table = part, size: int = size, written: list = written) -> None:
+                buf, n = self._formatted(part.slice(j * size, size), j)
+                if stand_ins:
+                    _put_back(np.frombuffer(buf, np.uint8)[:n], self._delimiter)
+                written[j] = buf.slice(0, n)
+
+            if len(self._bufs) < pieces:
+                self._bufs += [None] * (pieces - len(self._bufs))
             try:
-                buf, size = self._formatted(given.slice(k, _SLICE_ROWS))
+                _on_threads(pieces, format_piece)
             except pa.ArrowInvalid:  # a value pyarrow refuses unquoted that the scan did not see
                 self._joined(t, k)  # the rows before it are written alike either way
                 return
-            if stand_ins:
-                _put_back(np.frombuffer(buf, np.uint8)[:size], self._delimiter)
-            self._f.write(buf.slice(0, size))
+            for buf in written:
+                self._f.write(buf)
 
-    def _formatted(self, t: pa.Table) -> tuple[pa.Buffer, int]:
-        """``t``'s rows as pyarrow's writer formats them, in the writer's buffer (made larger
-        while they do not fit), and their size."""
+    def _formatted(self, t: pa.Table, j: int) -> tuple[pa.Buffer, int]:
+        """``t``'s rows as pyarrow's writer formats them, in buffer ``j`` (made larger while they
+        do not fit), and their size. Only one thread at a time formats into a given buffer."""
         while True:
-            if self._buf is None:
-                self._buf = pa.allocate_buffer(3 * t.nbytes + (64 << 10))  # a float64's text: up to 25 bytes
-            buf = self._buf
+            buf = self._bufs[j]
+            if buf is None:
+                buf = self._bufs[j] = pa.allocate_buffer(3 * t.nbytes + (64 << 10))  # a float64's text: up to 25 bytes
             sink = pa.FixedSizeBufferWriter(buf)
             try:
                 pacsv.write_csv(t, sink, self._plain)
             except OSError as exc:
                 if "out of bounds" not in str(exc):  # pyarrow's "Write out of bounds": no room left
                     raise
-                self._buf = pa.allocate_buffer(2 * buf.size)
+                self._bufs[j] = pa.allocate_buffer(2 * buf.size)
                 continue
             return buf, sink.tell()
 
