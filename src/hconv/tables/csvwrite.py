@@ -205,6 +205,13 @@ def _quoted_with_stand_ins(values: pa.Array, delimiter: str) -> pa.Array:
     return pc.binary_join_element_wise(wrap, values, wrap, arrays.scalar("", values.type))
 
 
+def _given_quoted(text: pa.Array, delimiter: str, with_null: bool) -> pa.Array:
+    """``text`` with the values that need quotes (:func:`_rows_to_quote`) quoted with stand-ins."""
+    mask = arrays.from_numpy(_rows_to_quote(text, delimiter, with_null))
+    quoted = _quoted_with_stand_ins(pc.filter(text, mask), delimiter)
+    return pc.replace_with_mask(text, mask, quoted.cast(text.type))
+
+
 def _put_back(a: np.ndarray, delimiter: str) -> None:
     """Each stand-in in the bytes ``a`` replaced, in place, by what it stands for."""
     real = np.arange(256, dtype=np.uint8)
@@ -232,7 +239,7 @@ def units_line(schema: pa.Schema, units: Mapping[str, str]) -> list[str]:
 _SLICE_ROWS = 65_536
 #: The fewest rows a piece formatted on a thread of its own has: below, handing it to a thread
 #: costs more than it saves, and a table of fewer than twice as many stays on one thread.
-_PIECE_ROWS = 2048
+_PIECE_ROWS = 4096
 
 _pool: ThreadPoolExecutor | None = None
 _pool_threads = 0
@@ -346,12 +353,8 @@ class CsvWriter:
         if marked and stand_in:
             self._joined(t, 0)
             return
-        for k, text in marked.items():
-            mask = _rows_to_quote(text, self._delimiter, text.null_count > 0)
-            quoted = _quoted_with_stand_ins(pc.filter(text, arrays.from_numpy(mask)), self._delimiter)
-            cols[k] = pc.replace_with_mask(text, arrays.from_numpy(mask), quoted.cast(text.type))
         if marked or not self._seekable or _pieces(t.num_rows) > 1:
-            self._through_buffer(t, pa.Table.from_arrays(cols, names=names) if marked else t, bool(marked))
+            self._through_buffer(t, marked)
             return
         at = self._f.tell()
         try:
@@ -362,20 +365,25 @@ class CsvWriter:
             self._f = pa.OSFile(self._path, "ab")
             self._joined(t, 0)
 
-    def _through_buffer(self, t: pa.Table, given: pa.Table, stand_ins: bool) -> None:
-        """``given`` (``t`` with the values that need quotes given quoted) written through the
-        buffers, :data:`_SLICE_ROWS` rows a piece at most, the pieces of a slice formatted on
-        threads (:func:`_pieces`) and written in order, the stand-ins put back where there are any."""
+    def _through_buffer(self, t: pa.Table, marked: dict[int, pa.Array]) -> None:
+        """``t`` written through the buffers, :data:`_SLICE_ROWS` rows a piece at most, the pieces
+        of a slice formatted on threads (:func:`_pieces`) and written in order; the values of the
+        ``marked`` columns (their text, by index) that need quotes given quoted with stand-ins,
+        which are put back (the module's docstring)."""
         step = _SLICE_ROWS * _pieces(t.num_rows)
         for k in range(0, t.num_rows, step):
-            part = given.slice(k, step)
-            pieces = _pieces(part.num_rows)
-            size = -(-part.num_rows // pieces)
+            pieces = _pieces(min(step, t.num_rows - k))
+            size = -(-min(step, t.num_rows - k) // pieces)
             written: list[pa.Buffer] = [pa.py_buffer(b"")] * pieces
 
-            def format_piece(j: int, part: pa.Table = part, size: int = size, written: list = written) -> None:
-                buf, n = self._formatted(part.slice(j * size, size), j)
-                if stand_ins:
+            def format_piece(j: int, first: int = k, size: int = size, written: list = written) -> None:
+                at = first + j * size
+                rows = t.slice(at, size)
+                for c, text in marked.items():  # null beside empty: decided on the whole table
+                    given = _given_quoted(text.slice(at, size), self._delimiter, text.null_count > 0)
+                    rows = rows.set_column(c, t.schema.names[c], given)
+                buf, n = self._formatted(rows, j)
+                if marked:
                     _put_back(np.frombuffer(buf, np.uint8)[:n], self._delimiter)
                 written[j] = buf.slice(0, n)
 
