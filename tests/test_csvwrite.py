@@ -171,7 +171,8 @@ def test_csv_writer_quoted_rows_longer_than_the_buffer_grow_it(tmp_path, monkeyp
 def test_csv_writer_pieces_on_threads_write_the_bytes_of_one_thread(tmp_path, monkeypatch):
     """A table cut into pieces formatted on threads and written in order: the bytes of one
     thread's writing, with the pieces' edges on quoted values, nulls beside empty texts and
-    plain rows, with a row of units, into a .tsv, for tables smaller than a piece and larger than
+    plain rows (a piece with no null of a column that has some quotes its empty texts all the
+    same), with a row of units, into a .tsv, for tables smaller than a piece and larger than
     a slice, one after another (the buffers used again, and grown), and a value needing quotes
     that the scan missed, in a middle piece (its slice's rows written joined)."""
     import numpy as np
@@ -200,6 +201,7 @@ def test_csv_writer_pieces_on_threads_write_the_bytes_of_one_thread(tmp_path, mo
     monkeypatch.setattr(pacsv, "write_csv", lambda d, *a: rows_formatted[cores].append(d.num_rows) or write_csv(d, *a))
     monkeypatch.setattr(csvwrite, "_PIECE_ROWS", 7)
     monkeypatch.setattr(csvwrite, "_SLICE_ROWS", 50)
+    monkeypatch.setattr(csvwrite, "_PIECES_PER_THREAD", 4)
     for name, delimiter in (("out.csv", ","), ("out.tsv", "\t")):
         written = {}
         for cores in (1, 3):  # noqa: B007 - the patched writer records by it
@@ -213,8 +215,11 @@ def test_csv_writer_pieces_on_threads_write_the_bytes_of_one_thread(tmp_path, mo
         rows = list(csv.reader(io.StringIO(written[3].decode(), newline=""), delimiter=delimiter))
         assert rows[1] == ["-", "m", ""]
         assert [r[0] for r in rows[2:]] == ["" if v is None else v for v in words]
-    # on 3 cores: 50 rows a piece at most (a slice), 7 at least, the 5 rows of the first table on one thread
-    assert sorted(rows_formatted[3]) == sorted(2 * ([5] + [50] * 12 + [10, 10] + [50] * 6 + [25] * 3))
+    # on 3 cores, slices of 150 rows, up to 12 pieces of 7 rows at least: 5 rows straight into the
+    # file; 600 as 4 slices of 11 pieces of 13 rows and one of 7; 20 as 2 of 10; 375 as 2 slices as
+    # those of the 600, and 75 rows in 9 pieces of 8 and one of 3
+    slice_150 = [13] * 11 + [7]
+    assert sorted(rows_formatted[3]) == sorted(2 * ([5] + 4 * slice_150 + [10, 10] + 2 * slice_150 + [8] * 9 + [3]))
     # the scan sees nothing: pyarrow refuses a value in a middle piece, and its slice is joined
     scan = csvwrite._scan
     monkeypatch.setattr(csvwrite, "_scan", lambda t, d: ({}, False) if t.num_rows == 150 else scan(t, d))

@@ -187,11 +187,10 @@ def _rows_to_quote(text: pa.Array, delimiter: str, with_null: bool) -> np.ndarra
         offsets = np.frombuffer(text.buffers()[1], wide)[text.offset : text.offset + n + 1].astype(np.int64)
         mask[np.searchsorted(offsets, hits + offsets[0], side="right") - 1] = True
     if text.null_count:
-        valid = arrays.to_numpy(text.is_valid())
-        mask &= valid  # a null's slot may hold bytes: it is written blank all the same
-        if with_null:
-            lengths = pc.binary_length(text)
-            mask |= valid & (arrays.to_numpy(lengths.fill_null(arrays.scalar(1, lengths.type))) == 0)
+        mask &= arrays.to_numpy(text.is_valid())  # a null's slot may hold bytes: it is written blank all the same
+    if with_null:  # the table's column holds nulls, though this slice of it may hold none
+        lengths = pc.binary_length(text)
+        mask |= arrays.to_numpy(lengths.fill_null(arrays.scalar(1, lengths.type))) == 0
     return mask
 
 
@@ -240,6 +239,8 @@ _SLICE_ROWS = 65_536
 #: The fewest rows a piece formatted on a thread of its own has: below, handing it to a thread
 #: costs more than it saves, and a table of fewer than twice as many stays on one thread.
 _PIECE_ROWS = 4096
+#: Pieces a thread formats of a slice (:func:`_pieces`).
+_PIECES_PER_THREAD = 4
 
 _pool: ThreadPoolExecutor | None = None
 _pool_threads = 0
@@ -259,19 +260,26 @@ def _shared_pool(threads: int) -> ThreadPoolExecutor:
         return _pool
 
 
-def _pieces(n: int) -> int:
-    """How many pieces ``n`` rows are formatted in: one per core, each of :data:`_PIECE_ROWS` rows
-    at least."""
+def _threads(n: int) -> int:
+    """Threads that format ``n`` rows: one per core, with :data:`_PIECE_ROWS` rows each at least."""
     return max(1, min(available_cores(), n // _PIECE_ROWS))
 
 
-def _on_threads(jobs: int, job: Callable[[int], None]) -> None:
-    """``job(0)`` … ``job(jobs - 1)``, the caller's thread and the pool's each taking the next
+def _pieces(n: int, threads: int) -> int:
+    """Pieces ``n`` rows are cut into for ``threads``: :data:`_PIECES_PER_THREAD` each, of
+    :data:`_PIECE_ROWS` rows at least (one piece a thread left the others waiting for a thread
+    the busy machine ran late; with several, it holds them up by one small piece)."""
+    return 1 if threads == 1 else max(threads, min(_PIECES_PER_THREAD * threads, n // _PIECE_ROWS))
+
+
+def _on_threads(jobs: int, threads: int, job: Callable[[int], None]) -> None:
+    """``job(0)`` … ``job(jobs - 1)`` on ``threads``, the caller's and the pool's, each taking the next
     until none is left (a pool thread that starts late, on a busy machine, leaves its share to
     the others rather than the caller waiting for it); returns when every job has ended, so that
     none still writes into a buffer, and re-raises the first job's exception."""
-    if jobs == 1:
-        job(0)
+    if threads == 1:
+        for j in range(jobs):
+            job(j)
         return
     taken = iter(range(jobs))
     lock = threading.Lock()
@@ -290,7 +298,7 @@ def _on_threads(jobs: int, job: Callable[[int], None]) -> None:
                         pass
                 raise
 
-    futures: list[Future[None]] = [_shared_pool(jobs - 1).submit(take) for _ in range(jobs - 1)]
+    futures: list[Future[None]] = [_shared_pool(threads - 1).submit(take) for _ in range(threads - 1)]
     error: BaseException | None = None
     try:
         take()
@@ -320,7 +328,7 @@ class CsvWriter:
         # rows go through the buffer, so that a late refusal has written none of them
         self._seekable = not os.path.exists(path) or stat.S_ISREG(os.stat(path).st_mode)
         self._f: Any = pa.OSFile(path, "wb") if self._seekable else open(path, "wb")  # noqa: SIM115 - close() closes it
-        self._bufs: list[pa.Buffer | None] = []  # one a piece (:func:`_pieces`), used again for every table
+        self._bufs: list[pa.Buffer | None] = []  # one a piece of a slice, used again for every table
         wx, self._unit_column = layout.output_name("wx", schema), layout.output_name(UNIT_COLUMN, schema)
         meta = schema.field(wx).metadata or {} if wx in schema.names else {}
         self._unit = meta[b"unit"].decode() if b"unit" in meta else None  # only tables with ω have one
@@ -353,7 +361,7 @@ class CsvWriter:
         if marked and stand_in:
             self._joined(t, 0)
             return
-        if marked or not self._seekable or _pieces(t.num_rows) > 1:
+        if marked or not self._seekable or _threads(t.num_rows) > 1:
             self._through_buffer(t, marked)
             return
         at = self._f.tell()
@@ -366,31 +374,34 @@ class CsvWriter:
             self._joined(t, 0)
 
     def _through_buffer(self, t: pa.Table, marked: dict[int, pa.Array]) -> None:
-        """``t`` written through the buffers, :data:`_SLICE_ROWS` rows a piece at most, the pieces
-        of a slice formatted on threads (:func:`_pieces`) and written in order; the values of the
-        ``marked`` columns (their text, by index) that need quotes given quoted with stand-ins,
-        which are put back (the module's docstring)."""
-        step = _SLICE_ROWS * _pieces(t.num_rows)
+        """``t`` written through the buffers a slice at a time, :data:`_SLICE_ROWS` rows a thread,
+        its pieces (:func:`_pieces`) formatted on threads (:func:`_threads`) and written in order;
+        the values of the ``marked`` columns (their text, by index) that need quotes given quoted
+        with stand-ins, which are put back (the module's docstring)."""
+        step = _SLICE_ROWS * _threads(t.num_rows)
         for k in range(0, t.num_rows, step):
-            pieces = _pieces(min(step, t.num_rows - k))
-            size = -(-min(step, t.num_rows - k) // pieces)
+            rows = min(step, t.num_rows - k)
+            threads = _threads(rows)
+            pieces = _pieces(rows, threads)
+            size = -(-rows // pieces)
             written: list[pa.Buffer] = [pa.py_buffer(b"")] * pieces
 
-            def format_piece(j: int, first: int = k, size: int = size, written: list = written) -> None:
-                at = first + j * size
-                rows = t.slice(at, size)
+            def format_piece(j: int, first: int = k, rows: int = rows, size: int = size, out: list = written) -> None:
+                at, stop = first + j * size, first + rows
+                length = max(0, min(size, stop - at))  # the slice's last piece may be short, or empty
+                piece = t.slice(at, length)
                 for c, text in marked.items():  # null beside empty: decided on the whole table
-                    given = _given_quoted(text.slice(at, size), self._delimiter, text.null_count > 0)
-                    rows = rows.set_column(c, t.schema.names[c], given)
-                buf, n = self._formatted(rows, j)
+                    given = _given_quoted(text.slice(at, length), self._delimiter, text.null_count > 0)
+                    piece = piece.set_column(c, t.schema.names[c], given)
+                buf, n = self._formatted(piece, j)
                 if marked:
                     _put_back(np.frombuffer(buf, np.uint8)[:n], self._delimiter)
-                written[j] = buf.slice(0, n)
+                out[j] = buf.slice(0, n)
 
             if len(self._bufs) < pieces:
                 self._bufs += [None] * (pieces - len(self._bufs))
             try:
-                _on_threads(pieces, format_piece)
+                _on_threads(pieces, threads, format_piece)
             except pa.ArrowInvalid:  # a value pyarrow refuses unquoted that the scan did not see
                 self._joined(t, k)  # the rows before it are written alike either way
                 return
