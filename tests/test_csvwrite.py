@@ -236,3 +236,29 @@ def test_csv_writer_pieces_on_threads_write_the_bytes_of_one_thread(tmp_path, mo
     assert written[3] == written[1]
     values = [f"v{k}" if k != 70 else '"v,70"' for k in range(150)]
     assert written[3] == "t,x\n" + "".join(f"v{k},0.5\n" for k in range(20)) + "".join(f"{v},0.5\n" for v in values)
+
+
+def test_csv_writer_pieces_do_not_wait_for_a_pool_busy_with_another_writer(tmp_path, monkeypatch):
+    """The pool is shared by every writer of the process (a dataset's files): a writer whose pool
+    threads are all busy formats its pieces on its own thread and returns, rather than waiting
+    for the pool to take its queued share. The pool's one thread is held until the writer has
+    returned (bounded only for a writer that would wait, which then fails)."""
+    import threading
+
+    import pyarrow as pa
+
+    from hconv.tables import csvwrite
+
+    monkeypatch.setattr(csvwrite, "available_cores", lambda: 2)
+    monkeypatch.setattr(csvwrite, "_pool", None)  # a pool of one thread, not one an earlier test left larger
+    pool = csvwrite._shared_pool(1)
+    held, release = threading.Event(), threading.Event()
+    blocker = pool.submit(lambda: held.set() or release.wait(30))
+    held.wait()
+    n = 4 * csvwrite._PIECE_ROWS
+    out = _written(tmp_path, pa.table({"t": [f"v{k}" for k in range(n)]}))
+    returned_while_held = not blocker.done()
+    release.set()
+    pool.shutdown()
+    assert returned_while_held
+    assert out == b"t\n" + b"".join(b"v%d\n" % k for k in range(n))

@@ -304,8 +304,9 @@ def _on_threads(jobs: int, threads: int, job: Callable[[int], None]) -> None:
         take()
     except BaseException as exc:  # every piece ended first: the pool's may still write
         error = exc
-    for f in futures:
-        error = error or f.exception()
+    for f in futures:  # one still queued behind another writer's (the pool is shared) is not waited for
+        if not f.cancel():
+            error = error or f.exception()
     if error is not None:
         raise error
 
