@@ -399,3 +399,21 @@ def assert_fits(lines: list[str], width: int, names) -> None:
     assert "…" not in text
     for name in names:  # whole, on one line: neither cut nor wrapped inside
         assert any(name in ln for ln in lines), name
+
+
+def command_imports(args: list[str], module: str) -> tuple[object, bool, str]:
+    """Run the hconv command with ``args`` in a new process (what it imports is under test, so it
+    cannot run in this one): (its exit code, whether ``module`` was imported, its stderr)."""
+    code = (
+        f"import sys; sys.argv = ['hconv', *{[str(a) for a in args]!r}]\n"
+        "from hconv.cli import main\ntry: main()\nexcept SystemExit as exc: print(exc.code)\n"
+        f"print({module!r} in sys.modules)"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=60)
+    words = proc.stdout.decode().split()
+    code_word = words[-2] if len(words) >= 2 else None
+    return (
+        (int(code_word) if code_word and code_word.lstrip("-").isdigit() else code_word),
+        words[-1:] == ["True"],
+        proc.stderr.decode(),
+    )

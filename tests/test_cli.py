@@ -16,7 +16,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 import pyarrow.parquet as pq
 import pytest
-from helpers import StopAt, hconv_inprocess, need, run_hconv, run_inprocess, run_on_terminal
+from helpers import StopAt, command_imports, hconv_inprocess, need, run_hconv, run_inprocess, run_on_terminal
 
 import hconv
 
@@ -455,6 +455,11 @@ def test_one_singular_json_has_null_w_and_inf_cond(capsys):
         (["--H", "[[1,2,3]]", "--I", "1,1,1"], "--H takes nested brackets only for an inertia matrix"),
         (["--H", "[1,2,3]", "--I", "[[1,0,0][0,1,0],[0,0,1]]"], "needs a comma between the rows"),
         (["--H", "[1 2 3]", "--I", "1,1,1"], "--H takes comma-separated numbers"),
+        # numpy's print of a matrix (before: "needs a comma between the rows", as if rows were the only lack)
+        (
+            ["--H", "1,2,3", "--I", "[[1. 0. 0.]\n [0. 2. 0.]\n [0. 0. 3.]]"],
+            "needs commas between the numbers of each row and between the rows, like [[1,0,0],[0,2,0],[0,0,3]]",
+        ),
     ],
 )
 def test_one_bad_arguments_one_line_exit_2(args, needle, capsys):
@@ -652,25 +657,15 @@ def test_convert_does_not_import_pandas(tmp_path, source, to):
     need("pandas")  # installed, so that a path to it would import it
     given = _pandas_inputs(tmp_path)[source]
     out = tmp_path / f"out.{to}"
-    code = (
-        f"import sys; sys.argv = ['hconv', 'convert', {str(given)!r}, {str(out)!r}, '--quiet'];"
-        "from hconv.cli import main\ntry: main()\nexcept SystemExit as exc: print(exc.code)\n"
-        "print('pandas' in sys.modules)"
-    )
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=60)
-    assert proc.stdout.decode().split()[-2:] == ["0", "False"], proc.stderr.decode()
+    exit_code, imported, err = command_imports(["convert", given, out, "--quiet"], "pandas")
+    assert (exit_code, imported) == (0, False), err
     assert out.exists()
 
 
 def test_convert_quiet_does_not_import_rich(tmp_path):
     given, out = _pandas_inputs(tmp_path)["csv"], tmp_path / "out.parquet"
-    code = (
-        f"import sys; sys.argv = ['hconv', 'convert', {str(given)!r}, {str(out)!r}, '-q'];"
-        "from hconv.cli import main\ntry: main()\nexcept SystemExit as exc: print(exc.code)\n"
-        "print('rich' in sys.modules)"
-    )
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=60)
-    assert proc.stdout.decode().split()[-2:] == ["0", "False"], proc.stderr.decode()
+    exit_code, imported, err = command_imports(["convert", given, out, "-q"], "rich")
+    assert (exit_code, imported) == (0, False), err
     assert pq.read_table(out).num_rows == 3
 
 
@@ -923,6 +918,23 @@ def test_cli_reader_closing_pipe_early_is_quiet(args):
     assert "error" not in proc.stderr.decode() and "Traceback" not in proc.stderr.decode()
 
 
+@pytest.mark.parametrize("to", ["parquet", "arrow"])
+def test_convert_into_pipe_reader_closing_early_is_quiet(tmp_path, rng, to):
+    """A Parquet or Arrow file output into a pipe is spooled and copied at the end; a reader that
+    stops early (`| head -c 10`) stops the command as it stops one writing CSV: exit 0, quietly,
+    no summary of rows that never reached it."""
+    n = 200_000
+    t = pa.table({c: rng.normal(size=n) + (3.0 if c in ("Ixx", "Iyy", "Izz") else 0.0) for c in CONTRACT[:9]})
+    pq.write_table(t, tmp_path / "in.parquet")
+    convert = f'"{sys.executable}" -m hconv convert in.parquet - --to {to}'
+    cmd = f"{convert} | head -c 10 > /dev/null; echo ${{PIPESTATUS[0]}}"
+    proc = subprocess.run(cmd, shell=True, capture_output=True, timeout=120, executable="/bin/bash", cwd=tmp_path)
+    err = proc.stderr.decode()
+    assert proc.stdout.decode().split() == ["0"], err
+    assert "# time" not in err and "error" not in err and "Traceback" not in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.parquet"]  # no spool left
+
+
 def test_version_is_one_source(capsys):
     import importlib.metadata
 
@@ -1029,3 +1041,21 @@ def test_help_usage_lines_name_arguments_plainly_and_generate_says_stdout(capsys
     assert "the random draw; the same seed gives" in out
     code, _, err = run_inprocess("generate", "-", "--rows", "3", "--to", "csv", capsys=capsys)
     assert code == 0 and err.startswith("hconv generate: 3 rows to stdout in "), err
+
+
+def test_convert_unquoted_glob_of_many_files_is_one_short_line(tmp_path, capsys):
+    """Before: typer's message listed every file (99 files: 2,421 columns), the hint at its end."""
+    files = []
+    for k in range(99):
+        f = tmp_path / f"part-{k:02d}.csv"
+        f.write_bytes((EXAMPLES / "scene.csv").read_bytes()[:200])
+        files.append(str(f))
+    proc = hconv_inprocess("convert", *files, capsys=capsys)
+    err = proc.stderr.decode()
+    assert (proc.returncode, err.count("\n")) == (2, 1)
+    assert err.startswith(
+        "hconv: error: 97 extra arguments after IN and OUT: for several files, quote the glob so that hconv "
+        "expands it, or give their directory (the first: '"
+    )
+    assert len(err) < 250
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(os.path.basename(f) for f in files)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import importlib
 import threading
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -147,12 +148,13 @@ def test_convert_rows_same_bits_whatever_the_blocks_and_threads(rng, monkeypatch
 
 
 def test_convert_rows_caller_takes_the_blocks_a_late_thread_has_not_begun(rng, monkeypatch):
-    """A pool thread held up in its first block (a busy machine) leaves the other blocks to the
-    caller, who converts them meanwhile: no block waits for a thread that has not begun it."""
+    """A pool thread held up before its first block (a busy machine) leaves every block to the
+    caller, who converts them meanwhile: the call waits for no thread that has not begun, and the
+    late thread, when it comes, finds the counter past the last row."""
     I, H = physical_bodies(rng, 10_000), rng.normal(size=(10_000, 3))
     ref = _rows_of(I, H)
-    caller_blocks = []
-    caller_went_on = threading.Event()
+    caller_done = threading.Event()
+    late_found = []
     real = compiled.rowcode.convert
 
     class HeldUp:
@@ -161,17 +163,39 @@ def test_convert_rows_caller_takes_the_blocks_a_late_thread_has_not_begun(rng, m
         @staticmethod
         def convert(*args):
             if threading.current_thread() is threading.main_thread():
-                caller_blocks.append(args[-2:])
-                if len(caller_blocks) == 2:
-                    caller_went_on.set()
-            else:  # the pool's thread: held until the caller has taken a second block (or gives up)
-                caller_went_on.wait(timeout=30)
+                lost = real(*args)
+                caller_done.set()
+                return lost
+            caller_done.wait(timeout=30)  # the pool's thread: held until the caller is done
+            counter, stop = args[-2], args[-3]
+            late_found.append(int(counter[0]) >= stop)
             return real(*args)
 
     monkeypatch.setattr(compiled, "rowcode", HeldUp)
     monkeypatch.setattr(compiled, "available_cores", lambda: 2)
     got = _rows_of(I, H)
-    assert caller_went_on.is_set() and len(caller_blocks) >= 2
+    assert caller_done.is_set() and late_found == [True]
+    for a, b in zip(got, ref):
+        assert same_bits(a, b)
+
+
+def test_convert_rows_shared_counter_blocks_are_each_taken_once(rng):
+    """Three threads taking blocks of 7 rows from one counter write every row once, with the bits
+    of a single call over all rows, and count the fallback rows once (NaN rows fall back)."""
+    I, H = physical_bodies(rng, 1_000), rng.normal(size=(1_000, 3))
+    H[::97] = np.nan
+    n = len(H)
+
+    def outputs() -> tuple:
+        return np.full((n, 3), -1.0), np.full(n, -1.0), np.full(n, 255, np.uint8), np.full(n, -1.0), np.ones(n, bool)
+
+    args = (I.reshape(n, 9).T, True, H.T, False, True, 4.5e9)
+    ref, got = outputs(), outputs()
+    lost_ref = compiled.rowcode.convert(*args, *ref, 0, n)
+    counter = np.zeros(1, np.int64)
+    with ThreadPoolExecutor(3) as pool:
+        lost = sum(pool.map(lambda _: compiled.rowcode.convert(*args, *got, 0, n, counter, 7), range(3)))
+    assert lost == lost_ref == len(range(0, n, 97))
     for a, b in zip(got, ref):
         assert same_bits(a, b)
 

@@ -139,3 +139,66 @@ def test_convert_non_number_keeps_fix_or_blank_advice(tmp_path, capsys):
     err = proc.stderr.decode()
     assert proc.returncode == 3
     assert "fix or blank that value" in err and "--decimal ," not in err
+
+
+def test_convert_file_units_row_gives_every_column_its_unit_in_parquet_and_arrow(tmp_path):
+    """Before (issue 26): into Parquet or Arrow, only the columns hconv reads kept the unit the
+    row of units gave them; t, mass, temp and a previous run's wx lost theirs (mass and temp
+    also when typed as integers). Now each column's field metadata ``unit`` says what the row
+    said, and CSV written from that output reads back to the same ω."""
+    import numpy as np
+    import pyarrow.ipc as ipc
+    import pyarrow.parquet as pq
+
+    from hconv.tables.pipeline import convert_file
+
+    rng = np.random.default_rng(3)
+    a = rng.normal(size=(2, 3, 3))
+    I_si = 0.1 * a @ a.transpose(0, 2, 1) + 3 * np.eye(3)  # symmetric, positive definite, physical
+    H_written = rng.normal(size=(2, 3)) * 1e7  # in g*cm**2/s, 1e-7 kg*m**2/s
+    w_si = np.linalg.solve(I_si, (H_written * 1e-7)[:, :, None])[:, :, 0]
+    lines = ["t,mass,temp,wx,Hx,Hy,Hz,Ixx,Iyy,Izz,Ixy,Ixz,Iyz", "s,g,degC,deg/s," + ",".join(["g*cm**2/s"] * 3)]
+    lines[1] += ",kg*m**2" * 6
+    for k in range(2):
+        I6 = [I_si[k, 0, 0], I_si[k, 1, 1], I_si[k, 2, 2], I_si[k, 0, 1], I_si[k, 0, 2], I_si[k, 1, 2]]
+        lines.append(f"{k}.5,{3 + k},{20 + k},57.3," + ",".join(repr(float(v)) for v in [*H_written[k], *I6]))
+    src = _wheels(tmp_path, "\n".join(lines) + "\n")
+    convert_file(src, str(tmp_path / "out.parquet"), prefix="a_")
+    convert_file(src, str(tmp_path / "out.arrow"), prefix="a_")
+    want = {"t": "s", "mass": "g", "temp": "degC", "wx": "deg/s", "Hx": "g*cm**2/s", "Iyz": "kg*m**2", "a_wx": "rad/s"}
+    for schema in (pq.read_schema(tmp_path / "out.parquet"), ipc.open_file(tmp_path / "out.arrow").schema):
+        assert str(schema.field("mass").type) == "int64"  # typed, its unit kept
+        assert {c: schema.field(c).metadata[b"unit"].decode() for c in want} == want
+    convert_file(str(tmp_path / "out.arrow"), str(tmp_path / "back.csv"), prefix="b_")
+    rows = [r.split(",") for r in (tmp_path / "back.csv").read_text().splitlines()]
+    assert rows[1][:5] == ["s", "g", "degC", "deg/s", "g*cm**2/s"]
+    convert_file(str(tmp_path / "back.csv"), str(tmp_path / "again.parquet"), prefix="c_")
+    t = pq.read_table(tmp_path / "again.parquet")
+    w_back = np.column_stack([t.column(c).to_numpy() for c in ("c_wx", "c_wy", "c_wz")])
+    np.testing.assert_allclose(w_back, w_si, rtol=1e-12)
+    assert t.schema.field("wx").metadata == {b"unit": b"deg/s"}  # the previous run's ω, still in deg/s
+
+
+def test_convert_long_bad_value_is_quoted_short(tmp_path, capsys):
+    """Before: a value of 5,000 characters was quoted whole in the "must be numeric" line."""
+    from helpers import hconv_inprocess
+
+    src = tmp_path / "long.csv"
+    value = "9" * 10 + "x" * 4990
+    src.write_text(f"Hx,Hy,Hz,I1,I2,I3\n1,2,3,1,1,{value}\n")
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.csv"), capsys=capsys)
+    err = proc.stderr.decode()
+    assert proc.returncode == 3 and err.count("\n") == 1
+    assert f"column 'I3' must be numeric but holds '{'9' * 10}{'x' * 16}…{'x' * 13}' in data row 1; " in err
+    assert len(err) - len(str(src)) < 200
+
+
+def test_convert_row_against_a_header_of_one_column_says_column(tmp_path, capsys):
+    """Before: "the header names 1 columns"."""
+    from helpers import hconv_inprocess
+
+    src = tmp_path / "q.csv"
+    src.write_text("Hx\n1,2\n")
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.csv"), capsys=capsys)
+    assert proc.returncode == 3
+    assert ": data row 1 has 2 values, but the header names 1 column; every row needs" in proc.stderr.decode()

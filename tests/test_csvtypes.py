@@ -125,6 +125,37 @@ def test_apply_later_block_that_does_not_fit_raises_retype_and_whole_file_fits_b
         assert both.equals(reference({"c": first + later}))
 
 
+@pytest.mark.parametrize(
+    "values, kept",
+    [
+        (["NA", "null", ""], pa.string()),
+        (["NA", "NA", "NA"], pa.string()),
+        (["#N/A", "NULL"], pa.string()),
+        (["", ""], pa.null()),  # blanks alone: nothing written is lost
+    ],
+)
+def test_infer_null_markers_alone_stay_text(values, kept):
+    """Before: a column of NA, null and blanks only got pyarrow's null type, its text lost in Parquet."""
+    types = csvtypes.infer(as_text({"s": values}), ["s"])
+    assert types == {"s": kept}
+    typed = csvtypes.apply(as_text({"s": values}), types)
+    assert typed.column("s").to_pylist() == (values if kept == pa.string() else [None] * len(values))
+
+
+@pytest.mark.parametrize(
+    "blocks, whole",
+    [
+        ([["NA", ""], ["null", "NA"]], pa.string()),
+        ([["", ""], ["NA", ""]], pa.string()),
+        ([["", ""], ["", ""]], pa.null()),
+        ([["NA", ""], ["1", "NA"]], pa.int64()),  # a value types the column; its markers are null
+    ],
+)
+def test_whole_file_null_markers_alone_stay_text(blocks, whole):
+    batches = [as_text({"s": b}).to_batches()[0] for b in blocks]
+    assert csvtypes.whole_file(batches) == {"s": whole}
+
+
 def test_apply_names_the_first_value_that_does_not_fit():
     values = [str(k) for k in range(1000)]
     values[613], values[800] = "6.5", "x"

@@ -168,6 +168,123 @@ def test_csv_writer_quoted_rows_longer_than_the_buffer_grow_it(tmp_path, monkeyp
     assert n > csvwrite._SLICE_ROWS  # and in two slices
 
 
+#: 1 g·cm²/s in kg·m²/s: the unit the bodies' H is written in below
+G_CM2 = 1e-7
+
+
+def _bodies_csv(path, units: str | None) -> tuple:
+    """A CSV of three bodies with columns hconv passes through (t, mass, temp) and H written in
+    g*cm**2/s; ``units``: the row of units under its header, or None for none. Returns its path
+    and ω as numpy solves it from the SI values."""
+    import numpy as np
+
+    rng = np.random.default_rng(26)
+    a = rng.normal(size=(3, 3, 3))
+    I_si = 0.1 * a @ a.transpose(0, 2, 1) + 3 * np.eye(3)  # symmetric, positive definite, physical
+    H_written = rng.normal(size=(3, 3)) * 1e7
+    w_si = np.linalg.solve(I_si, (H_written * G_CM2)[:, :, None])[:, :, 0]
+    lines = ["t,mass,temp,Hx,Hy,Hz,Ixx,Iyy,Izz,Ixy,Ixz,Iyz"] + ([units] if units is not None else [])
+    for k in range(3):
+        I6 = [I_si[k, 0, 0], I_si[k, 1, 1], I_si[k, 2, 2], I_si[k, 0, 1], I_si[k, 0, 2], I_si[k, 1, 2]]
+        lines.append(",".join([f"{k * 0.5}", f"{3 + k}", f"{20 + k}"] + [repr(float(v)) for v in [*H_written[k], *I6]]))
+    path.write_text("\n".join(lines) + "\n")
+    return str(path), w_si
+
+
+UNITS = "s,g,degC,g*cm**2/s,g*cm**2/s,g*cm**2/s,kg*m**2,kg*m**2,kg*m**2,kg*m**2,kg*m**2,kg*m**2"
+
+
+def _w_read_back(src, tmp_path, prefix: str):
+    """ω as hconv reads ``src`` back (into Parquet, with ``prefix`` for its new columns)."""
+    import numpy as np
+    import pyarrow.parquet as pq
+
+    from hconv.tables.pipeline import convert_file
+
+    convert_file(str(src), str(tmp_path / f"{prefix}back.parquet"), prefix=prefix)
+    t = pq.read_table(tmp_path / f"{prefix}back.parquet")
+    return np.column_stack([t.column(prefix + c).to_numpy() for c in ("wx", "wy", "wz")])
+
+
+def test_convert_file_parquet_into_csv_writes_a_units_row_that_reads_back(tmp_path):
+    """Before (issue 26): Parquet into CSV wrote no row of units, so H stored in g*cm**2/s (the
+    Parquet's field metadata) was written as bare numbers and read back as kg*m**2/s: ω 1e7 too
+    large. Now the output's row of units says what each column's field metadata said."""
+    import numpy as np
+
+    from hconv.tables.pipeline import convert_file
+
+    src, w_si = _bodies_csv(tmp_path / "u2.csv", UNITS)
+    convert_file(src, str(tmp_path / "u2.parquet"))
+    convert_file(str(tmp_path / "u2.parquet"), str(tmp_path / "u2p.csv"), prefix="a_")
+    rows = list(csv.reader(io.StringIO((tmp_path / "u2p.csv").read_text())))
+    units = dict(zip(rows[0], rows[1], strict=True))
+    assert [units[c] for c in ("t", "mass", "temp", "Hx", "Ixx", "wx", "a_wx", "a_residual", "a_status")] == [
+        "s", "g", "degC", "g*cm**2/s", "kg*m**2", "rad/s", "rad/s", "1", ""
+    ]  # fmt: skip
+    assert [r[0] for r in rows[2:]] == ["0", "0.5", "1"]  # every row, in order, after it (t is float64)
+    np.testing.assert_allclose(_w_read_back(tmp_path / "u2p.csv", tmp_path, "b_"), w_si, rtol=1e-12)
+
+
+def test_convert_file_parquet_without_units_into_csv_writes_no_units_row(tmp_path):
+    """An input that carries no unit anywhere gives CSV without a row of units, as before."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from hconv.tables.pipeline import convert_file
+
+    pq.write_table(pa.table({"id": [1], "Hx": [1.0], "Hy": [2.0], "Hz": [3.0], "I": [2.0]}), tmp_path / "in.parquet")
+    convert_file(str(tmp_path / "in.parquet"), str(tmp_path / "out.csv"))
+    lines = (tmp_path / "out.csv").read_text().splitlines()
+    assert lines[1:] == ["1,1,2,3,2,0.5,1,1.5,0,1,ok,rad/s"]
+
+
+def test_convert_unit_option_over_a_units_row_writes_the_unit_read_in(tmp_path, capsys):
+    """Before (issue 26): --unit beat the row of units, but the output's row still named the old
+    unit under Hx..Hz, so hconv read its own output back in another unit than it had converted
+    it in. Now the row names the unit each column was read in; the others' texts stay as written."""
+    import numpy as np
+    from helpers import hconv_inprocess
+
+    src, w_si = _bodies_csv(tmp_path / "u2.csv", UNITS)
+    out = tmp_path / "u2o.csv"
+    proc = hconv_inprocess("convert", src, str(out), "--unit", "H=kg*m**2/s", capsys=capsys)
+    assert proc.returncode == 0, proc.stderr
+    rows = list(csv.reader(io.StringIO(out.read_text())))
+    assert rows[1] == UNITS.replace("g*cm**2/s", "kg*m**2/s").split(",") + ["rad/s"] * 3 + ["1", "1", "", ""]
+    w_given = w_si / G_CM2  # H's numbers taken as kg*m**2/s, as the user said
+    w_out = np.array([[float(r[rows[0].index(c)]) for c in ("wx", "wy", "wz")] for r in rows[2:]])
+    np.testing.assert_allclose(w_out, w_given, rtol=1e-12)
+    np.testing.assert_allclose(_w_read_back(out, tmp_path, "b_"), w_given, rtol=1e-12)
+
+
+def test_convert_unit_option_over_a_header_unit_writes_a_units_row(tmp_path, capsys):
+    """Before: --unit beat the unit in a column's header, but the output kept that header and had
+    nothing else to say the numbers were read in another unit, so reading it back gave another ω.
+    Now a row of units names the unit each column hconv read was read in; an input that says no
+    unit anywhere gets none, with --unit or without, as before."""
+    import numpy as np
+    from helpers import hconv_inprocess
+
+    src, w_si = _bodies_csv(tmp_path / "plain.csv", None)
+    text = (tmp_path / "plain.csv").read_text()
+    (tmp_path / "named.csv").write_text(text.replace("Hx,Hy,Hz", "Hx [g*cm^2/s],Hy [g*cm^2/s],Hz [g*cm^2/s]", 1))
+    out = tmp_path / "out.csv"
+    proc = hconv_inprocess("convert", str(tmp_path / "named.csv"), str(out), "--unit", "Hz=kg*m**2/s", capsys=capsys)
+    assert proc.returncode == 0, proc.stderr
+    units = ",,,g*cm^2/s,g*cm^2/s,kg*m**2/s" + ",kg*m**2" * 6 + ",rad/s" * 3 + ",1,1,,"
+    assert out.read_text().splitlines()[1] == units
+    # Hz's numbers taken as kg*m**2/s, as the user said: H's SI values are (1e-7 Hx, 1e-7 Hy, Hz)
+    a = np.loadtxt(src, delimiter=",", skiprows=1)
+    H = a[:, 3:6] * np.array([G_CM2, G_CM2, 1.0])
+    I_si = np.array([[[r[6], r[9], r[10]], [r[9], r[7], r[11]], [r[10], r[11], r[8]]] for r in a])
+    w_given = np.linalg.solve(I_si, H[:, :, None])[:, :, 0]
+    np.testing.assert_allclose(_w_read_back(out, tmp_path, "b_"), w_given, rtol=1e-12)
+    proc = hconv_inprocess("convert", src, str(out), "--force", "--unit", "H=g*cm**2/s", capsys=capsys)
+    assert proc.returncode == 0, proc.stderr
+    assert out.read_text().splitlines()[1].startswith("0.0,3,20,")  # the first body's row: no units row
+
+
 def test_csv_writer_pieces_on_threads_write_the_bytes_of_one_thread(tmp_path, monkeypatch):
     """A table cut into pieces formatted on threads and written in order: the bytes of one
     thread's writing, with the pieces' edges on quoted values, nulls beside empty texts and

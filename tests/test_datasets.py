@@ -319,7 +319,8 @@ def test_convert_dataset_force_converts_every_file_again(tmp_path, capsys, monke
         (("empty", "out"), 3, "empty: holds no file (names starting with . or _ are left out); check the path"),
         (("data", "out", "--endpoint-url", "http://127.0.0.1:1"), 2, "--endpoint-url is for s3:// URIs, and "
          "neither data nor out is one"),
-        (("data/date=2026-01-01/part-0.parquet", "data/*.parquet", "out"), 2, "Got unexpected extra argument"),
+        (("data/date=2026-01-01/part-0.parquet", "data/*.parquet", "out"), 2, "1 extra argument after IN and OUT: "
+         "for several files, quote the glob so that hconv expands it, or give their directory ('out')"),
     ],
 )  # fmt: skip
 def test_convert_dataset_that_cannot_run_says_why_in_one_line_and_writes_nothing(

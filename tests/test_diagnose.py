@@ -17,7 +17,7 @@ from helpers import axis_angle, hconv_inprocess, need, physical_bodies, quats, r
 
 from hconv.solve.options import Conventions
 from hconv.tables.job import Job
-from hconv.tools import diagnose
+from hconv.tools import diagnose, stats
 from hconv.tools.stats import Summary
 
 SIX = ["Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz"]
@@ -185,6 +185,45 @@ def test_summary_median_within_half_a_bin(rng):
     assert abs(s.median / np.median(values) - 1) < 0.012
     assert s.maximum == values.max() and s.max_row == int(np.argmax(values))
     assert s.within == int((values <= 1e-6).sum())
+
+
+@pytest.mark.parametrize("n", [1, 2, 7, 1000, 1001])
+def test_summary_median_is_numpys_on_values_that_fit(n, rng):
+    """Before: the median came from the histogram alone, ±1.2 %: one row's "med diff 0.165" above
+    its "max 0.165" (0.1646)."""
+    values = 10.0 ** rng.uniform(-12, 2, n)
+    values[rng.random(n) < 0.1] = 0.0
+    with_nan = values.copy()
+    with_nan[rng.random(n) < 0.1] = np.nan
+    s = Summary(1e-6)
+    for k in range(0, n, 97):
+        s.add(with_nan[k : k + 97], k)
+    answered = with_nan[~np.isnan(with_nan)]
+    expected = np.median(answered) if answered.size else np.nan
+    assert s.median == expected or (np.isnan(s.median) and np.isnan(expected))
+
+
+def test_summary_median_past_the_kept_values_is_binned_within_min_and_max(rng, monkeypatch):
+    monkeypatch.setattr(stats, "EXACT_VALUES", 100)
+    values = 10.0 ** rng.uniform(-3, -1, 10001)
+    s = Summary()
+    for k in range(0, 10001, 999):
+        s.add(values[k : k + 999], k)
+    assert abs(s.median / np.median(values) - 1) < 0.012
+    one = Summary()
+    one.add(np.full(101, 0.1646))  # past the kept values: the bin's middle, 0.1641, is below them all
+    assert one.median == 0.1646 and one.minimum == 0.1646
+
+
+def test_compare_one_row_median_is_its_value(tmp_path, capsys):
+    """Before: "med diff 0.164, max 0.165" and "med ° 7.16, max ° 7.13" for one row."""
+    src = tmp_path / "one.csv"
+    src.write_text("Hx,Hy,Hz,Ixx,Iyy,Izz,Ixy,Ixz,Iyz,rx,ry,rz\n1,2,3,1,2,3,0.3,0.2,0.1,0.1,0.2,0.3\n")
+    proc = hconv_inprocess("compare", str(src), capsys=capsys)
+    assert proc.returncode == 0, proc.stderr.decode()
+    for line in proc.stdout.decode().splitlines()[2:10]:  # a method's row: name, med, max, row, med °, max °
+        cells = line.split("\t")
+        assert (cells[1], cells[4]) == (cells[2], cells[5]), line
 
 
 def test_compare_writes_per_row_figures_and_finds_shortcut_failures(rng, tmp_path, capsys):

@@ -42,3 +42,22 @@ def test_option_error_names_the_keyword_in_python_and_the_flag_on_the_command_li
     proc = hconv_inprocess("one", "--H", "1,2,3", "--I", "1,2,3", *command, capsys=capsys)
     err = proc.stderr.decode()
     assert proc.returncode == 2 and err.startswith(f"hconv: error: {command[0]} ") and len(err.splitlines()) == 1
+
+
+@pytest.mark.parametrize("n", [0, 1, 39, 40, 41, 5000])
+def test_quoted_clips_a_long_value_to_its_start_and_end(n):
+    """A value from a file is quoted in at most 40 characters (it was quoted whole: a CSV value of
+    5,000 characters made a 5,156-column message), its start and end kept either side of "…"."""
+    text = "".join(chr(ord("a") + k % 26) for k in range(n))
+    shown = errors.quoted(text)
+    inner = eval(shown)  # the repr of a str: the clipped text back
+    assert len(inner) == min(n, 40)
+    if n <= 40:
+        assert inner == text
+    else:
+        head, tail = inner.split("…")
+        assert text.startswith(head) and text.endswith(tail) and len(head) > len(tail) > 0
+
+
+def test_quoted_keeps_a_line_break_escaped():
+    assert errors.quoted("a\nb") == "'a\\nb'"

@@ -57,6 +57,16 @@ def test_open_jsonl_integers_then_fractions_in_a_later_block(tmp_path, monkeypat
     assert w_of(got)[0].tolist() == [1.0, 0.0, 0.0] and w_of(got)[-1].tolist() == [1.5, 0.25, 0.0]
 
 
+def test_open_jsonl_bad_line_is_quoted_short(tmp_path, capsys):
+    """The bad line is quoted as CSV's values are (:func:`hconv.errors.quoted`), its end kept too."""
+    src = tmp_path / "bad.jsonl"
+    src.write_text('{"Hx": 1' + "x" * 5000 + "}\n")
+    proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.csv"), capsys=capsys)
+    err = proc.stderr.decode()
+    assert proc.returncode == 3 and err.count("\n") == 1
+    assert """: '{"Hx": 1""" + "x" * 18 + "…" + "x" * 12 + "}'; JSON lines" in err
+
+
 @pytest.mark.parametrize(
     "text, says",
     [

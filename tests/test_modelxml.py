@@ -180,3 +180,33 @@ def test_cli_bodies_root_in_the_refusal_is_quoted_for_the_shell(tmp_path, capsys
     model = metaworld_like(tmp_path / "my models")
     refused = hconv_inprocess("bodies", str(model), capsys=capsys)
     assert f"give --root '{tmp_path / 'my models'}' to let" in refused.stderr.decode()
+
+
+@pytest.mark.parametrize(
+    "name, says",
+    [
+        ("real.xlsx", "is an Excel workbook (.xlsx, a zip of spreadsheet parts), not a model file"),
+        ("model.zip", "is a zip archive (unzip it and give the model file inside), not a model file"),
+        ("model.urdf.gz", "is gzip-compressed (decompress it first: gzip -dc), not a model file"),
+    ],
+)
+def test_cli_bodies_of_a_zip_or_a_spreadsheet_says_what_it_is(name, says, tmp_path, capsys):
+    """Before: a workbook (a zip) was "not well-formed XML (invalid token)"."""
+    import gzip
+    import zipfile
+
+    path = tmp_path / name
+    if name.endswith(".gz"):
+        path.write_bytes(gzip.compress(b"<robot name='r'/>"))
+    else:
+        with zipfile.ZipFile(path, "w") as z:
+            if name.endswith(".xlsx"):  # the parts every workbook has
+                z.writestr("[Content_Types].xml", "<Types/>")
+                z.writestr("xl/workbook.xml", "<workbook/>")
+            else:
+                z.writestr("robot.urdf", "<robot name='r'/>")
+    proc = hconv_inprocess("bodies", str(path), capsys=capsys)
+    assert (proc.returncode, proc.stderr.decode()) == (
+        3,
+        f"hconv: error: {path}: {says}; give a URDF, SDF or MJCF model (XML text)\n",
+    )

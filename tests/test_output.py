@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import pyarrow as pa
+import pyarrow.csv  # noqa: F401 - pa.csv
 import pyarrow.parquet as pq
 import pytest
 from helpers import run_inprocess, run_on_terminal
@@ -281,3 +282,73 @@ def test_output_existing_directory_for_stdin_is_refused(tmp_path):
 
     with pytest.raises(UsageError, match=r"is a directory, and stdin has no name to give the output; give OUT"):
         into_directory("-", str(tmp_path), "csv", None)
+
+
+def test_output_force_refuses_an_input_a_glob_made_into_out(tmp_path, capsys, monkeypatch):
+    """Before: `hconv convert two/*.csv --force`, two/a.csv two/b.csv to the command, replaced
+    b.csv (an input) by a.csv's output, exit 0."""
+    monkeypatch.chdir(tmp_path)
+    Path("two").mkdir()
+    Path("two/a.csv").write_bytes(SCENE_CSV.read_bytes())
+    Path("two/b.csv").write_bytes(SCENE_CSV.read_bytes())
+    code, _, err = run_inprocess("convert", "two/a.csv", "two/b.csv", "--force", "-q", capsys=capsys)
+    assert (code, err) == (
+        4,
+        "hconv: error: two/b.csv: looks like an input (it has H and I columns, none of hconv's output "
+        "columns), so --force does not overwrite it (an unquoted glob?); quote the glob, or remove or "
+        "rename the file\n",
+    )
+    assert Path("two/b.csv").read_bytes() == SCENE_CSV.read_bytes()
+    assert sorted(p.name for p in Path("two").iterdir()) == ["a.csv", "b.csv"]
+
+
+@pytest.mark.parametrize("fmt", ["csv", "parquet", "arrow"])
+@pytest.mark.parametrize("before", [(), ("--prefix", "out_")])
+def test_output_force_overwrites_hconvs_own_output(fmt, before, tmp_path, capsys, monkeypatch):
+    """--force still replaces an earlier output of hconv, whatever its format or --prefix, and an
+    input-like OUT in Parquet or Arrow is refused as one in CSV is."""
+    monkeypatch.chdir(tmp_path)
+    Path("in.csv").write_bytes(SCENE_CSV.read_bytes())
+    out = f"out.{fmt}"
+    assert run_inprocess("convert", "in.csv", out, *before, "-q", capsys=capsys)[:2] == (0, "")
+    for again in [(), ("--prefix", "out_")]:
+        code, _, err = run_inprocess("convert", "in.csv", out, "--force", *again, "-q", capsys=capsys)
+        assert (code, err) == (0, "")
+    # an input in that format (written without hconv's columns): refused
+    if fmt == "csv":
+        Path(out).write_bytes(SCENE_CSV.read_bytes())
+    else:
+        table = pa.csv.read_csv(SCENE_CSV)
+        if fmt == "parquet":
+            pq.write_table(table, out)
+        else:
+            with pa.ipc.new_file(out, table.schema) as w:
+                w.write_table(table)
+    before_bytes = Path(out).read_bytes()
+    code, _, err = run_inprocess("convert", "in.csv", out, "--force", "-q", capsys=capsys)
+    assert code == 4 and f"{out}: looks like an input" in err and err.count("\n") == 1
+    assert Path(out).read_bytes() == before_bytes
+
+
+@pytest.mark.parametrize("force", [(), ("--force",)])
+def test_output_missing_input_is_the_inputs_error_whatever_out_is(force, tmp_path, capsys, monkeypatch):
+    """Before: with OUT there, a missing IN exited 4, "nosuch.csv: No such file or directory;
+    nothing was written" (the output's check of IN and OUT being one file); without OUT, 3."""
+    monkeypatch.chdir(tmp_path)
+    Path("o.csv").write_text("kept\n")
+    code, _, err = run_inprocess("convert", "nosuch.csv", "o.csv", *force, capsys=capsys)
+    assert (code, err) == (3, "hconv: error: nosuch.csv: does not exist; check the path\n")
+    assert Path("o.csv").read_text() == "kept\n"
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc")
+def test_output_in_a_folder_that_takes_no_files_says_so(tmp_path, capsys, monkeypatch):
+    """Before: "cannot write in '/proc' (No such file or directory); check its permissions"."""
+    monkeypatch.chdir(tmp_path)
+    Path("q.csv").write_bytes(SCENE_CSV.read_bytes())
+    code, _, err = run_inprocess("convert", "q.csv", "/proc/x.csv", "-q", capsys=capsys)
+    assert (code, err) == (
+        4,
+        "hconv: error: /proc/x.csv: cannot create a file in '/proc': it takes no new files (a pseudo file "
+        "system, as /proc and /sys are); write OUT in another directory\n",
+    )

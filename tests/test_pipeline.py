@@ -147,6 +147,19 @@ def test_convert_file_csv_to_parquet_types_the_scene_columns(tmp_path):
     assert out.column("id").equals(scene.column("id")) and out.column("w_true_x").equals(scene.column("w_true_x"))
 
 
+def test_convert_file_csv_to_parquet_keeps_a_column_of_null_markers_as_text(tmp_path):
+    """Before: a column s of NA, null and blanks alone became ``s: null`` in Parquet, its text
+    gone (kept into CSV, and into Parquet beside any other text)."""
+    src, dst = tmp_path / "na.csv", tmp_path / "na.parquet"
+    rows = [("NA", ""), ("null", ""), ("", "")]
+    src.write_text("Hx,Hy,Hz,Ixx,Iyy,Izz,Ixy,Ixz,Iyz,s,b\n" + "".join(f"1,2,3,1,2,3,0,0,0,{s},{b}\n" for s, b in rows))
+    pipeline.convert_file(str(src), str(dst))
+    out = pq.read_table(dst)
+    assert out.schema.field("s").type == pa.string()
+    assert out.column("s").to_pylist() == ["NA", "null", ""]
+    assert out.schema.field("b").type == pa.null()  # blanks alone: no text to keep
+
+
 def late_misfits(n: int = 1000) -> str:
     """A CSV whose first blocks say int, but whose later ones hold a float, a zip code, text in
     an empty column and a null marker."""

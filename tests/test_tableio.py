@@ -435,16 +435,16 @@ def test_convert_file_parquet_to_csv_with_a_column_csv_cannot_hold_is_refused(ki
 
 
 def test_convert_file_parquet_to_csv_with_binary_not_utf8_is_refused(tmp_path, capsys):
-    """Before: 'internal error: ArrowInvalid: Invalid UTF8 payload', exit 1. Binary that is text
-    (a byte array without the string annotation) is written as text."""
+    """Before: 'internal error: ArrowInvalid: Invalid UTF8 payload', exit 1, and then the message
+    named no file. Binary that is text (a byte array without the string annotation) is written as text."""
     import pyarrow as pa
 
     src = _scene_with(tmp_path, lambda n: pa.array([b"\xff"] * n))
     code, _, err = run_inprocess("convert", src, str(tmp_path / "out.csv"), "-q", capsys=capsys)
     assert (code, err) == (
         3,
-        "hconv: error: column 'extra' is binary and holds bytes that are not UTF-8 text, which CSV cannot "
-        "hold; write Parquet instead (OUT named .parquet), or drop the column first\n",
+        f"hconv: error: {src}: column 'extra' is binary and holds bytes that are not UTF-8 text, which CSV "
+        "cannot hold; write Parquet instead (OUT named .parquet), or drop the column first\n",
     )
     assert not (tmp_path / "out.csv").exists()
     src = _scene_with(tmp_path, lambda n: pa.array([b"text"] * n))

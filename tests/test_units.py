@@ -11,7 +11,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
-from helpers import hconv_inprocess, mp_solve, need, physical_bodies, rel_err, six, vec, w_of
+from helpers import command_imports, hconv_inprocess, mp_solve, need, physical_bodies, rel_err, six, vec, w_of
 
 import hconv
 from hconv.errors import UsageError
@@ -344,3 +344,31 @@ def test_convert_extra_k_that_is_not_a_bare_number_names_it():
     for bad in (1 * _ureg()("kg*m**2"), "2", -1.0, float("nan")):
         with pytest.raises(UsageError, match=r"^extra_k must be a number >= 0 \(an error constant, no unit\), got "):
             hconv.convert([1.0, 2.0, 3.0], [1.0, 1.0, 1.0], extra_k=bad)
+
+
+@pytest.mark.parametrize("where", ["command", "library"])
+def test_factor_imports_pint_without_dask_only_in_the_command(where):
+    """The hconv command imports pint as where dask is absent (dask's import cost a run with
+    units a third of a second); a library caller's pint keeps its dask support, and dask itself
+    still imports afterwards in both."""
+    need("dask")
+    need("pint")
+    setup = "from hconv.solve import units; units.PINT_WITHOUT_DASK = True" if where == "command" else ""
+    code = (
+        f"import sys; {setup}\n"
+        "from hconv.solve import units\n"
+        "assert abs(units.factor('I', 'g*cm**2') - 1e-7) < 1e-21\n"
+        "import pint.compat; print('dask' in sys.modules, pint.compat.dask_array is not None)\n"
+        "import dask; print(dask.__name__)"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr.decode()
+    imported, supported = proc.stdout.decode().split()[:2]
+    assert (imported, supported) == (("False", "False") if where == "command" else ("True", "True"))
+
+
+def test_command_with_units_does_not_import_dask():
+    need("dask")
+    args = ["one", "--H", "1,2,3", "--I", "25000,25000,40000", "--unit", "I=g*cm**2"]
+    exit_code, imported, err = command_imports(args, "dask")
+    assert (exit_code, imported) == (0, False), err

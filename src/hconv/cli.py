@@ -29,6 +29,7 @@ from hconv.commandline import (
     OutFmt,
     body_forms,
     completes,
+    extra_arguments,
     fill,
     friendly,
     job_options,
@@ -39,7 +40,7 @@ from hconv.commandline import (
 )
 from hconv.errors import INTERRUPTED, StrictError, UsageError
 from hconv.kernels import allocator
-from hconv.solve import forms, options
+from hconv.solve import forms, options, units
 from hconv.tables.body import UNIT_SETS
 from hconv.tools.scene import SCENES
 
@@ -62,6 +63,16 @@ class _PlainUsage(TyperCommand):
 
     def collect_usage_pieces(self, ctx: Any) -> list[str]:  # typer's own (vendored) click Context
         return [p[1:-1] if p.startswith("{") and p.endswith("}") else p for p in super().collect_usage_pieces(ctx)]
+
+    def parse_args(self, ctx: Any, args: list[str]) -> list[str]:
+        """Extra arguments in one short line, their count and the fix first: typer's lists every
+        one (a glob the shell expanded into 99 files: 2,400 columns), its hint at the end."""
+        allowed, ctx.allow_extra_args = ctx.allow_extra_args, True
+        rest = super().parse_args(ctx, args)
+        ctx.allow_extra_args = allowed
+        if rest and not allowed and not ctx.resilient_parsing:
+            ctx.fail(extra_arguments(ctx.command_path, rest))
+        return rest
 
 
 def _print_version(value: bool) -> None:
@@ -596,6 +607,7 @@ def _main() -> None:
     if not interrupts.starting():  # in the hconv command SIGTERM ends it until friendly hands it over
         signal.signal(signal.SIGTERM, _sigterm)
     allocator.tune()
+    units.PINT_WITHOUT_DASK = True
     if os.environ.get("_HCONV_COMPLETE"):  # the shell asks for completions (hconv --install-completion)
         from typer import completion
 
@@ -612,9 +624,6 @@ def _main() -> None:
             sys.exit(0)
         command = getattr(ctx, "command_path", "hconv")
         message = " ".join(exc.format_message().split())
-        if command.endswith(" convert") and "unexpected extra argument" in message:
-            # the shell expanded a glob into many files: hconv expands one given in quotes
-            message += "; for several files, give their directory, or quote the glob so that hconv expands it"
         print(f"hconv: error: {message} (see '{command} --help')", file=sys.stderr)
         sys.exit(exc.exit_code)
     sys.exit(rv if isinstance(rv, int) else 0)

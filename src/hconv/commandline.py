@@ -15,6 +15,7 @@ import functools
 import inspect
 import math
 import os
+import re
 import sys
 from collections.abc import Callable, Iterable
 from enum import Enum
@@ -23,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 import typer
 
 from hconv import errors, interrupts
-from hconv.errors import INTERRUPTED, HconvError, UsageError
+from hconv.errors import INTERRUPTED, HconvError, UsageError, quoted
 from hconv.solve import options
 from hconv.solve.engines import ENGINES
 from hconv.solve.methods import METHODS
@@ -336,6 +337,8 @@ def numbers(option: str, text: str, allowed: tuple[int, ...]) -> list[float]:
 
 
 _CLOSE = {"[": "]", "(": ")"}
+#: Two numbers with only spaces between them: ``1. 0.``, as numpy prints an array.
+_SPACED = re.compile(r"[0-9.]\s+[-+0-9.]")
 
 
 def _bracketed(option: str, text: str) -> tuple[str, list[int] | None]:
@@ -368,9 +371,24 @@ def _bracketed(option: str, text: str) -> tuple[str, list[int] | None]:
         flat.append(row)
         rest = inner[end + 1 :].lstrip()
         if rest and not rest.startswith(","):
+            if _SPACED.search(text):  # numpy prints a matrix so: [[1. 0. 0.]\n [0. 2. 0.] ...]
+                raise UsageError(
+                    f"{option}: {text!r} needs commas between the numbers of each row and between the rows, "
+                    "like [[1,0,0],[0,2,0],[0,0,3]] (numpy prints none: give the matrix's .tolist())"
+                )
             raise UsageError(f"{option}: {text!r} needs a comma between the rows")
         at = len(inner) - len(rest[1:].lstrip()) if rest else len(inner)
     return ",".join(flat), rows
+
+
+def extra_arguments(command: str, rest: list[str]) -> str:
+    """The one line for arguments ``command`` did not take: their count and the fix, then the
+    first of them (an unquoted glob of 99 files would otherwise be listed whole)."""
+    n = len(rest)
+    what = f"{n} extra argument{'s' if n > 1 else ''}"
+    if command.endswith(" convert"):  # the shell expanded a glob: hconv expands one in quotes
+        what += " after IN and OUT: for several files, quote the glob so that hconv expands it, or give their directory"
+    return f"{what} ({'the first: ' if n > 1 else ''}{quoted(rest[0])})"
 
 
 def json_number(x: float) -> float | None:

@@ -70,6 +70,26 @@ def first_line(exc: BaseException) -> str:
     return text.splitlines()[0] if text else type(exc).__name__
 
 
+#: The most characters of a value from a file that a message quotes (:func:`quoted`): a value can
+#: be megabytes long, and a message is one line a terminal shows whole.
+QUOTED = 40
+
+
+def clip(text: str, limit: int = QUOTED) -> str:
+    """``text`` whole if it has at most ``limit`` characters, else its start and its end either
+    side of "…", in ``limit`` characters."""
+    if len(text) <= limit:
+        return text
+    tail = (limit - 1) // 3
+    return f"{text[: limit - 1 - tail]}…{text[len(text) - tail :]}"
+
+
+def quoted(value: str, limit: int = QUOTED) -> str:
+    """A value from a file as a message quotes it: in quotes, escaped (so that it stays on one
+    line), and :func:`clip`-ped to ``limit`` characters."""
+    return repr(clip(value, limit))
+
+
 class HconvError(Exception):
     """Base class; ``exit_code`` is what the CLI exits with."""
 

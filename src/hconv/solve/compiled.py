@@ -153,23 +153,16 @@ def convert_rows(
     if threads == 1:
         return rowcode.convert(*args, 0, n)
     # Every thread, the caller's too, takes the next block until none is left (blocks handed out
-    # in advance left the caller one block and a single pool thread all the others), and blocks
-    # are small enough, a quarter of BLOCK_ROWS and at most PARTS_PER_THREAD a thread, that a
-    # thread which starts late or runs slow (a busy machine) holds up the call by little: one
-    # block a thread left the caller waiting for a pool thread that had not begun its half.
-    parts = max(threads, min(-(-n // max(1, BLOCK_ROWS // 4)), PARTS_PER_THREAD * threads))
-    size = -(-n // parts)
-    blocks = iter(range(0, n, size))
-    lock = threading.Lock()
+    # in advance left the caller one block and a single pool thread all the others), from a
+    # counter the C code advances, so that no thread comes back to Python between blocks (each
+    # return took the GIL, which the other threads wanted too). Blocks are small enough, at most
+    # PARTS_PER_THREAD a thread and a few chunks at least, that a thread which starts late or
+    # runs slow (a busy machine) holds up the call by little.
+    size = max(BLOCK_ROWS // 16, -(-n // (PARTS_PER_THREAD * threads)))
+    counter = np.zeros(1, np.int64)
 
     def take() -> int:
-        lost = 0
-        while True:
-            with lock:
-                lo = next(blocks, None)
-            if lo is None:
-                return lost
-            lost += rowcode.convert(*args, lo, min(n, lo + size))
+        return rowcode.convert(*args, 0, n, counter, size)
 
     pool = _shared_pool(threads - 1)
     futures = [pool.submit(take) for _ in range(threads - 1)]

@@ -141,19 +141,35 @@ static int check(PyArrayObject *a, const char *name, int ndim, npy_intp d0, npy_
     return 0;
 }
 
-/* convert(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, start, stop):
- * rows start..stop of I and H into the same rows of the outputs (residual written with
- * diagnostics only), a chunk of CH rows at a time, without the GIL; returns how many of them are
- * fallback. */
+/* The next block's first row from a counter that several threads share: each call adds `size`
+ * and gets the value before, so that every block is taken once. */
+#if defined(_MSC_VER)
+#include <intrin.h>
+static npy_int64 take_block(npy_int64 *counter, npy_int64 size) { return _InterlockedExchangeAdd64(counter, size); }
+#else
+static npy_int64 take_block(npy_int64 *counter, npy_int64 size)
+{
+    return __atomic_fetch_add(counter, size, __ATOMIC_RELAXED);
+}
+#endif
+
+/* convert(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, start, stop
+ * [, counter, size]): rows start..stop of I and H into the same rows of the outputs (residual
+ * written with diagnostics only), a chunk of CH rows at a time, without the GIL; returns how many
+ * of them are fallback. With `counter` (int64 (1,), shared by the threads of one call) and
+ * `size`, the rows are instead the blocks of `size` rows this thread takes from the counter until
+ * it passes stop: the threads share the work without coming back to Python between blocks. */
 static PyObject *convert(PyObject *self, PyObject *args)
 {
     PyArrayObject *In, *H, *w, *cond, *code, *residual, *fallback;
     int nine, refined, diagnostics;
     double cond_limit;
-    Py_ssize_t start, stop;
-    if (!PyArg_ParseTuple(args, "O!pO!ppdO!O!O!O!O!nn", &PyArray_Type, &In, &nine, &PyArray_Type, &H, &refined,
+    Py_ssize_t start, stop, size = 0;
+    PyArrayObject *counter = NULL;
+    if (!PyArg_ParseTuple(args, "O!pO!ppdO!O!O!O!O!nn|O!n", &PyArray_Type, &In, &nine, &PyArray_Type, &H, &refined,
                           &diagnostics, &cond_limit, &PyArray_Type, &w, &PyArray_Type, &cond, &PyArray_Type, &code,
-                          &PyArray_Type, &residual, &PyArray_Type, &fallback, &start, &stop))
+                          &PyArray_Type, &residual, &PyArray_Type, &fallback, &start, &stop, &PyArray_Type,
+                          &counter, &size))
         return NULL;
     if (!K.ready) {
         PyErr_SetString(PyExc_RuntimeError, "rowcode.convert: configure() first");
@@ -173,6 +189,11 @@ static PyObject *convert(PyObject *self, PyObject *args)
         PyErr_SetString(PyExc_ValueError, "rowcode.convert: rows start..stop out of range");
         return NULL;
     }
+    if (counter && (check(counter, "counter", 1, 1, 0, NPY_INT64, 1) || size < 1)) {
+        if (!PyErr_Occurred())
+            PyErr_SetString(PyExc_ValueError, "rowcode.convert: a block size of at least one row");
+        return NULL;
+    }
     Job jb = {PyArray_BYTES(In), PyArray_BYTES(H), PyArray_STRIDE(In, 0), PyArray_STRIDE(In, 1),
               PyArray_STRIDE(H, 0), PyArray_STRIDE(H, 1), nine, refined, diagnostics, cond_limit,
               (double *)PyArray_DATA(w), (double *)PyArray_DATA(cond), (double *)PyArray_DATA(residual),
@@ -182,10 +203,22 @@ static PyObject *convert(PyObject *self, PyObject *args)
         return PyErr_NoMemory();
     npy_intp lost = 0;
     Py_BEGIN_ALLOW_THREADS;
-    for (npy_intp i = start; i < stop; i += CH)
-        convert_chunk(&jb, s, i, (int)(stop - i < CH ? stop - i : CH));
-    for (npy_intp i = start; i < stop; i++)
-        lost += jb.fallback[i] != 0;
+    npy_int64 *next = counter ? (npy_int64 *)PyArray_DATA(counter) : NULL;
+    for (;;) {
+        npy_intp lo = start, hi = stop;
+        if (next) {
+            lo = (npy_intp)take_block(next, (npy_int64)size);
+            if (lo >= stop)
+                break;
+            hi = stop - lo < size ? stop : lo + size;
+        }
+        for (npy_intp i = lo; i < hi; i += CH)
+            convert_chunk(&jb, s, i, (int)(hi - i < CH ? hi - i : CH));
+        for (npy_intp i = lo; i < hi; i++)
+            lost += jb.fallback[i] != 0;
+        if (!next)
+            break;
+    }
     Py_END_ALLOW_THREADS;
     PyMem_RawFree(s);
     return PyLong_FromSsize_t(lost);

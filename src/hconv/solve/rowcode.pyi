@@ -26,5 +26,7 @@ def convert(
     fallback: np.ndarray,
     start: int,
     stop: int,
+    counter: np.ndarray = ...,
+    size: int = ...,
     /,
 ) -> int: ...

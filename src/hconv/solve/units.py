@@ -75,10 +75,31 @@ def _normal(unit: str) -> str:
     return re.sub(r"\*+(?=\*\*)", "", re.sub(r"\*{3,}", "**", u))
 
 
+#: Set by the hconv command (:mod:`hconv.cli`), a process that runs no one else's code: pint is
+#: then imported without its optional support of dask arrays, which the command never hands it,
+#: and whose import (dask's core, where dask is installed) cost a run with units about a third of
+#: a second. In a library caller's process pint is left as pint makes itself.
+PINT_WITHOUT_DASK = False
+
+
+def _import_pint() -> Any:
+    """pint; in the command (:data:`PINT_WITHOUT_DASK`), imported as where dask is absent."""
+    if not PINT_WITHOUT_DASK or "pint" in sys.modules or "dask" in sys.modules:
+        import pint
+
+        return pint
+    sys.modules["dask"] = None  # type: ignore[assignment]  # `import dask` fails: pint goes without
+    try:
+        import pint
+    finally:
+        del sys.modules["dask"]  # a later import of dask (a --cluster run) finds it as ever
+    return pint
+
+
 @functools.cache
 def _registry() -> Any:
     try:
-        import pint
+        pint = _import_pint()
     except ImportError:
         raise UsageError(
             "units other than SI need pint, which is missing from this installation; "

@@ -16,7 +16,7 @@ from collections.abc import Iterator
 import pyarrow as pa
 import pyarrow.csv as pacsv
 
-from hconv.errors import HconvError, InputError, UsageError, first_line, option
+from hconv.errors import HconvError, InputError, UsageError, first_line, option, quoted
 from hconv.solve import forms, units
 from hconv.tables import csvtypes, layout, sets
 from hconv.tables.inputs import FileStat, Input, ReadMarks, changed_while_read, read_batches, unreadable
@@ -87,6 +87,16 @@ def _dialect(head: str, name: str, job: Job) -> tuple[Dialect, list[str]]:
     given = job.delimiter or delimiter_by_name(name)
     delimiter = given or sniff_delimiter(body, name, frozenset(sets.all_names()))
     return Dialect(delimiter=delimiter, decimal=job.decimal or ".", comment_lines=comments), body
+
+
+def header_names(path: str, job: Job) -> list[str] | None:
+    """The column names of the CSV at ``path``, from its first 64 KiB alone (None for an empty
+    file); InputError for a file that is not CSV text."""
+    head = _sniff_csv(path, path)
+    if not head:
+        return None
+    dialect, body = _dialect(head, path, job)
+    return next(csv.reader(body[:1], delimiter=dialect.delimiter), None)
 
 
 def _looks_numeric(text: str) -> bool:
@@ -244,7 +254,10 @@ def open_csv(path: str, name: str, job: Job) -> Input:
             path, name, names, dialect, exc, job.decimal is not None
         ) from None
     total = f.size()
-    schema = pa.schema([_with_unit(fl, dict(dialect.units)) for fl in reader.schema])
+    # every column's unit from the row, not only hconv's: the output carries them all (field
+    # metadata in Parquet and Arrow), so that no column's numbers lose what they meant
+    row_units = {n: u.strip() for n, u in zip(names, dialect.units_text, strict=False) if u.strip()}
+    schema = pa.schema([_with_unit(fl, row_units) for fl in reader.schema])
     read = ReadMarks(total, CSV_BLOCK_BYTES)
 
     def failed(exc: Exception) -> InputError:
@@ -256,7 +269,7 @@ def open_csv(path: str, name: str, job: Job) -> Input:
         # all the reader raises is the input's
         for batch in read_batches(reader, name, fd, at_open, failed, (OSError, pa.ArrowException, MemoryError), False):
             read.add(batch.num_rows)
-            yield batch if not dialect.units else pa.RecordBatch.from_arrays(batch.columns, schema=schema)
+            yield batch if not row_units else pa.RecordBatch.from_arrays(batch.columns, schema=schema)
         read.done()
 
     text = tuple(n for n in names if n not in nums)
@@ -276,7 +289,8 @@ def _for_errors(dialect: Dialect, lines: list[str], job: Job, name: str) -> Dial
 
 def _with_unit(field: str | pa.Field, found: dict) -> pa.Field:
     """A column as a float field (``field``: a name) or as it is, with the unit a units row gave
-    it as its metadata, where hconv reads a column's unit from (hconv.tables.layout)."""
+    it as its metadata: where hconv reads a column's unit from (hconv.tables.layout), and where
+    Parquet and Arrow output keep it."""
     f = pa.field(field, pa.float64()) if isinstance(field, str) else field
     return f.with_metadata({"unit": found[f.name]}) if f.name in found else f
 
@@ -350,7 +364,8 @@ def _csv_parse_error(path: str, name: str, exc: Exception, dialect: Dialect, hin
             "is it a CSV?"
         )
     return InputError(
-        f"{name}: {row or 'a row'} has {m.group(2)} values, but the header names {expected} columns; "
+        f"{name}: {row or 'a row'} has {m.group(2)} values, but the header names {expected} "
+        f"column{'' if expected == 1 else 's'}; "
         "every row needs one value per column"
         + (hint or f" (quote a value that holds a {DELIMITERS[dialect.delimiter]})")
     )
@@ -392,10 +407,10 @@ def _csv_value_error(
     if dialect.decimal == "." and dialect.delimiter != "," and decimal_comma(value):
         drop = f" or drop {option('decimal')}" if decimal_given else ""
         return InputError(
-            f"{name}: column {col!r} must be numeric but holds {value!r}{where}, a number written with a "
+            f"{name}: column {col!r} must be numeric but holds {quoted(value)}{where}, a number written with a "
             f"decimal comma; pass {option('decimal', ',')}{drop}"
         )
     return InputError(
-        f"{name}: column {col!r} must be numeric but holds {value!r}{where}; "
+        f"{name}: column {col!r} must be numeric but holds {quoted(value)}{where}; "
         "fix or blank that value (a blank becomes a row with status invalid_input)"
     )

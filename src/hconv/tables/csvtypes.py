@@ -12,7 +12,9 @@ value:
   text (pyarrow rounds it to a float);
 - ``NaN``, ``nan``, ``-NaN`` and ``-nan`` are the float NaN; pyarrow makes them null. The other
   null markers pyarrow knows (:data:`NULLS`: the empty field, ``NA``, ``NULL``, ``#N/A``, …)
-  become null, but only in a typed column: a text column keeps them as they are;
+  become null, but only in a typed column: a text column keeps them as they are, and so does
+  a column of null markers alone (``NA``, ``null``, blanks), which no other value types; only a
+  column of blanks alone gets pyarrow's null type;
 - a time of day (``12:30:00``) stays text, since pyarrow cannot cast text to time32, and so
   does a number with spaces around it (pyarrow's reader trims them, its cast does not).
 
@@ -80,7 +82,8 @@ def convert(text: pa.Array, to: pa.DataType) -> pa.Array | None:
     if pa.types.is_string(to):
         return text
     if pa.types.is_null(to):
-        return pa.nulls(len(text)) if pc.all(pc.is_in(text, value_set=NULLS)).as_py() is not False else None
+        # blanks only: nothing written is lost; a null marker written out (NA, null) is text
+        return pa.nulls(len(text)) if pc.max(pc.binary_length(text)).as_py() in (None, 0) else None
     try:  # the common case: no null marker in this block
         out = text.cast(to)
     except pa.ArrowInvalid:
@@ -132,19 +135,31 @@ def infer(table: pa.Table | pa.RecordBatch, columns: Iterable[str]) -> dict[str,
     types = {}
     for name in columns:
         text = _text(table.column(name))
-        types[name] = next((t for t in CANDIDATES if convert(text, t) is not None), pa.string())
+        candidates = CANDIDATES if _has_value(text) else CANDIDATES[:1]  # markers alone: no type but null
+        types[name] = next((t for t in candidates if convert(text, t) is not None), pa.string())
     return types
+
+
+def _has_value(text: pa.Array) -> bool:
+    """Some value of ``text`` is not a null marker: a type can be read from it."""
+    return pc.all(pc.is_in(text, value_set=NULLS)).as_py() is False
 
 
 def whole_file(batches: Iterable[pa.RecordBatch]) -> dict[str, pa.DataType]:
     """The type of each text column of ``batches`` that every batch fits: the first candidate
     that fits all of them, else text. Reads every batch once, holding one at a time."""
     alive: dict[str, list[pa.DataType]] = {}
+    valued: set[str] = set()  # the columns with a value that is not a null marker
     for batch in batches:
         for name in batch.schema.names:
             text = _text(batch.column(name))
             alive[name] = _fitting(text, alive.get(name, CANDIDATES))
-    return {name: (fits[0] if fits else pa.string()) for name, fits in alive.items()}
+            if name not in valued and _has_value(text):
+                valued.add(name)
+    return {
+        name: (fits[0] if fits and (name in valued or pa.types.is_null(fits[0])) else pa.string())
+        for name, fits in alive.items()
+    }
 
 
 def apply(table: pa.Table, types: dict[str, pa.DataType]) -> pa.Table:
@@ -158,7 +173,7 @@ def apply(table: pa.Table, types: dict[str, pa.DataType]) -> pa.Table:
         typed = convert(text, to)
         if typed is None:
             raise Retype(name, _misfit(text, to))
-        table = table.set_column(k, pa.field(name, to), typed)
+        table = table.set_column(k, table.schema.field(k).with_type(to), typed)  # its unit kept
     return table
 
 

@@ -1,5 +1,6 @@
 """CSV out: the columns CSV can hold, minimal quoting at pyarrow's writing speed, ω's unit in a
-``w_unit`` column, tabs into ``.tsv``, and a row of units under the header where the input had one.
+``w_unit`` column, tabs into ``.tsv``, and a row of units under the header where the input carried
+units (:func:`units_row`).
 
 Quoting is minimal: a value is quoted only if it holds the delimiter, a quote or a line break, or
 if it is the empty text in a column that also holds nulls (``""``; a null is a blank field). All
@@ -33,6 +34,8 @@ import pyarrow.csv as pacsv
 from hconv.errors import InputError
 from hconv.solve.engines import available_cores
 from hconv.tables import arrays, layout
+from hconv.tables.job import Job
+from hconv.tables.sets import header_name
 
 UNIT_COLUMN = layout.UNIT_COLUMN
 
@@ -219,10 +222,47 @@ def _put_back(a: np.ndarray, delimiter: str) -> None:
     a[at] = real[a[at]]
 
 
+def units_row(schema: pa.Schema, plan: layout.Layout, job: Job, written: tuple[str, ...] = ()) -> dict[str, str] | None:
+    """What goes under the header of CSV output converted from an input of ``schema`` read as
+    ``plan``: None for no row of units, else the texts to write as they were, by column (the rest
+    come from the converted table's field metadata, :func:`units_line`). ``written``: the input's
+    own row of units, one text a column, or () for none.
+
+    A row is written when the input carried a unit its header does not say (a row of units, field
+    metadata: Parquet, Arrow, Spark's schema; ``field_units``), or ``--unit`` read a column in
+    another unit than its header says: the numbers mean what they meant only with it, and hconv
+    reads its own output back in the units it read the input in. An input that said no unit, read
+    with ``--unit`` or not, gets none, as it came. A text of the input's row is kept, but not under
+    a column ``--unit`` read in another unit: there the table's metadata names the one it was read in."""
+    row = dict(zip(schema.names, written, strict=False))
+    kept, overridden = dict(row), False
+    for g in plan.groups.values():
+        for column, read_in in zip(g.columns, g.units, strict=False):
+            # the unit a reader takes the column to be in, without --unit: the row's, else the header's
+            said = row.get(column, "").strip() or header_name(column)[1] or ""
+            if said != read_in:
+                kept.pop(column, None)
+                overridden = overridden or bool(said)
+    if not (
+        written
+        or job.field_units
+        or overridden
+        or _STORES_UNITS.value(schema, None, lambda: bool(layout.stored_units(schema)))
+    ):
+        return None
+    return kept
+
+
+#: whether recent schemas store a unit: looking costs more than the memo (Spark's schema is parsed),
+#: and a dataset's files mostly share one schema
+_STORES_UNITS = layout.SchemaMemo()
+
+
 def units_line(schema: pa.Schema, units: Mapping[str, str]) -> list[str]:
     """The row of units under the header of a table of ``schema``: ``units`` for the input's
-    columns (what the input's row of units said, as it said it), the ``unit`` in the field
-    metadata of each column hconv appends (ω's, ``1`` for a ratio), blank for the rest."""
+    columns (what the input's row of units said, as it said it: :func:`units_row`), else the
+    ``unit`` in each column's field metadata (the unit hconv read it in, the input's own for a
+    column it passed through, ω's, ``1`` for a ratio), blank for the rest."""
     row = []
     for f in schema:
         if f.name in units:
@@ -313,9 +353,9 @@ def _on_threads(jobs: int, threads: int, job: Callable[[int], None]) -> None:
 
 class CsvWriter:
     """CSV with a minimal-quoting header, ``status`` as text and ω's unit in a ``w_unit`` column;
-    ``delimiter``: a comma, or a tab for ``.tsv``; ``units``: the input's row of units, by column,
-    written under the header (with those of the columns hconv appends, :func:`units_line`), or
-    None for no such row.
+    ``delimiter``: a comma, or a tab for ``.tsv``; ``units``: the texts of a row of units under
+    the header, by column (:func:`units_row`; the other columns' from their field metadata,
+    :func:`units_line`), or None for no such row.
 
     Where no value needs quotes, pyarrow's own writer writes the rows straight into the file (it
     formats 1024 rows at a time, in the CPU's cache): pyarrow's speed. Where one does, it writes

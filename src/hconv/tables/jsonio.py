@@ -19,7 +19,7 @@ from collections.abc import Iterator
 import pyarrow as pa
 import pyarrow.json as pajson
 
-from hconv.errors import HconvError, InputError, first_line
+from hconv.errors import HconvError, InputError, first_line, quoted
 from hconv.tables import layout
 from hconv.tables.inputs import FileStat, Input, read_batches, unreadable
 from hconv.tables.job import Job
@@ -45,9 +45,8 @@ def _bad_line(path: str, name: str, exc: Exception, job: Job, known: set | None 
                     value = json.loads(line)
                 except ValueError as err:
                     text = line.decode("utf-8", "replace").strip()
-                    shown = text if len(text) <= 60 else text[:57] + "..."
                     return InputError(
-                        f"{name}: line {number} is not valid JSON ({str(err).split(':')[0]}): {shown!r}; "
+                        f"{name}: line {number} is not valid JSON ({str(err).split(':')[0]}): {quoted(text)}; "
                         "JSON lines holds one complete JSON object per line: fix or remove that line"
                     )
                 if not isinstance(value, dict):

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import threading
 import time
 from collections.abc import Callable
 
@@ -119,15 +120,31 @@ def local_input(src: Place, rel: str, cleanup: contextlib.ExitStack, run: str | 
     return local, storage.fetch(src, rel, local)
 
 
+#: Held while a folder is made and a temporary file put in it, and while a folder a failed file
+#: made is removed if empty: without it, a file failing on one thread removed the folder another
+#: thread had just found there, before that thread's temporary file was in it.
+_FOLDERS = threading.Lock()
+#: Attempts at a temporary file whose folder vanished meanwhile (another process's failed file
+#: removing the folder it made, which the lock above cannot hold back).
+_STAGE_ATTEMPTS = 3
+
+
 def stage_output(dst: Place, rel: str, cleanup: contextlib.ExitStack, run: str | None) -> str:
     """A temporary file (removed by ``cleanup``) to write ``rel`` of ``dst`` into before it is
     committed: beside it (its missing folders made), or a local one for object storage."""
     target = dst.path(rel)
-    if dst.local:
-        _make_folders(os.path.dirname(target), cleanup)
     with interrupts.held():
         try:
-            staged = storage.stage(target if dst.local else None, run=run)
+            for attempt in range(_STAGE_ATTEMPTS):
+                try:
+                    with _FOLDERS:
+                        if dst.local:
+                            _make_folders(os.path.dirname(target), cleanup)
+                        staged = storage.stage(target if dst.local else None, run=run)
+                    break
+                except FileNotFoundError:
+                    if not dst.local or attempt == _STAGE_ATTEMPTS - 1:
+                        raise
         except OSError as exc:  # mkstemp in a folder that is full or not writable
             where = os.path.dirname(target) if dst.local else "the temporary directory (TMPDIR)"
             err = OutputError(f"{dst.name(rel)}: cannot make its temporary file in {where} ({exc.strerror or exc})")
@@ -152,24 +169,24 @@ def commit_output(staged: str, target: str, overwrite: bool, shown: str) -> None
 
 def _make_folders(folder: str, cleanup: contextlib.ExitStack) -> None:
     """Make ``folder`` and its missing parents (partition folders); if the conversion then fails,
-    remove those it made that stayed empty, so that a failed file leaves nothing behind."""
+    remove those it made that stayed empty, so that a failed file leaves nothing behind. Called
+    with :data:`_FOLDERS` held and interrupts held."""
     made = []
     while folder and not os.path.isdir(folder):
         made.append(folder)
         folder = os.path.dirname(folder)
     for path in reversed(made):
-        with interrupts.held():
-            try:
-                os.mkdir(path)
-            except FileExistsError:
-                continue
-            except OSError as exc:
-                raise OutputError(f"{path}: cannot make this folder ({exc.strerror or exc})") from None
-            cleanup.callback(_remove_if_empty, path)
+        try:
+            os.mkdir(path)
+        except FileExistsError:
+            continue
+        except OSError as exc:
+            raise OutputError(f"{path}: cannot make this folder ({exc.strerror or exc})") from None
+        cleanup.callback(_remove_if_empty, path)
 
 
 def _remove_if_empty(path: str) -> None:
-    with contextlib.suppress(OSError):  # not empty: the output, or another file, is in it
+    with _FOLDERS, contextlib.suppress(OSError):  # not empty: the output, or another file, is in it
         os.rmdir(path)
 
 

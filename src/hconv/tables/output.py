@@ -23,14 +23,17 @@ import sys
 from pathlib import Path
 
 import pyarrow as pa
+import pyarrow.parquet as pq
 
 from hconv import interrupts
-from hconv.errors import OutputError, UsageError, first_line, option
+from hconv.errors import HconvError, InputError, OutputError, UsageError, first_line, option
+from hconv.tables import csvio, layout
 from hconv.tables.csvwrite import CsvWriter
 from hconv.tables.formats import EXTENSIONS, NAMES
 from hconv.tables.ipcio import IpcWriter
+from hconv.tables.job import Job
 from hconv.tables.parquetio import ParquetWriter
-from hconv.tables.sniff import delimiter_by_name, format_of
+from hconv.tables.sniff import delimiter_by_name, format_of, input_kind
 from hconv.tables.temporaries import temporary_file, umask
 
 
@@ -51,6 +54,8 @@ class Output:
         shown: str | None = None,
         stream: bool = False,
         staged: bool = False,
+        reads: Job | None = None,
+        source: str | None = None,
     ):
         self.path, self.fmt = path, fmt
         #: ``path`` is the caller's own temporary file (a dataset's output, staged beside it:
@@ -59,6 +64,8 @@ class Output:
         self.staged = staged
         #: the output as messages name it: ``path``, or the file that a dataset's staged ``path`` becomes
         self.shown = shown or ("stdout" if path == "-" else path)
+        #: the input as messages name it, for a value of it that OUT's format cannot hold
+        self.source = source
         self._writer: CsvWriter | ParquetWriter | IpcWriter | None = None
         #: into CSV, the input's row of units by column, written under the header; None: no such row
         self.units: dict[str, str] | None = None
@@ -78,6 +85,8 @@ class Output:
             if input_path not in (None, "-") and _stdout_is(input_path):  # `>> in.parquet` would append to it
                 raise OutputError("stdout: is the input file (redirected onto it); write the output to another path")
             return
+        if input_path not in (None, "-"):  # a missing input is the input's error, whatever OUT is
+            input_kind(input_path)
         try:
             mode: int | None = os.stat(path).st_mode  # follows a link: what would be overwritten
         except OSError:
@@ -100,6 +109,12 @@ class Output:
             raise OutputError(f"{path}: is the input file; write the output to another path")
         if target.exists() and not force:
             raise OutputError(f"{path}: already exists; pass {option('force', True)} to overwrite it")
+        if target.exists() and reads is not None and looks_like_input(self._target, fmt, reads):
+            raise OutputError(
+                f"{path}: looks like an input (it has H and I columns, none of hconv's output columns), so "
+                f"{option('force', True)} does not overwrite it (an unquoted glob?); quote the glob, or remove "
+                "or rename the file"
+            )
 
     def __enter__(self) -> Output:
         self._open = True
@@ -117,8 +132,14 @@ class Output:
             try:
                 fd, self._tmp = temporary_file(f".{name}.", str(target.parent))
             except OSError as exc:
+                where = str(target.parent)
+                if exc.errno == errno.ENOENT:  # the folder is there, yet takes no file: /proc, a pseudo file system
+                    raise OutputError(
+                        f"{self.path}: cannot create a file in {where!r}: it takes no new files (a pseudo file "
+                        "system, as /proc and /sys are); write OUT in another directory"
+                    ) from None
                 raise OutputError(
-                    f"{self.path}: cannot write in {str(target.parent)!r} ({exc.strerror}); check its permissions"
+                    f"{self.path}: cannot write in {where!r} ({exc.strerror}); check its permissions"
                 ) from None
         try:  # __exit__ does not run when __enter__ fails: remove the file here
             os.close(fd)
@@ -141,6 +162,10 @@ class Output:
             raise
         except OSError as exc:  # a full disk, a quota: the output named, not the temporary file
             raise write_failure(self.shown, exc) from None
+        except InputError as exc:  # a column the format cannot hold: the writer knows no file name
+            if self.source is None or str(exc).startswith(f"{self.source}: "):
+                raise
+            raise InputError(f"{self.source}: {exc}") from None
 
     def _new_writer(self, schema: pa.Schema) -> CsvWriter | ParquetWriter | IpcWriter:
         # Straight to stdout through its path, so that each writer opens a native file as ever
@@ -184,9 +209,11 @@ class Output:
                 try:
                     shutil.copyfileobj(f, sys.stdout.buffer, 1 << 20)
                     sys.stdout.buffer.flush()
-                except BrokenPipeError:  # the reader stopped early (e.g. `| head`): not our failure
-                    devnull = os.open(os.devnull, os.O_WRONLY)
-                    os.dup2(devnull, sys.stdout.fileno())
+                except BrokenPipeError:  # the reader stopped early (e.g. `| head`): not our failure,
+                    # but no summary either (the rows never reached it): the command stops quietly,
+                    # as it does when the reader of a CSV goes away
+                    os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+                    raise
             interrupts.committed()
         else:
             # held: an interrupt during the rename acts after it, when the command may be settled
@@ -197,6 +224,47 @@ class Output:
                 self._tmp = None
                 interrupts.committed()
                 interrupts.point("committed")
+
+
+def looks_like_input(path: str, fmt: str, job: Job) -> bool:
+    """Whether the existing file ``path`` (as ``fmt``) is one that ``job`` could read as an input
+    (it has H and I columns) and holds none of the columns hconv writes, with ``job``'s prefix or
+    none, nor hconv's schema metadata: not an earlier output of hconv, so that even ``--force``
+    keeps it (``hconv convert two/*.csv --force``, a glob the shell made into IN and OUT). Reads
+    the header or the schema only; a file that cannot be read so is not an input."""
+    try:
+        if fmt == "csv":
+            header = csvio.header_names(path, job)
+            schema = None if header is None else pa.schema([(n, pa.float64()) for n in header])
+        elif fmt == "parquet":
+            schema = pq.read_schema(path)
+        else:
+            schema = _ipc_schema(path)
+    except (OSError, ValueError, HconvError, pa.ArrowException):
+        return False
+    if schema is None or any(k.startswith(b"hconv.") for k in (schema.metadata or {})):
+        return False
+    names = set(schema.names)
+    if {*layout.RESERVED, *(job.prefix + c for c in layout.RESERVED)} & names:
+        return False
+    # ω's columns under another run's prefix (out_wx, out_wy, out_wz): hconv's output too
+    if any(n.endswith("wx") and {n[:-2] + "wy", n[:-2] + "wz"} <= names for n in names):
+        return False
+    try:
+        layout.plan(schema, job, path)
+    except (HconvError, ValueError):
+        return False
+    return True
+
+
+def _ipc_schema(path: str) -> pa.Schema:
+    """The schema of an Arrow IPC file, in the file or the stream format."""
+    with pa.memory_map(path) as source:
+        try:
+            return pa.ipc.open_file(source).schema
+        except pa.ArrowInvalid:
+            source.seek(0)
+            return pa.ipc.open_stream(source).schema
 
 
 #: The errors that say the disk (or the user's quota on it) has no room: no file written there can succeed.

@@ -257,7 +257,11 @@ def convert_file(
     # Straight into a pipe's reader where one pass writes it all: CSV keeps its text, and only
     # CSV's text columns can make a second pass (csvtypes.Retype); --strict promises nothing written.
     stream = not strict and (fout == "csv" or fin != "csv")
-    out = Output(dst, fout, force=force, input_path=src, shown=dst_name, stream=stream, staged=staged)  # refuses early
+    # refuses early, and with --force an OUT that looks like an input rather than hconv's output
+    source = "stdin" if src == "-" else name or src  # as open_input names it
+    out = Output(
+        dst, fout, force=force, input_path=src, shown=dst_name, stream=stream, staged=staged, reads=job, source=source
+    )
     t0 = time.perf_counter()
     with open_input(src, fin, job, name, rows, whole) as inp:
         if fout == "csv":
@@ -275,7 +279,7 @@ def convert_file(
             inp.batches = iter(())
             types = csvtypes.whole_file(csvio.text_batches(inp))
             with csvio.reopen(inp, job) as again:
-                again_out = Output(dst, fout, force=force, input_path=src, shown=dst_name, staged=staged)
+                again_out = Output(dst, fout, force=force, input_path=src, shown=dst_name, staged=staged, source=source)
                 tally = run(again, again_out, types=types)
     tally.seconds = time.perf_counter() - t0
     return tally
@@ -315,8 +319,9 @@ def _convert(
     results = ordered_map(one, _numbered(batches, inp.first_row), threads)
     if inp.dialect is not None:
         tally.read_as = inp.dialect.describe()
-        if inp.dialect.units_row and out.fmt == "csv":  # CSV into CSV keeps its units
-            out.units = dict(zip(inp.schema.names, inp.dialect.units_text))
+    if out.fmt == "csv":  # a row of units, where the input carried units: they stay with the numbers
+        written = inp.dialect.units_text if inp.dialect is not None and inp.dialect.units_row else ()
+        out.units = csvwrite.units_row(inp.schema, inp.plan, job, written)
     if progress is not None:  # the size, before the first batch takes its time
         progress(0, inp.total)
     writing = contextlib.nullcontext(_Direct(out)) if whole else BackgroundWriter(out)

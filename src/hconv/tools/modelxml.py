@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from xml.parsers import expat
 
+from hconv import errors
 from hconv.errors import InputError, on_command_line, option
 
 #: The largest model file hconv reads [bytes]. Real URDF, SDF and MJCF files are kilobytes to a
@@ -71,10 +72,7 @@ _NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
 def clip(text: str, limit: int = QUOTED) -> str:
     """``text`` whole if it has at most ``limit`` characters, else its start and its end either
     side of "…" in ``limit`` characters: a value from a file can be megabytes long."""
-    if len(text) <= limit:
-        return text
-    tail = (limit - 1) // 3
-    return f"{text[: limit - 1 - tail]}…{text[len(text) - tail :]}"
+    return errors.clip(text, limit)
 
 
 def quote(value: str) -> str:
@@ -381,7 +379,34 @@ def read(path: Path, shown: str, budget: Budget | None = None) -> Node:
     budget.add_bytes(len(data), shown)
     if not data.strip():
         raise InputError(f"{shown}: is empty; give a URDF, SDF or MJCF model")
+    other = _other_kind(data)
+    if other:  # expat would say "not well-formed (invalid token)" of its first bytes
+        raise InputError(f"{shown}: is {other}, not a model file; give a URDF, SDF or MJCF model (XML text)")
     return parse_bytes(data, shown, budget)
+
+
+def _other_kind(data: bytes) -> str | None:
+    """What a file whose first bytes are no XML is, by its magic number (a spreadsheet, an
+    archive): None for any other file, which the XML parser then reads or refuses."""
+    if data.startswith(b"PK\x03\x04"):
+        head = data[:4096]
+        if b"[Content_Types].xml" in head or b"xl/" in head:
+            return "an Excel workbook (.xlsx, a zip of spreadsheet parts)"
+        if b"opendocument.spreadsheet" in head:
+            return "an OpenDocument spreadsheet (.ods, a zip)"
+        return "a zip archive (unzip it and give the model file inside)"
+    for magic, what in _MAGIC:
+        if data.startswith(magic):
+            return what
+    return None
+
+
+#: The first bytes of other files given as a model, and what a message calls them.
+_MAGIC = (
+    (b"\x1f\x8b", "gzip-compressed (decompress it first: gzip -dc)"),
+    (b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1", "an Excel 97-2003 workbook (.xls)"),
+    (b"PAR1", "a Parquet file"),
+)
 
 
 def _check_kind(st: os.stat_result, shown: str) -> None:
