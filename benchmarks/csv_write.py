@@ -3,9 +3,10 @@ each, and their ratio (above 1: hconv's is faster), measured in the same run.
 
     python benchmarks/csv_write.py [rows] [--quoted] [--repeats N]   # default 2,000,000 rows, 5 repeats
 
-Both writers format on one core with pyarrow's formatting: where no value needs quotes, hconv's
-is pyarrow's writer, and the ratio is 1 but for noise; where values need quotes, it measures
-what quoting only those costs (hconv.tables.csvwrite).
+Both format with pyarrow's formatting, pyarrow's writer on one thread, hconv's on every core (a
+block's pieces on threads, hconv.tables.csvwrite): the wall-clock ratio is what the other cores
+bring, the CPU ratio what cutting the rows into pieces and quoting only the values that need it
+cost. On a machine whose other cores are busy, the wall-clock ratio falls to the CPU one.
 
 The table is what `hconv convert` writes for a CSV of H, a sym6 inertia and a text column read
 as text: the input's columns, ω, residual, cond and status (dictionary), and `w_unit`. Each

@@ -283,3 +283,99 @@ def test_convert_unit_option_over_a_header_unit_writes_a_units_row(tmp_path, cap
     proc = hconv_inprocess("convert", src, str(out), "--force", "--unit", "H=g*cm**2/s", capsys=capsys)
     assert proc.returncode == 0, proc.stderr
     assert out.read_text().splitlines()[1].startswith("0.0,3,20,")  # the first body's row: no units row
+
+
+def test_csv_writer_pieces_on_threads_write_the_bytes_of_one_thread(tmp_path, monkeypatch):
+    """A table cut into pieces formatted on threads and written in order: the bytes of one
+    thread's writing, with the pieces' edges on quoted values, nulls beside empty texts and
+    plain rows (a piece with no null of a column that has some quotes its empty texts all the
+    same), with a row of units, into a .tsv, for tables smaller than a piece and larger than
+    a slice, one after another (the buffers used again, and grown), and a value needing quotes
+    that the scan missed, in a middle piece (its slice's rows written joined)."""
+    import numpy as np
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+
+    from hconv.tables import csvwrite
+
+    rng = np.random.default_rng(3)
+    n = 1000
+    words = np.array([f"w{k}" for k in range(n)], dtype=object)
+    words[rng.integers(0, n, 120)] = "a,b"
+    words[rng.integers(0, n, 60)] = 'say "hi"\tthere'
+    words[rng.integers(0, n, 60)] = ""
+    words[rng.integers(0, n, 60)] = None
+    t = pa.table(
+        {
+            "text": pa.array(words, pa.string()),
+            "x": pa.array(np.where(rng.random(n) < 0.1, np.nan, rng.normal(size=n))),
+            "plain": pa.array([f"p{k}" for k in range(n)]),
+        }
+    )
+    blocks = [t.slice(0, 5), t.slice(5, 600), t.slice(605, 20), t.slice(625)]
+    rows_formatted: dict[int, list[int]] = {1: [], 3: []}
+    write_csv = pacsv.write_csv
+    monkeypatch.setattr(pacsv, "write_csv", lambda d, *a: rows_formatted[cores].append(d.num_rows) or write_csv(d, *a))
+    monkeypatch.setattr(csvwrite, "_PIECE_ROWS", 7)
+    monkeypatch.setattr(csvwrite, "_SLICE_ROWS", 50)
+    monkeypatch.setattr(csvwrite, "_PIECES_PER_THREAD", 4)
+    for name, delimiter in (("out.csv", ","), ("out.tsv", "\t")):
+        written = {}
+        for cores in (1, 3):  # noqa: B007 - the patched writer records by it
+            monkeypatch.setattr(csvwrite, "available_cores", lambda cores=cores: cores)
+            w = csvwrite.CsvWriter(str(tmp_path / name), t.schema, delimiter, units={"x": "m", "text": "-"})
+            for b in blocks:
+                w.write(b)
+            w.close()
+            written[cores] = (tmp_path / name).read_bytes()
+        assert written[3] == written[1]
+        rows = list(csv.reader(io.StringIO(written[3].decode(), newline=""), delimiter=delimiter))
+        assert rows[1] == ["-", "m", ""]
+        assert [r[0] for r in rows[2:]] == ["" if v is None else v for v in words]
+    # on 3 cores, slices of 150 rows, up to 12 pieces of 7 rows at least: 5 rows straight into the
+    # file; 600 as 4 slices of 11 pieces of 13 rows and one of 7; 20 as 2 of 10; 375 as 2 slices as
+    # those of the 600, and 75 rows in 9 pieces of 8 and one of 3
+    slice_150 = [13] * 11 + [7]
+    assert sorted(rows_formatted[3]) == sorted(2 * ([5] + 4 * slice_150 + [10, 10] + 2 * slice_150 + [8] * 9 + [3]))
+    # the scan sees nothing: pyarrow refuses a value in a middle piece, and its slice is joined
+    scan = csvwrite._scan
+    monkeypatch.setattr(csvwrite, "_scan", lambda t, d: ({}, False) if t.num_rows == 150 else scan(t, d))
+    plain = pa.table({"t": [f"v{k}" for k in range(150)], "x": [0.5] * 150})
+    hidden = plain.set_column(0, "t", pa.array([f"v{k}" if k != 70 else "v,70" for k in range(150)]))
+    written = {}
+    for cores in (1, 3):
+        monkeypatch.setattr(csvwrite, "available_cores", lambda cores=cores: cores)
+        w = csvwrite.CsvWriter(str(tmp_path / "hidden.csv"), plain.schema)
+        w.write(plain.slice(0, 20))
+        w.write(hidden)
+        w.close()
+        written[cores] = (tmp_path / "hidden.csv").read_text()
+    assert written[3] == written[1]
+    values = [f"v{k}" if k != 70 else '"v,70"' for k in range(150)]
+    assert written[3] == "t,x\n" + "".join(f"v{k},0.5\n" for k in range(20)) + "".join(f"{v},0.5\n" for v in values)
+
+
+def test_csv_writer_pieces_do_not_wait_for_a_pool_busy_with_another_writer(tmp_path, monkeypatch):
+    """The pool is shared by every writer of the process (a dataset's files): a writer whose pool
+    threads are all busy formats its pieces on its own thread and returns, rather than waiting
+    for the pool to take its queued share. The pool's one thread is held until the writer has
+    returned (bounded only for a writer that would wait, which then fails)."""
+    import threading
+
+    import pyarrow as pa
+
+    from hconv.tables import csvwrite
+
+    monkeypatch.setattr(csvwrite, "available_cores", lambda: 2)
+    monkeypatch.setattr(csvwrite, "_pool", None)  # a pool of one thread, not one an earlier test left larger
+    pool = csvwrite._shared_pool(1)
+    held, release = threading.Event(), threading.Event()
+    blocker = pool.submit(lambda: held.set() or release.wait(30))
+    held.wait()
+    n = 4 * csvwrite._PIECE_ROWS
+    out = _written(tmp_path, pa.table({"t": [f"v{k}" for k in range(n)]}))
+    returned_while_held = not blocker.done()
+    release.set()
+    pool.shutdown()
+    assert returned_while_held
+    assert out == b"t\n" + b"".join(b"v%d\n" % k for k in range(n))

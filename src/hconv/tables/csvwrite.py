@@ -7,7 +7,12 @@ if it is the empty text in a column that also holds nulls (``""``; a null is a b
 values are formatted by pyarrow's writer (the same cast its own ``CSVWriter`` uses), which quotes
 either every text value or none, and refuses a value that needs quotes when told to quote none.
 So the values that need quotes are given to it quoted already, with stand-ins for the characters
-it refuses (:data:`STAND_INS`), which are put back in the bytes it wrote."""
+it refuses (:data:`STAND_INS`), which are put back in the bytes it wrote.
+
+pyarrow's writer formats on one thread, without the GIL: a table of many rows is cut into pieces,
+one per core, each formatted into a buffer of its own on a thread of a pool shared by every writer
+(:func:`_shared_pool`), and the buffers go to the file in order, so the bytes are those of one
+thread's writing."""
 
 from __future__ import annotations
 
@@ -16,7 +21,9 @@ import io
 import os
 import re
 import stat
-from collections.abc import Mapping
+import threading
+from collections.abc import Callable, Mapping
+from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
@@ -25,6 +32,7 @@ import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 
 from hconv.errors import InputError
+from hconv.solve.engines import available_cores
 from hconv.tables import arrays, layout
 from hconv.tables.job import Job
 from hconv.tables.sets import header_name
@@ -182,11 +190,10 @@ def _rows_to_quote(text: pa.Array, delimiter: str, with_null: bool) -> np.ndarra
         offsets = np.frombuffer(text.buffers()[1], wide)[text.offset : text.offset + n + 1].astype(np.int64)
         mask[np.searchsorted(offsets, hits + offsets[0], side="right") - 1] = True
     if text.null_count:
-        valid = arrays.to_numpy(text.is_valid())
-        mask &= valid  # a null's slot may hold bytes: it is written blank all the same
-        if with_null:
-            lengths = pc.binary_length(text)
-            mask |= valid & (arrays.to_numpy(lengths.fill_null(arrays.scalar(1, lengths.type))) == 0)
+        mask &= arrays.to_numpy(text.is_valid())  # a null's slot may hold bytes: it is written blank all the same
+    if with_null:  # the table's column holds nulls, though this slice of it may hold none
+        lengths = pc.binary_length(text)
+        mask |= arrays.to_numpy(lengths.fill_null(arrays.scalar(1, lengths.type))) == 0
     return mask
 
 
@@ -198,6 +205,13 @@ def _quoted_with_stand_ins(values: pa.Array, delimiter: str) -> pa.Array:
         values = pc.replace_substring(values, ch, by)
     wrap = arrays.scalar(quote, values.type)
     return pc.binary_join_element_wise(wrap, values, wrap, arrays.scalar("", values.type))
+
+
+def _given_quoted(text: pa.Array, delimiter: str, with_null: bool) -> pa.Array:
+    """``text`` with the values that need quotes (:func:`_rows_to_quote`) quoted with stand-ins."""
+    mask = arrays.from_numpy(_rows_to_quote(text, delimiter, with_null))
+    quoted = _quoted_with_stand_ins(pc.filter(text, mask), delimiter)
+    return pc.replace_with_mask(text, mask, quoted.cast(text.type))
 
 
 def _put_back(a: np.ndarray, delimiter: str) -> None:
@@ -259,9 +273,82 @@ def units_line(schema: pa.Schema, units: Mapping[str, str]) -> list[str]:
     return row
 
 
-#: Rows formatted into the writer's buffer at once, which bounds its size (a Parquet or Arrow IPC
-#: input may hand the writer a whole row group or record batch); fewer at a time cost more.
+#: Rows formatted into one of the writer's buffers at once, which bounds its size (a Parquet or
+#: Arrow IPC input may hand the writer a whole row group or record batch); fewer at a time cost more.
 _SLICE_ROWS = 65_536
+#: The fewest rows a piece formatted on a thread of its own has: below, handing it to a thread
+#: costs more than it saves, and a table of fewer than twice as many stays on one thread.
+_PIECE_ROWS = 4096
+#: Pieces a thread formats of a slice (:func:`_pieces`).
+_PIECES_PER_THREAD = 4
+
+_pool: ThreadPoolExecutor | None = None
+_pool_threads = 0
+_pool_pid = 0
+_pool_lock = threading.Lock()
+
+
+def _shared_pool(threads: int) -> ThreadPoolExecutor:
+    """One pool for the process's writers, started on the first table that is cut into pieces (a
+    pool per table would start threads every time), and again in a process forked from it, which
+    inherits the pool but not its threads."""
+    global _pool, _pool_threads, _pool_pid
+    with _pool_lock:
+        if _pool is None or _pool_threads < threads or _pool_pid != os.getpid():
+            _pool = ThreadPoolExecutor(threads, thread_name_prefix="hconv-csv")
+            _pool_threads, _pool_pid = threads, os.getpid()
+        return _pool
+
+
+def _threads(n: int) -> int:
+    """Threads that format ``n`` rows: one per core, with :data:`_PIECE_ROWS` rows each at least."""
+    return max(1, min(available_cores(), n // _PIECE_ROWS))
+
+
+def _pieces(n: int, threads: int) -> int:
+    """Pieces ``n`` rows are cut into for ``threads``: :data:`_PIECES_PER_THREAD` each, of
+    :data:`_PIECE_ROWS` rows at least (one piece a thread left the others waiting for a thread
+    the busy machine ran late; with several, it holds them up by one small piece)."""
+    return 1 if threads == 1 else max(threads, min(_PIECES_PER_THREAD * threads, n // _PIECE_ROWS))
+
+
+def _on_threads(jobs: int, threads: int, job: Callable[[int], None]) -> None:
+    """``job(0)`` … ``job(jobs - 1)`` on ``threads``, the caller's and the pool's, each taking the next
+    until none is left (a pool thread that starts late, on a busy machine, leaves its share to
+    the others rather than the caller waiting for it); returns when every job has ended, so that
+    none still writes into a buffer, and re-raises the first job's exception."""
+    if threads == 1:
+        for j in range(jobs):
+            job(j)
+        return
+    taken = iter(range(jobs))
+    lock = threading.Lock()
+
+    def take() -> None:
+        while True:
+            with lock:
+                j = next(taken, None)
+            if j is None:
+                return
+            try:
+                job(j)
+            except BaseException:
+                with lock:  # the rows are written another way: the jobs left are not needed
+                    for _ in taken:
+                        pass
+                raise
+
+    futures: list[Future[None]] = [_shared_pool(threads - 1).submit(take) for _ in range(threads - 1)]
+    error: BaseException | None = None
+    try:
+        take()
+    except BaseException as exc:  # every piece ended first: the pool's may still write
+        error = exc
+    for f in futures:  # one still queued behind another writer's (the pool is shared) is not waited for
+        if not f.cancel():
+            error = error or f.exception()
+    if error is not None:
+        raise error
 
 
 class CsvWriter:
@@ -282,7 +369,7 @@ class CsvWriter:
         # rows go through the buffer, so that a late refusal has written none of them
         self._seekable = not os.path.exists(path) or stat.S_ISREG(os.stat(path).st_mode)
         self._f: Any = pa.OSFile(path, "wb") if self._seekable else open(path, "wb")  # noqa: SIM115 - close() closes it
-        self._buf: pa.Buffer | None = None
+        self._bufs: list[pa.Buffer | None] = []  # one a piece of a slice, used again for every table
         wx, self._unit_column = layout.output_name("wx", schema), layout.output_name(UNIT_COLUMN, schema)
         meta = schema.field(wx).metadata or {} if wx in schema.names else {}
         self._unit = meta[b"unit"].decode() if b"unit" in meta else None  # only tables with ω have one
@@ -315,12 +402,8 @@ class CsvWriter:
         if marked and stand_in:
             self._joined(t, 0)
             return
-        for k, text in marked.items():
-            mask = _rows_to_quote(text, self._delimiter, text.null_count > 0)
-            quoted = _quoted_with_stand_ins(pc.filter(text, arrays.from_numpy(mask)), self._delimiter)
-            cols[k] = pc.replace_with_mask(text, arrays.from_numpy(mask), quoted.cast(text.type))
-        if marked or not self._seekable:
-            self._through_buffer(t, pa.Table.from_arrays(cols, names=names) if marked else t, bool(marked))
+        if marked or not self._seekable or _threads(t.num_rows) > 1:
+            self._through_buffer(t, marked)
             return
         at = self._f.tell()
         try:
@@ -331,33 +414,55 @@ class CsvWriter:
             self._f = pa.OSFile(self._path, "ab")
             self._joined(t, 0)
 
-    def _through_buffer(self, t: pa.Table, given: pa.Table, stand_ins: bool) -> None:
-        """``given`` (``t`` with the values that need quotes given quoted) written a slice at a
-        time through the buffer, the stand-ins put back where there are any."""
-        for k in range(0, t.num_rows, _SLICE_ROWS):
+    def _through_buffer(self, t: pa.Table, marked: dict[int, pa.Array]) -> None:
+        """``t`` written through the buffers a slice at a time, :data:`_SLICE_ROWS` rows a thread,
+        its pieces (:func:`_pieces`) formatted on threads (:func:`_threads`) and written in order;
+        the values of the ``marked`` columns (their text, by index) that need quotes given quoted
+        with stand-ins, which are put back (the module's docstring)."""
+        step = _SLICE_ROWS * _threads(t.num_rows)
+        for k in range(0, t.num_rows, step):
+            rows = min(step, t.num_rows - k)
+            threads = _threads(rows)
+            pieces = _pieces(rows, threads)
+            size = -(-rows // pieces)
+            written: list[pa.Buffer] = [pa.py_buffer(b"")] * pieces
+
+            def format_piece(j: int, first: int = k, rows: int = rows, size: int = size, out: list = written) -> None:
+                at, stop = first + j * size, first + rows
+                length = max(0, min(size, stop - at))  # the slice's last piece may be short, or empty
+                piece = t.slice(at, length)
+                for c, text in marked.items():  # null beside empty: decided on the whole table
+                    given = _given_quoted(text.slice(at, length), self._delimiter, text.null_count > 0)
+                    piece = piece.set_column(c, t.schema.names[c], given)
+                buf, n = self._formatted(piece, j)
+                if marked:
+                    _put_back(np.frombuffer(buf, np.uint8)[:n], self._delimiter)
+                out[j] = buf.slice(0, n)
+
+            if len(self._bufs) < pieces:
+                self._bufs += [None] * (pieces - len(self._bufs))
             try:
-                buf, size = self._formatted(given.slice(k, _SLICE_ROWS))
+                _on_threads(pieces, threads, format_piece)
             except pa.ArrowInvalid:  # a value pyarrow refuses unquoted that the scan did not see
                 self._joined(t, k)  # the rows before it are written alike either way
                 return
-            if stand_ins:
-                _put_back(np.frombuffer(buf, np.uint8)[:size], self._delimiter)
-            self._f.write(buf.slice(0, size))
+            for buf in written:
+                self._f.write(buf)
 
-    def _formatted(self, t: pa.Table) -> tuple[pa.Buffer, int]:
-        """``t``'s rows as pyarrow's writer formats them, in the writer's buffer (made larger
-        while they do not fit), and their size."""
+    def _formatted(self, t: pa.Table, j: int) -> tuple[pa.Buffer, int]:
+        """``t``'s rows as pyarrow's writer formats them, in buffer ``j`` (made larger while they
+        do not fit), and their size. Only one thread at a time formats into a given buffer."""
         while True:
-            if self._buf is None:
-                self._buf = pa.allocate_buffer(3 * t.nbytes + (64 << 10))  # a float64's text: up to 25 bytes
-            buf = self._buf
+            buf = self._bufs[j]
+            if buf is None:
+                buf = self._bufs[j] = pa.allocate_buffer(3 * t.nbytes + (64 << 10))  # a float64's text: up to 25 bytes
             sink = pa.FixedSizeBufferWriter(buf)
             try:
                 pacsv.write_csv(t, sink, self._plain)
             except OSError as exc:
                 if "out of bounds" not in str(exc):  # pyarrow's "Write out of bounds": no room left
                     raise
-                self._buf = pa.allocate_buffer(2 * buf.size)
+                self._bufs[j] = pa.allocate_buffer(2 * buf.size)
                 continue
             return buf, sink.tell()
 
