@@ -294,7 +294,7 @@ def test_output_force_refuses_an_input_a_glob_made_into_out(tmp_path, capsys, mo
     code, _, err = run_inprocess("convert", "two/a.csv", "two/b.csv", "--force", "-q", capsys=capsys)
     assert (code, err) == (
         4,
-        "hconv: error: two/b.csv: looks like an input (it has H and I columns, none of hconv's output "
+        "hconv: error: two/b.csv: looks like an input (it has H and I columns, not hconv's output "
         "columns), so --force does not overwrite it (an unquoted glob?); quote the glob, or remove or "
         "rename the file\n",
     )
@@ -328,6 +328,31 @@ def test_output_force_overwrites_hconvs_own_output(fmt, before, tmp_path, capsys
     code, _, err = run_inprocess("convert", "in.csv", out, "--force", "-q", capsys=capsys)
     assert code == 4 and f"{out}: looks like an input" in err and err.count("\n") == 1
     assert Path(out).read_bytes() == before_bytes
+
+
+def test_output_force_refuses_an_input_with_a_status_of_its_own_or_hconvs_metadata(tmp_path, capsys, monkeypatch):
+    """Before (second trial): an input with its own `status` (the reason for --prefix), or a
+    Parquet table of hconv's whose ω columns were dropped (its metadata kept), counted as
+    hconv's output, and `--force --prefix out_` replaced it, exit 0."""
+    monkeypatch.chdir(tmp_path)
+    own = "Hx,Hy,Hz,I,status\n1,2,3,2,landed\n"
+    Path("a.csv").write_text(own)
+    Path("b.csv").write_text(own)
+    code, _, err = run_inprocess("convert", "a.csv", "b.csv", "--force", "--prefix", "out_", "-q", capsys=capsys)
+    assert code == 4 and "b.csv: looks like an input" in err
+    assert Path("b.csv").read_text() == own
+    Path("in.csv").write_bytes(SCENE_CSV.read_bytes())
+    assert run_inprocess("convert", "in.csv", "done.parquet", "-q", capsys=capsys)[0] == 0
+    done = pq.read_table("done.parquet")
+    stripped = done.drop_columns(
+        [c for c in done.column_names if c in ("wx", "wy", "wz", "residual", "cond", "status")]
+    )
+    assert any(k.startswith(b"hconv.") for k in stripped.schema.metadata)  # pyarrow kept it
+    pq.write_table(stripped, "c.parquet")
+    kept = Path("c.parquet").read_bytes()
+    code, _, err = run_inprocess("convert", "in.csv", "c.parquet", "--force", "-q", capsys=capsys)
+    assert code == 4 and "c.parquet: looks like an input" in err
+    assert Path("c.parquet").read_bytes() == kept
 
 
 @pytest.mark.parametrize("force", [(), ("--force",)])

@@ -111,7 +111,7 @@ class Output:
             raise OutputError(f"{path}: already exists; pass {option('force', True)} to overwrite it")
         if target.exists() and reads is not None and looks_like_input(self._target, fmt, reads):
             raise OutputError(
-                f"{path}: looks like an input (it has H and I columns, none of hconv's output columns), so "
+                f"{path}: looks like an input (it has H and I columns, not hconv's output columns), so "
                 f"{option('force', True)} does not overwrite it (an unquoted glob?); quote the glob, or remove "
                 "or rename the file"
             )
@@ -228,10 +228,13 @@ class Output:
 
 def looks_like_input(path: str, fmt: str, job: Job) -> bool:
     """Whether the existing file ``path`` (as ``fmt``) is one that ``job`` could read as an input
-    (it has H and I columns) and holds none of the columns hconv writes, with ``job``'s prefix or
-    none, nor hconv's schema metadata: not an earlier output of hconv, so that even ``--force``
-    keeps it (``hconv convert two/*.csv --force``, a glob the shell made into IN and OUT). Reads
-    the header or the schema only; a file that cannot be read so is not an input."""
+    (it has H and I columns) and is not an earlier output of hconv, so that even ``--force`` keeps
+    it (``hconv convert two/*.csv --force``, a glob the shell made into IN and OUT). An output of
+    hconv holds every column hconv writes (:data:`hconv.tables.layout.OUTPUT_COLUMNS`) under one
+    prefix, any prefix; a column or two of those names is the input's own (a ``status`` of the
+    user's, which ``--prefix`` is for), and hconv's schema metadata is no sign either (a table
+    whose ω columns were dropped keeps it). Reads the header or the schema only; a file that
+    cannot be read so is not an input."""
     try:
         if fmt == "csv":
             header = csvio.header_names(path, job)
@@ -242,14 +245,14 @@ def looks_like_input(path: str, fmt: str, job: Job) -> bool:
             schema = _ipc_schema(path)
     except (OSError, ValueError, HconvError, pa.ArrowException):
         return False
-    if schema is None or any(k.startswith(b"hconv.") for k in (schema.metadata or {})):
+    if schema is None:
         return False
     names = set(schema.names)
-    if {*layout.RESERVED, *(job.prefix + c for c in layout.RESERVED)} & names:
-        return False
-    # ω's columns under another run's prefix (out_wx, out_wy, out_wz): hconv's output too
-    if any(n.endswith("wx") and {n[:-2] + "wy", n[:-2] + "wz"} <= names for n in names):
-        return False
+    last = layout.OUTPUT_COLUMNS[-1]
+    for name in names:
+        prefix = name[: -len(last)] if name.endswith(last) else None
+        if prefix is not None and all(prefix + c in names for c in layout.OUTPUT_COLUMNS):
+            return False
     try:
         layout.plan(schema, job, path)
     except (HconvError, ValueError):
