@@ -2,6 +2,12 @@
 
 from __future__ import annotations
 
+import csv
+import io
+
+import pytest
+from helpers import run_inprocess
+
 
 def _wheels(tmp_path, text: str, name: str = "in.csv"):
     path = tmp_path / name
@@ -202,3 +208,17 @@ def test_convert_row_against_a_header_of_one_column_says_column(tmp_path, capsys
     proc = hconv_inprocess("convert", str(src), str(tmp_path / "out.csv"), capsys=capsys)
     assert proc.returncode == 3
     assert ": data row 1 has 2 values, but the header names 1 column; every row needs" in proc.stderr.decode()
+
+
+@pytest.mark.parametrize("marker", ["NA", "null", "#N/A", "n/a"])
+def test_convert_file_first_row_of_null_markers_is_data_not_units(marker, tmp_path, capsys):
+    """Before (second trial): a first data row of NA (null, #N/A, n/a …) was read as a row of
+    units, and pint could not read 'NA': exit 3, 'or remove that row if it is data'. It is a row
+    with missing values (invalid_input), as the same row further down is."""
+    src = tmp_path / "na.csv"
+    src.write_text(f"Hx,Hy,Hz,I\n{marker},{marker},{marker},{marker}\n1,2,3,2\n")
+    code, out, err = run_inprocess("convert", str(src), "-", "--to", "csv", "-q", capsys=capsys)
+    assert code == 0, err
+    rows = list(csv.DictReader(io.StringIO(out)))
+    assert [r["status"] for r in rows] == ["invalid_input", "ok"]
+    assert [float(rows[1][c]) for c in ("wx", "wy", "wz")] == [0.5, 1.0, 1.5]

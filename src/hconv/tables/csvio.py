@@ -117,7 +117,9 @@ def _units_row(row: list[str], names: list, plan: layout.Layout, name: str) -> t
     if len(row) != len(names):
         return ()
     quantity = {c: QUANTITY[g.name] for g in plan.groups.values() for c in g.columns}
-    values = {c: row[names.index(c)].strip() for c in plan.numeric}
+    # a null marker (NA, null, #N/A) is a missing value, not a unit: a first data row of them
+    # was taken for a row of units that pint could not read
+    values = {c: "" if (v := row[names.index(c)].strip()) in csvtypes.NULL_TEXTS else v for c in plan.numeric}
     if not any(values.values()) or any(_looks_numeric(v) for v in values.values() if v):
         return ()
     for c, v in values.items():

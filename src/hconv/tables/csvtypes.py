@@ -42,7 +42,9 @@ from hconv.tables import arrays
 _DEFAULTS = pacsv.ConvertOptions()
 #: Text that is a missing value in a typed column: pyarrow's CSV null markers, less its NaN
 #: spellings, since NaN is a float value.
-NULLS = arrays.strings([v for v in _DEFAULTS.null_values if v.lstrip("-").lower() != "nan"])
+_NULL_LIST = [v for v in _DEFAULTS.null_values if v.lstrip("-").lower() != "nan"]
+NULLS = arrays.strings(_NULL_LIST)
+NULL_TEXTS = frozenset(_NULL_LIST)  #: the same, as Python text
 _BOOLS = arrays.strings(list(_DEFAULTS.true_values) + list(_DEFAULTS.false_values))
 
 #: The types a text column may get, in the order pyarrow's CSV reader tries them: the first that
