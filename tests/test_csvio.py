@@ -222,3 +222,25 @@ def test_convert_file_first_row_of_null_markers_is_data_not_units(marker, tmp_pa
     rows = list(csv.DictReader(io.StringIO(out)))
     assert [r["status"] for r in rows] == ["invalid_input", "ok"]
     assert [float(rows[1][c]) for c in ("wx", "wy", "wz")] == [0.5, 1.0, 1.5]
+
+
+def test_csv_value_error_of_a_reader_on_one_thread_names_column_value_and_row(tmp_path):
+    """pyarrow's reader on one thread (a cluster's part of a file) says "Row #3: " before the
+    conversion error; that message came out raw, 'not a readable CSV file (In CSV column #1:
+    Row #3: …)', where other runs named the column, the value and its data row (second trial)."""
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+
+    from hconv.tables import csvio
+    from hconv.tables.sniff import Dialect
+
+    path = tmp_path / "bad.csv"
+    path.write_text("Hx,Hy,Hz,I\n1,2,3,2\n1,x,3,2\n")
+    opts = pacsv.ConvertOptions(column_types={c: pa.float64() for c in ("Hx", "Hy", "Hz", "I")})
+    with pytest.raises(pa.ArrowInvalid, match="Row #3") as raised:
+        pacsv.read_csv(path, read_options=pacsv.ReadOptions(use_threads=False), convert_options=opts)
+    err = csvio._csv_value_error(str(path), "bad.csv", ["Hx", "Hy", "Hz", "I"], Dialect(), raised.value)
+    assert str(err) == (
+        "bad.csv: column 'Hy' must be numeric but holds 'x' in data row 2; "
+        "fix or blank that value (a blank becomes a row with status invalid_input)"
+    )

@@ -319,7 +319,8 @@ def text_batches(inp: Input) -> Iterator[pa.RecordBatch]:
         return
 
 
-_CSV_COLUMN = re.compile(r"In CSV column #(\d+): CSV conversion error to \w+: invalid value '(.*)'")
+# pyarrow's reader of a part of a file (a cluster's task) puts "Row #N: " before the conversion
+_CSV_COLUMN = re.compile(r"In CSV column #(\d+): (?:Row #\d+: )?CSV conversion error to \w+: invalid value '(.*)'")
 
 
 _CSV_RAGGED = re.compile(r"Expected (\d+) columns, got (\d+)")
