@@ -61,3 +61,31 @@ def test_quoted_clips_a_long_value_to_its_start_and_end(n):
 
 def test_quoted_keeps_a_line_break_escaped():
     assert errors.quoted("a\nb") == "'a\\nb'"
+
+
+def test_option_echoes_a_long_value_clipped_on_the_command_line_and_in_python():
+    """Before (second trial): `--unit I=<560 characters>` was echoed whole, twice, in a line of
+    about 1,100 characters; an option's value is echoed in at most ECHOED characters."""
+    long = "I=" + "q" * 300
+    with errors.command_line():
+        shown = errors.option("unit_options", long)
+        mapped = errors.entry("mapping", "Hx", "L" * 300)
+    assert shown.startswith("--unit I=qqq") and len(shown) == len("--unit ") + errors.ECHOED and "…" in shown
+    assert mapped.startswith("--map Hx=LLL") and len(mapped) == len("--map Hx=") + errors.ECHOED
+    python = errors.option("unit_options", long)
+    assert python.startswith("unit_options='I=q") and len(python) == len("unit_options=") + errors.ECHOED
+    assert errors.option("omega_unit", "deg/s") == "omega_unit='deg/s'"  # short values whole
+
+
+def test_cli_long_values_in_option_errors_are_clipped(capsys):
+    """`--unit`, an invalid `--from` (click's own message) and `--omega-unit` with a pasted page
+    of text: one line each, well under the 400 to 1,100 characters they were."""
+    long = "q" * 300
+    for args in (
+        ("one", "--H", "1,2,3", "--I", "1", "--unit", f"I={long}"),
+        ("one", "--H", "1,2,3", "--I", "1", "--omega-unit", long),
+        ("convert", "in.csv", "-", "--from", long),
+    ):
+        proc = hconv_inprocess(*args, capsys=capsys)
+        err = proc.stderr.decode()
+        assert proc.returncode == 2 and err.count("\n") == 1 and len(err) < 300 and "…" in err, err

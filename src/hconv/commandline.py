@@ -447,6 +447,8 @@ def usage_failure(exc: Any) -> NoReturn:
         sys.exit(0)
     command = getattr(ctx, "command_path", "hconv")
     message = " ".join(exc.format_message().split())
+    # click quotes the value it refused whole: a pasted page would be echoed whole
+    message = re.sub(rf"'([^']{{{errors.ECHOED + 1},}})'", lambda m: errors.quoted(m.group(1), errors.ECHOED), message)
     print(f"hconv: error: {message} (see '{command} --help')", file=sys.stderr)
     sys.exit(exc.exit_code)
 

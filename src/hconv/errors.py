@@ -42,8 +42,8 @@ def option(name: str, value: object = _UNSET) -> str:
     True is the flag alone (``--force``, ``force=True``)."""
     if _reader == "cli":
         flag = FLAGS.get(name, "--" + name.replace("_", "-"))
-        return flag if value is _UNSET or value is True else f"{flag} {value}"
-    return name if value is _UNSET else f"{name}={value!r}"
+        return flag if value is _UNSET or value is True else f"{flag} {clip(str(value), ECHOED)}"
+    return name if value is _UNSET else f"{name}={clip(repr(value), ECHOED)}"
 
 
 def entry(name: str, key: str, value: str) -> str:
@@ -56,8 +56,8 @@ def entries(name: str, pairs: dict[str, str]) -> str:
     """Entries of a mapping option: ``--map Hx=Lx,Hy=Ly`` on the command line,
     ``mapping={'Hx': 'Lx', 'Hy': 'Ly'}`` in Python."""
     if _reader == "cli":
-        return f"{option(name)} " + ",".join(f"{k}={v}" for k, v in pairs.items())
-    return f"{name}={pairs!r}"
+        return f"{option(name)} " + ",".join(f"{k}={clip(str(v), ECHOED)}" for k, v in pairs.items())
+    return f"{name}={clip(repr(pairs), ECHOED)}"
 
 
 #: What an interrupted run says after ``hconv: error:``, wherever the interrupt lands.
@@ -73,6 +73,9 @@ def first_line(exc: BaseException) -> str:
 #: The most characters of a value from a file that a message quotes (:func:`quoted`): a value can
 #: be megabytes long, and a message is one line a terminal shows whole.
 QUOTED = 40
+#: The most characters of an option's value that a message echoes (:func:`option`): the user typed
+#: it, so more of it is shown than of a file's value, but a pasted page is not echoed whole.
+ECHOED = 80
 
 
 def clip(text: str, limit: int = QUOTED) -> str:

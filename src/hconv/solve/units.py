@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from hconv.errors import UsageError, option
+from hconv.errors import ECHOED, UsageError, option, quoted
 from hconv.solve.status import UNIT_DENSITY_BAND
 
 #: The SI unit of each quantity, written as pint parses it.
@@ -121,7 +121,7 @@ def factor(quantity: str, unit: str, where: str = "unit") -> float:
         one = ureg.Quantity(1.0, unit)
     except Exception:  # pint raises several kinds for text it cannot parse
         raise UsageError(
-            f"{where}: pint does not understand the unit {unit!r}; write it like g*cm**2 or lb*ft**2/s"
+            f"{where}: pint does not understand the unit {quoted(unit, ECHOED)}; write it like g*cm**2 or lb*ft**2/s"
         ) from None
     return _to_si(quantity, one, repr(unit), where)
 
