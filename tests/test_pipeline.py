@@ -280,3 +280,19 @@ def test_convert_file_errors_name_python_keywords_not_flags(tmp_path):
     (tmp_path / "out.parquet").write_bytes(b"")
     with pytest.raises(OutputError, match=r"already exists; pass force=True to overwrite it$"):
         pipeline.convert_file(str(ROOT / "examples" / "data" / "scene.parquet"), str(tmp_path / "out.parquet"))
+
+
+@pytest.mark.parametrize("bad_rows, verb", [(1, "is"), (2, "are")])
+def test_convert_file_strict_names_the_rows_not_ok_in_a_sentence(bad_rows, verb, tmp_path):
+    """`--strict` names the rows that are not ok; one row 'is' not ok (it said 'are')."""
+    from hconv.errors import StrictError
+    from hconv.tables.pipeline import convert_file
+
+    rows = ["1,2,3,2"] + ["1,2,3,-2"] * bad_rows  # a negative moment: no mass distribution has it
+    src = tmp_path / "in.csv"
+    src.write_text("Hx,Hy,Hz,I\n" + "\n".join(rows) + "\n")
+    with pytest.raises(StrictError) as raised:
+        convert_file(str(src), str(tmp_path / "out.csv"), strict=True)
+    named = ", ".join(f"row {k} (not_positive_definite)" for k in range(2, 2 + bad_rows))
+    assert f"{named} {verb} not ok; nothing was written" in str(raised.value)
+    assert not (tmp_path / "out.csv").exists()

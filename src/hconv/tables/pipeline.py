@@ -379,6 +379,7 @@ def _check_strict(table: pa.Table, first_row: int, source: str) -> None:
         )
         more = f" and {bad.size - STRICT_ROWS_NAMED} more in this batch" if bad.size > STRICT_ROWS_NAMED else ""
         raise StrictError(
-            f"{source}: {option('strict', True)}, and {named}{more} are not ok; nothing was written "
+            f"{source}: {option('strict', True)}, and {named}{more} {'is' if bad.size == 1 else 'are'} not ok; "
+            "nothing was written "
             f"(drop {option('strict', True)} to keep every row with its status)"
         )
