@@ -367,7 +367,10 @@ def test_csv_writer_pieces_do_not_wait_for_a_pool_busy_with_another_writer(tmp_p
     from hconv.tables import csvwrite
 
     monkeypatch.setattr(csvwrite, "available_cores", lambda: 2)
-    monkeypatch.setattr(csvwrite, "_pool", None)  # a pool of one thread, not one an earlier test left larger
+    from hconv.solve.engines import SharedPool
+
+    # a pool of one thread, not one an earlier test left larger
+    monkeypatch.setattr(csvwrite, "_shared_pool", SharedPool("hconv-csv"))
     pool = csvwrite._shared_pool(1)
     held, release = threading.Event(), threading.Event()
     blocker = pool.submit(lambda: held.set() or release.wait(30))

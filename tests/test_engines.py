@@ -190,3 +190,15 @@ def test_convert_plain_call_follows_the_environment(fresh, monkeypatch):
     monkeypatch.setenv("HCONV_ENGINE", "gpu")
     with pytest.raises(UsageError, match="HCONV_ENGINE must be one of auto, numpy, compiled, got 'gpu'"):
         hconv.convert(h, i)
+
+
+def test_shared_pool_is_kept_grown_when_asked_more_and_new_in_a_forked_process(monkeypatch):
+    from hconv.solve import engines
+
+    shared = engines.SharedPool("hconv-test")
+    first = shared(2)
+    assert shared(1) is first and shared(2) is first  # kept: no threads started per call
+    grown = shared(3)
+    assert grown is not first and grown._max_workers >= 3
+    monkeypatch.setattr(engines.os, "getpid", lambda: -1)  # as in a process forked from this one
+    assert shared(1) is not grown

@@ -27,9 +27,7 @@ Shapes: I ``(k, N)`` in its form's value order (six numbers or nine row-major), 
 from __future__ import annotations
 
 import math
-import os
 import threading
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -37,7 +35,7 @@ from hconv.kernels.eft import splitter
 from hconv.kernels.linsolve import MAX_REFINE_STEPS, STOP_TOL
 from hconv.kernels.spectrum import ROOT_NEWTON_STEPS, ROOT_RANGE, ROOT_START
 from hconv.solve import rowcode  # the C extension (setup.py)
-from hconv.solve.engines import available_cores
+from hconv.solve.engines import SharedPool, available_cores
 from hconv.solve.status import CODE, ILL_CONDITIONED_TOL, SINGULAR_RTOL_EPS, SYMMETRY_RTOL, TRIANGLE_RTOL
 
 #: Rows per thread below which a call stays on its caller's thread (handing rows to another
@@ -88,10 +86,8 @@ def _configure() -> None:
 
 
 _configure()
-_pool: ThreadPoolExecutor | None = None
-_pool_threads = 0
-_pool_pid = 0
-_pool_lock = threading.Lock()
+#: The process's threads for blocks of rows.
+_shared_pool = SharedPool("hconv-rows")
 
 
 def _threads(n: int) -> int:
@@ -102,18 +98,6 @@ def _threads(n: int) -> int:
     if blocks < 2 or threading.current_thread() is not threading.main_thread():
         return 1
     return max(1, min(blocks, available_cores()))
-
-
-def _shared_pool(threads: int) -> ThreadPoolExecutor:
-    """One pool for the process, started on the first call that needs it (a pool per call would
-    start threads every time), and again in a process forked from it (a multiprocessing or Dask
-    worker), which inherits the pool but not its threads."""
-    global _pool, _pool_threads, _pool_pid
-    with _pool_lock:
-        if _pool is None or _pool_threads < threads or _pool_pid != os.getpid():
-            _pool = ThreadPoolExecutor(threads, thread_name_prefix="hconv-rows")
-            _pool_threads, _pool_pid = threads, os.getpid()
-        return _pool
 
 
 #: ``one(I, nine, H, refined, diagnostics, cond_limit)``: one body, ``I`` ``(3, 3)`` or ``(6,)``

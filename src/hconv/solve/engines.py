@@ -22,6 +22,8 @@ the ``residual`` may differ in the last bits (docs/engines.md says by how much, 
 from __future__ import annotations
 
 import os
+import threading
+from concurrent.futures import ThreadPoolExecutor
 
 from hconv.errors import UsageError, option
 from hconv.solve import methods
@@ -42,6 +44,28 @@ def available_cores() -> int:
         return max(1, len(os.sched_getaffinity(0)))
     except (AttributeError, OSError):
         return os.cpu_count() or 1
+
+
+class SharedPool:
+    """One thread pool for the process, for one kind of work (``name`` prefixes its threads'
+    names): started by the first call that needs it (a pool per call would start threads every
+    time), again with more threads when a call needs more, and again in a process forked from it
+    (a multiprocessing or Dask worker), which inherits the pool but not its threads."""
+
+    def __init__(self, name: str) -> None:
+        self._name = name
+        self._pool: ThreadPoolExecutor | None = None
+        self._threads = 0
+        self._pid = 0
+        self._lock = threading.Lock()
+
+    def __call__(self, threads: int) -> ThreadPoolExecutor:
+        """The pool, with ``threads`` threads at least."""
+        with self._lock:
+            if self._pool is None or self._threads < threads or self._pid != os.getpid():
+                self._pool = ThreadPoolExecutor(threads, thread_name_prefix=self._name)
+                self._threads, self._pid = threads, os.getpid()
+            return self._pool
 
 
 def covers(

@@ -23,7 +23,7 @@ import re
 import stat
 import threading
 from collections.abc import Callable, Mapping
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import Future
 from typing import Any
 
 import numpy as np
@@ -32,7 +32,7 @@ import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 
 from hconv.errors import InputError
-from hconv.solve.engines import available_cores
+from hconv.solve.engines import SharedPool, available_cores
 from hconv.tables import arrays, layout
 from hconv.tables.job import Job
 from hconv.tables.sets import header_name
@@ -282,22 +282,8 @@ _PIECE_ROWS = 4096
 #: Pieces a thread formats of a slice (:func:`_pieces`).
 _PIECES_PER_THREAD = 4
 
-_pool: ThreadPoolExecutor | None = None
-_pool_threads = 0
-_pool_pid = 0
-_pool_lock = threading.Lock()
-
-
-def _shared_pool(threads: int) -> ThreadPoolExecutor:
-    """One pool for the process's writers, started on the first table that is cut into pieces (a
-    pool per table would start threads every time), and again in a process forked from it, which
-    inherits the pool but not its threads."""
-    global _pool, _pool_threads, _pool_pid
-    with _pool_lock:
-        if _pool is None or _pool_threads < threads or _pool_pid != os.getpid():
-            _pool = ThreadPoolExecutor(threads, thread_name_prefix="hconv-csv")
-            _pool_threads, _pool_pid = threads, os.getpid()
-        return _pool
+#: The threads of the process's writers, started by the first table cut into pieces.
+_shared_pool = SharedPool("hconv-csv")
 
 
 def _threads(n: int) -> int:
