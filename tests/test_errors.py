@@ -63,18 +63,21 @@ def test_quoted_keeps_a_line_break_escaped():
     assert errors.quoted("a\nb") == "'a\\nb'"
 
 
-def test_option_echoes_a_long_value_clipped_on_the_command_line_and_in_python():
+def test_entries_echo_a_long_value_clipped_on_the_command_line_and_in_python():
     """Before (second trial): `--unit I=<560 characters>` was echoed whole, twice, in a line of
-    about 1,100 characters; an option's value is echoed in at most ECHOED characters."""
-    long = "I=" + "q" * 300
+    about 1,100 characters; a mapping option's value is echoed in at most ECHOED characters, and
+    an option spelling a fix (a path) whole."""
+    long = "q" * 300
     with errors.command_line():
-        shown = errors.option("unit_options", long)
+        shown = errors.entry("unit_options", "I", long)
         mapped = errors.entry("mapping", "Hx", "L" * 300)
-    assert shown.startswith("--unit I=qqq") and len(shown) == len("--unit ") + errors.ECHOED and "…" in shown
+        path = errors.option("root", "/" + "d" * 300)  # a fix to copy: whole
+    assert shown.startswith("--unit I=qqq") and len(shown) == len("--unit I=") + errors.ECHOED and "…" in shown
     assert mapped.startswith("--map Hx=LLL") and len(mapped) == len("--map Hx=") + errors.ECHOED
-    python = errors.option("unit_options", long)
-    assert python.startswith("unit_options='I=q") and len(python) == len("unit_options=") + errors.ECHOED
-    assert errors.option("omega_unit", "deg/s") == "omega_unit='deg/s'"  # short values whole
+    assert path == "--root /" + "d" * 300
+    python = errors.entry("unit_options", "I", long)
+    assert python.startswith("unit_options={'I': 'q") and len(python) == len("unit_options=") + errors.ECHOED
+    assert errors.entry("mapping", "Hx", "Lx") == "mapping={'Hx': 'Lx'}"  # short values whole
 
 
 def test_cli_long_values_in_option_errors_are_clipped(capsys):

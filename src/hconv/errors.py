@@ -42,8 +42,8 @@ def option(name: str, value: object = _UNSET) -> str:
     True is the flag alone (``--force``, ``force=True``)."""
     if _reader == "cli":
         flag = FLAGS.get(name, "--" + name.replace("_", "-"))
-        return flag if value is _UNSET or value is True else f"{flag} {clip(str(value), ECHOED)}"
-    return name if value is _UNSET else f"{name}={clip(repr(value), ECHOED)}"
+        return flag if value is _UNSET or value is True else f"{flag} {value}"
+    return name if value is _UNSET else f"{name}={value!r}"
 
 
 def entry(name: str, key: str, value: str) -> str:
@@ -73,8 +73,10 @@ def first_line(exc: BaseException) -> str:
 #: The most characters of a value from a file that a message quotes (:func:`quoted`): a value can
 #: be megabytes long, and a message is one line a terminal shows whole.
 QUOTED = 40
-#: The most characters of an option's value that a message echoes (:func:`option`): the user typed
-#: it, so more of it is shown than of a file's value, but a pasted page is not echoed whole.
+#: The most characters of an entry of a mapping option (:func:`entries`: ``--unit``, ``--map``) or
+#: of a unit that a message echoes: the user typed it, so more of it is shown than of a file's
+#: value, but a pasted page is not echoed whole. :func:`option` echoes its value whole: messages
+#: also use it to spell a fix to copy (a path for ``--root``).
 ECHOED = 80
 
 
