@@ -244,3 +244,25 @@ def test_csv_value_error_of_a_reader_on_one_thread_names_column_value_and_row(tm
         "bad.csv: column 'Hy' must be numeric but holds 'x' in data row 2; "
         "fix or blank that value (a blank becomes a row with status invalid_input)"
     )
+
+
+def test_csv_parse_error_line_break_in_quotes_at_a_block_edge_is_named_with_its_fix(tmp_path):
+    """A value in quotes holding a line break where pyarrow's reader splits the file into blocks
+    gave pyarrow's 'CSV parser got out of sync with chunker … newlines_in_values', an option no
+    hconv user can set (met converting a 300k-row CSV whose label column held line breaks; the
+    same file read fine in other sizes, as it depends on where a block ends)."""
+    import pyarrow as pa
+
+    from hconv.tables import csvio
+    from hconv.tables.sniff import Dialect
+
+    path = tmp_path / "breaks.csv"
+    path.write_text('Hx,Hy,Hz,I,label\n1,2,3,2,"arm\nleft"\n')
+    exc = pa.ArrowInvalid(
+        "CSV parser got out of sync with chunker. This can mean the data file contains cell values spanning "
+        "multiple lines; please consider enabling the option 'newlines_in_values'."
+    )
+    assert str(csvio._csv_parse_error(str(path), "breaks.csv", exc, Dialect())) == (
+        "breaks.csv: a value in quotes holds a line break, which hconv does not read in CSV; "
+        "remove the line breaks from that column, or convert the file from Parquet"
+    )

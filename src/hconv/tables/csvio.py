@@ -333,6 +333,11 @@ def _csv_parse_error(path: str, name: str, exc: Exception, dialect: Dialect, hin
     said instead of quoting advice for a row with the wrong number of values."""
     m = _CSV_RAGGED.search(str(exc))
     straddles = "straddl" in str(exc)  # a row longer than a block ("straddles two block boundaries")
+    if "out of sync with chunker" in str(exc):  # pyarrow's reader splits a file at line breaks
+        return InputError(
+            f"{name}: a value in quotes holds a line break, which hconv does not read in CSV; "
+            "remove the line breaks from that column, or convert the file from Parquet"
+        )
     if not m and not straddles:
         return InputError(f"{name}: not a readable CSV file ({first_line(exc)})")
     expected = int(m.group(1)) if m else 0
