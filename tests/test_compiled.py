@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import importlib
 import threading
+import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -154,7 +155,8 @@ def test_convert_rows_caller_takes_the_blocks_a_late_thread_has_not_begun(rng, m
     I, H = physical_bodies(rng, 10_000), rng.normal(size=(10_000, 3))
     ref = _rows_of(I, H)
     caller_done = threading.Event()
-    late_found = []
+    late_found: list[bool] = []
+    calls: list[np.ndarray] = []  # the counter of the call under test
     real = compiled.rowcode.convert
 
     class HeldUp:
@@ -163,20 +165,45 @@ def test_convert_rows_caller_takes_the_blocks_a_late_thread_has_not_begun(rng, m
         @staticmethod
         def convert(*args):
             if threading.current_thread() is threading.main_thread():
+                calls.append(args[-3])
                 lost = real(*args)
                 caller_done.set()
                 return lost
             caller_done.wait(timeout=30)  # the pool's thread: held until the caller is done
-            counter, stop = args[-2], args[-3]
-            late_found.append(int(counter[0]) >= stop)
+            counter, stop = args[-3], args[-4]
+            if counter is calls[0]:  # not a thread an earlier call left behind
+                late_found.append(int(counter[0]) >= stop)
             return real(*args)
 
     monkeypatch.setattr(compiled, "rowcode", HeldUp)
     monkeypatch.setattr(compiled, "available_cores", lambda: 2)
     got = _rows_of(I, H)
-    assert caller_done.is_set() and late_found == [True]
+    assert caller_done.is_set()
+    for _ in range(3000):  # the call did not wait for the late thread: it comes after
+        if late_found:
+            break
+        time.sleep(0.01)
+    assert late_found == [True]
     for a, b in zip(got, ref):
         assert same_bits(a, b)
+
+
+def test_convert_rows_caller_waits_for_a_block_another_thread_holds(rng):
+    """A caller with ``wait`` returns only when every row is done: here after another thread's
+    long first block, which it did not take, while its own block was short."""
+    n = 400_000
+    I, H = physical_bodies(rng, n), rng.normal(size=(n, 3))
+    args = (I.reshape(n, 9).T, True, H.T, False, True, 4.5e9)
+    got = (np.full((n, 3), -1.0), np.full(n, -1.0), np.full(n, 255, np.uint8), np.full(n, -1.0), np.ones(n, bool))
+    counter, size = np.zeros(3, np.int64), n - 1_000
+    with ThreadPoolExecutor(1) as pool:
+        other = pool.submit(compiled.rowcode.convert, *args, *got, 0, n, counter, size, False)
+        while counter[0] == 0:  # the other thread has taken rows 0..size
+            time.sleep(0)
+        compiled.rowcode.convert(*args, *got, 0, n, counter, size, True)
+        whole = counter[1] == n and (got[1] != -1.0).all()
+        other.result()
+    assert whole
 
 
 def test_convert_rows_shared_counter_blocks_are_each_taken_once(rng):
@@ -192,10 +219,10 @@ def test_convert_rows_shared_counter_blocks_are_each_taken_once(rng):
     args = (I.reshape(n, 9).T, True, H.T, False, True, 4.5e9)
     ref, got = outputs(), outputs()
     lost_ref = compiled.rowcode.convert(*args, *ref, 0, n)
-    counter = np.zeros(1, np.int64)
+    counter = np.zeros(3, np.int64)
     with ThreadPoolExecutor(3) as pool:
-        lost = sum(pool.map(lambda _: compiled.rowcode.convert(*args, *got, 0, n, counter, 7), range(3)))
-    assert lost == lost_ref == len(range(0, n, 97))
+        lost = sum(pool.map(lambda k: compiled.rowcode.convert(*args, *got, 0, n, counter, 7, k == 0), range(3)))
+    assert lost == lost_ref == counter[2] == len(range(0, n, 97)) and counter[1] == n
     for a, b in zip(got, ref):
         assert same_bits(a, b)
 

@@ -141,14 +141,18 @@ def convert_rows(
     # counter the C code advances, so that no thread comes back to Python between blocks (each
     # return took the GIL, which the other threads wanted too). Blocks are small enough, at most
     # PARTS_PER_THREAD a thread and a few chunks at least, that a thread which starts late or
-    # runs slow (a busy machine) holds up the call by little.
+    # runs slow (a busy machine) holds up the call by little. The caller returns once the
+    # counter says every row is done, not when the pool's threads are back in Python: waiting
+    # on their futures cost a wake-up of the system's per call. A pool thread that fails before
+    # its first block (it can fail only for memory) leaves its blocks to the others.
     size = max(BLOCK_ROWS // 16, -(-n // (PARTS_PER_THREAD * threads)))
-    counter = np.zeros(1, np.int64)
+    counter = np.zeros(3, np.int64)  # the next block's first row, the rows done, the rows left
 
-    def take() -> int:
-        return rowcode.convert(*args, 0, n, counter, size)
+    def take(wait: bool) -> int:
+        return rowcode.convert(*args, 0, n, counter, size, wait)
 
     pool = _shared_pool(threads - 1)
-    futures = [pool.submit(take) for _ in range(threads - 1)]
-    lost = take()
-    return lost + sum(f.result() for f in futures)  # re-raises a block's exception here
+    for _ in range(threads - 1):
+        pool.submit(take, False)
+    take(True)
+    return int(counter[2])

@@ -141,24 +141,51 @@ static int check(PyArrayObject *a, const char *name, int ndim, npy_intp d0, npy_
     return 0;
 }
 
-/* The next block's first row from a counter that several threads share: each call adds `size`
- * and gets the value before, so that every block is taken once. */
+/* A call's threads share three counters (int64): the next block's first row, the rows done and
+ * the rows that fell back. Each thread takes a block by adding its size to the first and getting
+ * the value before, so that every block is taken once; after each block it adds its rows to the
+ * second with release order, so that a caller that reads the rows done (acquire) sees every
+ * output of those rows written. */
 #if defined(_MSC_VER)
 #include <intrin.h>
-static npy_int64 take_block(npy_int64 *counter, npy_int64 size) { return _InterlockedExchangeAdd64(counter, size); }
+#define WIN32_LEAN_AND_MEAN
+#define NOMINMAX
+#include <windows.h>
+static npy_int64 take_block(npy_int64 *c, npy_int64 size) { return _InterlockedExchangeAdd64(c, size); }
+static void add_done(npy_int64 *c, npy_int64 v) { _InterlockedExchangeAdd64(c, v); }
+static npy_int64 read_done(npy_int64 *c) { return _InterlockedCompareExchange64(c, 0, 0); }
+static void relax(void) { YieldProcessor(); }
+static void yield_core(void) { SwitchToThread(); }
 #else
-static npy_int64 take_block(npy_int64 *counter, npy_int64 size)
+#include <sched.h>
+static npy_int64 take_block(npy_int64 *c, npy_int64 size) { return __atomic_fetch_add(c, size, __ATOMIC_RELAXED); }
+static void add_done(npy_int64 *c, npy_int64 v) { __atomic_fetch_add(c, v, __ATOMIC_RELEASE); }
+static npy_int64 read_done(npy_int64 *c) { return __atomic_load_n(c, __ATOMIC_ACQUIRE); }
+static void relax(void)
 {
-    return __atomic_fetch_add(counter, size, __ATOMIC_RELAXED);
-}
+#if defined(__x86_64__) || defined(__i386__)
+    __builtin_ia32_pause();
+#elif defined(__aarch64__)
+    __asm__ __volatile__("yield");
 #endif
+}
+static void yield_core(void) { sched_yield(); }
+#endif
+/* How many times a caller waiting for the last blocks of other threads spins before it gives its
+ * core away between looks: the wait is at most one block, and a thread put to sleep took a
+ * wake-up of the system's (tens of microseconds) to learn that the rows were done. */
+#define SPINS 4096
 
 /* convert(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, start, stop
- * [, counter, size]): rows start..stop of I and H into the same rows of the outputs (residual
- * written with diagnostics only), a chunk of CH rows at a time, without the GIL; returns how many
- * of them are fallback. With `counter` (int64 (1,), shared by the threads of one call) and
- * `size`, the rows are instead the blocks of `size` rows this thread takes from the counter until
- * it passes stop: the threads share the work without coming back to Python between blocks. */
+ * [, counter, size, wait]): rows start..stop of I and H into the same rows of the outputs
+ * (residual written with diagnostics only), a chunk of CH rows at a time, without the GIL;
+ * returns how many of them are fallback. With `counter` (int64 (3,), shared by the threads of one
+ * call, the counters above, from start, 0, 0) and `size`, the rows are instead the blocks of
+ * `size` rows this thread takes until the counter passes stop: the threads share the work without
+ * coming back to Python between blocks. It returns the fallback rows of its own blocks, and the
+ * counter holds all of them; with `wait`, it returns only once every row of start..stop is done,
+ * by whichever thread, waiting on the counter rather than on the other threads' return to Python
+ * (the caller's thread, so that its outputs are whole when the call returns). */
 static PyObject *convert(PyObject *self, PyObject *args)
 {
     PyArrayObject *In, *H, *w, *cond, *code, *residual, *fallback;
@@ -166,10 +193,11 @@ static PyObject *convert(PyObject *self, PyObject *args)
     double cond_limit;
     Py_ssize_t start, stop, size = 0;
     PyArrayObject *counter = NULL;
-    if (!PyArg_ParseTuple(args, "O!pO!ppdO!O!O!O!O!nn|O!n", &PyArray_Type, &In, &nine, &PyArray_Type, &H, &refined,
+    int wait = 0;
+    if (!PyArg_ParseTuple(args, "O!pO!ppdO!O!O!O!O!nn|O!np", &PyArray_Type, &In, &nine, &PyArray_Type, &H, &refined,
                           &diagnostics, &cond_limit, &PyArray_Type, &w, &PyArray_Type, &cond, &PyArray_Type, &code,
                           &PyArray_Type, &residual, &PyArray_Type, &fallback, &start, &stop, &PyArray_Type,
-                          &counter, &size))
+                          &counter, &size, &wait))
         return NULL;
     if (!K.ready) {
         PyErr_SetString(PyExc_RuntimeError, "rowcode.convert: configure() first");
@@ -189,7 +217,7 @@ static PyObject *convert(PyObject *self, PyObject *args)
         PyErr_SetString(PyExc_ValueError, "rowcode.convert: rows start..stop out of range");
         return NULL;
     }
-    if (counter && (check(counter, "counter", 1, 1, 0, NPY_INT64, 1) || size < 1)) {
+    if (counter && (check(counter, "counter", 1, 3, 0, NPY_INT64, 1) || size < 1)) {
         if (!PyErr_Occurred())
             PyErr_SetString(PyExc_ValueError, "rowcode.convert: a block size of at least one row");
         return NULL;
@@ -214,11 +242,20 @@ static PyObject *convert(PyObject *self, PyObject *args)
         }
         for (npy_intp i = lo; i < hi; i += CH)
             convert_chunk(&jb, s, i, (int)(hi - i < CH ? hi - i : CH));
+        npy_intp block_lost = 0;
         for (npy_intp i = lo; i < hi; i++)
-            lost += jb.fallback[i] != 0;
+            block_lost += jb.fallback[i] != 0;
+        lost += block_lost;
         if (!next)
             break;
+        take_block(next + 2, (npy_int64)block_lost);
+        add_done(next + 1, (npy_int64)(hi - lo));
     }
+    for (long spins = 0; next && wait && read_done(next + 1) < (npy_int64)(stop - start); spins++)
+        if (spins < SPINS)
+            relax();
+        else
+            yield_core();
     Py_END_ALLOW_THREADS;
     PyMem_RawFree(s);
     return PyLong_FromSsize_t(lost);
@@ -358,7 +395,8 @@ static PyMethodDef methods[] = {
     {"one", one, METH_VARARGS, "one(I, nine, H, refined, diagnostics, cond_limit): one body, or None."},
     {"configure", configure, METH_VARARGS, "configure(constants): the constants of hconv's Python modules."},
     {"convert", convert, METH_VARARGS,
-     "convert(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, start, stop)"},
+     "convert(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, start, stop"
+     "[, counter, size, wait])"},
     {NULL, NULL, 0, NULL},
 };
 
