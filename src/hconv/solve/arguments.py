@@ -10,6 +10,7 @@ a ValueError, a unit or a type hconv does not read a UsageError, each naming the
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 from itertools import chain
 from typing import Any
@@ -106,6 +107,12 @@ def _rows(a: np.ndarray, n: int, k: int | None) -> np.ndarray:
     return a if a.shape[0] == n else np.ascontiguousarray(np.broadcast_to(a, (n,) + a.shape[1:]))
 
 
+def _masked(a: object) -> bool:
+    """Whether ``a`` is a numpy masked array, without importing numpy.ma when nothing has (numpy
+    loads it lazily on first use of ``np.ma``, which was 5 % of ``hconv one``'s whole run)."""
+    return "numpy.ma" in sys.modules and isinstance(a, np.ma.MaskedArray)
+
+
 def as_float(name: str, given_a: ArrayLike, quantities: list[type] | None = None) -> np.ndarray:
     """Argument ``name`` (H, I or r) as float64 numbers in SI, appending to ``quantities`` the
     class of the pint Quantity it was, if it was one. The rule for numbers that carry a unit or
@@ -114,7 +121,7 @@ def as_float(name: str, given_a: ArrayLike, quantities: list[type] | None = None
     scale = 1.0
     if type(a) is not np.ndarray:  # a plain ndarray (the common case) holds bare numbers
         a, scale = _unwrapped(name, a, quantities)
-    mask = np.ma.getmaskarray(a) if isinstance(a, np.ma.MaskedArray) else None
+    mask = np.ma.getmaskarray(a) if _masked(a) else None
     try:
         given = np.asarray(np.ma.getdata(a) if mask is not None else a)
         if given.dtype.kind not in "iuf":  # float64 would drop an imaginary part, parse text, count truths
@@ -201,7 +208,7 @@ def _carried(x: object) -> str | None:
             "pint Quantities, whose units numpy would drop; pass one Quantity of the whole array, "
             "e.g. ureg.Quantity(np.array(values), 'g*cm**2/s')"
         )
-    if isinstance(x, np.ma.MaskedArray):
+    if _masked(x):
         return "masked arrays, whose masks numpy would drop; pass one masked array, e.g. np.ma.stack(...)"
     if units.labelled_unit(x) is not None:
         return "arrays with a unit in their attrs, which numpy would drop; pass one array of them all"
