@@ -12,4 +12,3 @@ cd "$(dirname "$0")/.."
 COLUMNS=170 .venv/bin/hconv bench --rows 2000000 --repeats 3 --memory-rows 20000000 \
     --out docs/speed-vs-accuracy.png --json docs/bench.json
 COLUMNS=170 .venv/bin/hconv stability --out docs/stability.png > /dev/null
-.venv/bin/python benchmarks/engine_targets.py

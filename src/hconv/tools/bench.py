@@ -1,8 +1,10 @@
 """`hconv bench`: speed against accuracy for every method and precision, and the speed targets.
 
-Every speed is a median of repeats, and every target is a ratio between two rates measured in the
-same run, because the machine is shared and noisy; the repeats run in interleaved rounds (every
-job once per round), so that a slow drift of the machine falls on both sides of a ratio. Accuracy
+Every time is the fastest of repeats, and every target is a ratio between two times measured in the
+same run, because the machine is shared and noisy: the repeats run in interleaved rounds (every
+job once per round), so that a slow drift of the machine falls on both sides of a ratio, and the
+fastest round of each job is its own cost, the least disturbed by other work (a median kept some
+of the disturbance, most on the side of the longer job). Accuracy
 is scored like `hconv stability`: against I⁻¹H solved in exact rational arithmetic. Nothing here is
 needed at run time; the chart needs matplotlib (``pip install 'hconv[bench]'``).
 """
@@ -12,7 +14,6 @@ from __future__ import annotations
 import functools
 import os
 import platform
-import statistics
 import subprocess
 import sys
 import time
@@ -69,15 +70,15 @@ def describe_machine() -> str:
 
 
 def rounds(jobs: dict, repeats: int) -> dict:
-    """Median seconds of each job, run in interleaved rounds (every job once per round), so that
-    the machine's slow drifts fall on every side of a ratio alike."""
+    """The fewest seconds of each job, run in interleaved rounds (every job once per round), so
+    that the machine's slow drifts fall on every side of a ratio alike."""
     times: dict = {k: [] for k in jobs}
     for _ in range(repeats):
         for k, fn in jobs.items():
             t0 = time.perf_counter()
             fn()
             times[k].append(time.perf_counter() - t0)
-    return {k: statistics.median(v) for k, v in times.items()}
+    return {k: min(v) for k, v in times.items()}
 
 
 def _inputs(rows: int, seed: int) -> tuple[Sym3, np.ndarray, np.ndarray]:
@@ -205,7 +206,19 @@ def yardstick(I: Sym3, H: np.ndarray, tmp: str, repeats: int) -> tuple[float | N
                 [sys.executable, "-c", _YARDSTICK, path, which], check=True, capture_output=True, text=True
             )
             got[which].append(float(out.stdout.strip().splitlines()[-1]))
-    return statistics.median(got["compiled"]), statistics.median(got["exact"])
+    return max(got["compiled"]), max(got["exact"])  # rates: the fastest is the highest
+
+
+def _write_bytecode() -> None:
+    """Compile hconv's modules to bytecode, as ``pip install`` does, so that a command starts as
+    it does for users: a source checkout run with PYTHONDONTWRITEBYTECODE set (as some CI and
+    container images do) compiles every module again at each start. Quietly nothing where the
+    package folder cannot be written."""
+    import compileall
+
+    import hconv
+
+    compileall.compile_dir(os.path.dirname(hconv.__file__), quiet=2)
 
 
 def _command(args: list) -> Callable[[], object]:
@@ -356,7 +369,7 @@ def cold_start(repeats: int = 3) -> dict:
             args = [sys.executable, "-c", _COLD, "100", engine]
             proc = leftovers.child(args, capture_output=True, text=True, env=env, check=True)
             runs.append([float(x) for x in proc.stdout.split()[:3]])
-        imp, first, second = (statistics.median(r[k] for r in runs) for k in range(3))
+        imp, first, second = (min(r[k] for r in runs) for k in range(3))
         out[engine] = {"import_s": imp, "first_call_s": first, "second_call_s": second}
     return out
 
@@ -424,6 +437,13 @@ def user_targets(user: dict) -> list[list]:
     return rows
 
 
+def _first_call_target(cold: dict) -> float:
+    """Issue 27's first-call target as a ratio (above 1: met): 20 ms over how much longer the
+    first ``hconv.convert`` of a fresh process takes than its second, by the compiled engine."""
+    extra = cold["compiled"]["first_call_s"] - cold["compiled"]["second_call_s"]
+    return 0.020 / max(extra, 1e-6)
+
+
 def run(
     rows: int = 2_000_000,
     repeats: int = 3,
@@ -440,6 +460,7 @@ def run(
     log("what users call: hconv.convert against numpy.linalg.solve")
     res.user = user_calls(rows, repeats, seed)
     log("cold start by engine")
+    _write_bytecode()  # before every fresh process this run starts
     res.cold = cold_start()
     log("generating inputs")
     I, H, r = _inputs(rows, seed)
@@ -515,6 +536,7 @@ def run(
         ["convert exact / I/O roofline", res.convert["exact/64"] / roof, 0.7],
         ["plain script time / hconv convert time", plain_s / hconv_cli_s, 5.0],
         ["import numpy time / hconv one time", numpy_s / one_s, 0.5],
+        ["20 ms / what a new process's first call of 100 rows costs more", _first_call_target(res.cold), 1.0],
     ]
     if memory_rows:
         res.targets.append([f"400 MB / peak RSS on {memory_rows:,} rows", 400.0 / res.baselines["peak_rss_mb"], 1.0])
