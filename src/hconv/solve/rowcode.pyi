@@ -28,5 +28,6 @@ def convert(
     stop: int,
     counter: np.ndarray = ...,
     size: int = ...,
+    wait: bool = ...,
     /,
 ) -> int: ...
