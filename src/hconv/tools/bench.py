@@ -374,14 +374,34 @@ def cold_start(repeats: int = 3) -> dict:
     return out
 
 
+#: pyarrow alone reading the input and writing hconv's output, nothing computed: its six columns
+#: (``status`` a dictionary, as hconv writes it) with hconv's Parquet settings, given as JSON by
+#: :func:`_plain_io_options` (computed here, so that the script does not pay for importing hconv).
 _PLAIN_IO = """
-import sys, numpy as np, pyarrow as pa, pyarrow.parquet as pq
+import json, sys, numpy as np, pyarrow as pa, pyarrow.parquet as pq
 t = pq.read_table(sys.argv[1])
 zero = pa.array(np.zeros(t.num_rows))
-for c in ("wx", "wy", "wz", "residual", "cond", "status"):
+for c in ("wx", "wy", "wz", "residual", "cond"):
     t = t.append_column(c, zero)
-pq.write_table(t, sys.argv[2])
+t = t.append_column("status", pa.DictionaryArray.from_arrays(pa.array(np.zeros(t.num_rows, np.int8)), pa.array(["ok"])))
+pq.write_table(t, sys.argv[2], **json.loads(sys.argv[3]))
 """
+
+
+def _plain_io_options(src: str) -> str:
+    """hconv's Parquet settings for :data:`_PLAIN_IO`'s output of ``src``, as JSON."""
+    import json
+
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from hconv.tables.parquetio import parquet_write_options
+
+    schema = pq.read_schema(src)
+    for name in ("wx", "wy", "wz", "residual", "cond"):
+        schema = schema.append(pa.field(name, pa.float64()))
+    schema = schema.append(pa.field("status", pa.dictionary(pa.int8(), pa.string())))
+    return json.dumps(parquet_write_options(schema))
 
 
 def _roofline(src: str, dst: str) -> None:
@@ -487,7 +507,9 @@ def run(
         }
         jobs["roofline"] = lambda: _roofline(src, dst)
         jobs["plain script"] = _command([sys.executable, "-c", _PLAIN_SCRIPT, src, dst])
-        jobs["pyarrow read, append six, write"] = _command([sys.executable, "-c", _PLAIN_IO, src, dst])
+        jobs["pyarrow read, append six, write"] = _command(
+            [sys.executable, "-c", _PLAIN_IO, src, dst, _plain_io_options(src)]
+        )
         jobs["hconv convert"] = _command(hconv_cmd + ["convert", src, dst, "--force", "-q"])
         tiny, tiny_out = os.path.join(tmp, "tiny.parquet"), os.path.join(tmp, "tiny-out.parquet")
         generate.generate_file(tiny, 10, seed=seed)
