@@ -19,6 +19,7 @@ import json
 import os
 import queue
 import random
+import select
 import shutil
 import signal
 import subprocess
@@ -33,7 +34,7 @@ import pyarrow.parquet as pq
 import pytest
 from helpers import terminal_signals
 
-from hconv.errors import INTERRUPTED
+from hconv.errors import INTERRUPTED, INTERRUPTED_STREAMED
 from hconv.tables.manifest import MANIFEST
 from hconv.tables.pipeline import convert_file
 from hconv.tools.scene import make_scene
@@ -336,3 +337,39 @@ def test_interrupt_a_real_hconv_process_as_it_ends_exits_0_with_out(tmp_path):
     _, err = proc.communicate(timeout=120)
     assert points[-1] == "shutdown" and proc.returncode == 0 and err == b"", (points, proc.returncode, err)
     assert pq.read_table(tmp_path / "work" / "out.parquet").num_rows == 50
+
+
+def test_interrupt_convert_into_a_pipe_after_rows_went_out_says_the_output_is_incomplete(tmp_path):
+    """CSV into a pipe goes out batch by batch: Ctrl-C after rows reached the pipe exits 130
+    saying its reader got part of the output (not that nothing was written)."""
+    work = tmp_path / "work"
+    work.mkdir()
+    pq.write_table(pa.table(make_scene(100_000, seed=1)), work / "in.parquet", row_group_size=25_000)
+    ann_r, ann_w = os.pipe()
+    go_r, go_w = os.pipe()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hconv", "convert", "in.parquet", "-", "--to", "csv", "-q"],
+        cwd=work,
+        env=dict(os.environ, HCONV_TEST_POINTS=f"{ann_w}:{go_r}"),
+        pass_fds=(ann_w, go_r),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        preexec_fn=terminal_signals,
+    )
+    os.close(ann_w)
+    os.close(go_r)
+    got, batches = b"", 0
+    rest = threading.Thread(target=proc.stdout.read, daemon=True)
+    with os.fdopen(ann_r, "rb") as said, os.fdopen(go_w, "wb", buffering=0) as answer:
+        for line in said:
+            batches += line.strip() == b"batch"
+            if batches == 2 and not got and select.select([proc.stdout], [], [], 60)[0]:
+                got = os.read(proc.stdout.fileno(), 1 << 16)  # the first batch's rows, in the pipe
+                proc.send_signal(signal.SIGINT)
+                rest.start()  # the pipe's reader goes on reading, as a real one would
+            with contextlib.suppress(BrokenPipeError):
+                answer.write(b".")
+    proc.wait(timeout=120)
+    err = proc.stderr.read()
+    assert got.startswith(b"id,") and proc.returncode == 130, (got[:80], proc.returncode, err)
+    assert err.decode() == f"hconv: error: {INTERRUPTED_STREAMED}\n"

@@ -40,7 +40,7 @@ from hconv.commandline import (
     usage_failure,
     value_of,
 )
-from hconv.errors import INTERRUPTED, StrictError, UsageError
+from hconv.errors import StrictError, UsageError
 from hconv.kernels import allocator
 from hconv.solve import forms, options, units
 from hconv.tables.body import UNIT_SETS
@@ -586,7 +586,7 @@ def main() -> None:
         with streams.standard_streams():
             _main()
     except KeyboardInterrupt:  # after the command, before the exit
-        print(f"hconv: error: {INTERRUPTED}", file=sys.stderr)
+        print(f"hconv: error: {interrupts.interrupted()}", file=sys.stderr)
         sys.exit(130)
     finally:
         interrupts.ending()

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any, NoReturn
 import typer
 
 from hconv import errors, interrupts
-from hconv.errors import INTERRUPTED, HconvError, UsageError, quoted
+from hconv.errors import HconvError, UsageError, quoted
 from hconv.solve import options
 from hconv.solve.engines import ENGINES
 from hconv.solve.methods import METHODS
@@ -283,13 +283,14 @@ def friendly(fn: Callable) -> Callable:
         except HconvError as exc:
             _fail(str(exc), exc.exit_code)
         except KeyboardInterrupt as exc:  # a dataset run says what it kept (hconv.tables.dataset)
-            _fail(str(exc) or INTERRUPTED, 130)
+            _fail(str(exc) or interrupts.interrupted(), 130)
         except BrokenPipeError:  # the reader stopped early (`| head`): its choice, not a failure
             interrupts.settle()
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
             raise typer.Exit(0) from None
         except OSError as exc:
-            _fail(f"{exc.filename or 'output'}: {exc.strerror or exc}; nothing was written", 4)
+            kept = "the rows before it went to stdout" if interrupts.went_to_stdout() else "nothing was written"
+            _fail(f"{exc.filename or 'output'}: {exc.strerror or exc}; {kept}", 4)
         except (typer.Exit, typer.Abort):
             interrupts.settle()
             raise
@@ -307,7 +308,7 @@ def friendly(fn: Callable) -> Callable:
         try:
             return wrapper(*args, **kwargs)
         except KeyboardInterrupt:  # one that landed while an error was being reported: it wrote nothing
-            _fail(INTERRUPTED, 130)
+            _fail(interrupts.interrupted(), 130)
 
     return guarded
 

@@ -62,6 +62,8 @@ def entries(name: str, pairs: dict[str, str]) -> str:
 
 #: What an interrupted run says after ``hconv: error:``, wherever the interrupt lands.
 INTERRUPTED = "interrupted; no output was written"
+#: The same, once rows have gone straight into a pipe on stdout (hconv.interrupts.streamed).
+INTERRUPTED_STREAMED = "interrupted; the rows before it went to stdout, so what its reader got is incomplete"
 
 
 def first_line(exc: BaseException) -> str:

@@ -30,7 +30,7 @@ import _thread
 import os
 import sys
 
-from hconv.errors import INTERRUPTED
+from hconv.errors import INTERRUPTED, INTERRUPTED_STREAMED
 
 _MESSAGE = f"hconv: error: {INTERRUPTED}\n".encode()
 #: The tests' handshake (:func:`point`): ``W:R``, file descriptors to announce on and to wait on.
@@ -43,6 +43,29 @@ _MAIN_THREAD = _thread.get_ident()  # hconv is imported on the main thread, wher
 _settled = False
 #: Whether committing the output settles the command (:func:`commit_settles`).
 _commit_settles = False
+
+
+#: Whether rows have gone straight to stdout, a pipe (hconv.tables.output): a run that stops
+#: after that has written part of its output, and says so.
+_streamed = False
+
+
+def streamed() -> None:
+    """Rows have gone into a pipe on stdout: from here an interrupt says its output is incomplete."""
+    global _streamed, _MESSAGE
+    if not _streamed:
+        _streamed = True
+        _MESSAGE = f"hconv: error: {INTERRUPTED_STREAMED}\n".encode()
+
+
+def went_to_stdout() -> bool:
+    """Whether rows have gone straight into a pipe on stdout (:func:`streamed`)."""
+    return _streamed
+
+
+def interrupted() -> str:
+    """What an interrupted run says after ``hconv: error:``: whether rows went to stdout first."""
+    return INTERRUPTED_STREAMED if _streamed else INTERRUPTED
 
 
 def _end(signum: int, frame: object) -> None:

@@ -158,7 +158,7 @@ def listing() -> list[tuple[str, ...]]:
         ("numpy", "every method and option; always there (the reference)"),
         (
             "auto",
-            "compiled for every run it covers; else numpy. Files: numpy",
+            "compiled for every run it covers (one body, arrays and files); else numpy",
             *([f"HCONV_ENGINE={forced}: every auto is {forced}"] if forced else []),
         ),
     ]

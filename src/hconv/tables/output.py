@@ -158,6 +158,8 @@ class Output:
             if self._writer is None:
                 self._writer = self._new_writer(table.schema)
             self._writer.write(table)
+            if self.direct and table.num_rows:
+                interrupts.streamed()
         except BrokenPipeError:  # stdout's reader went away (`| head`): its choice, not a failure
             raise
         except OSError as exc:  # a full disk, a quota: the output named, not the temporary file
