@@ -371,7 +371,11 @@ def test_convert_cluster_without_dask_names_the_extra(tmp_path, capsys, monkeypa
     monkeypatch.setattr(cluster, "dask_installed", lambda: False)
     _write_dataset(tmp_path / "data", files=1, rows=10)
     code, _, err = run_inprocess("convert", "data", "out", "--cluster", "local", capsys=capsys)
-    assert (code, err) == (2, "hconv: error: --cluster needs Dask: pip install 'hconv[dask]'\n")
+    assert (code, err) == (
+        2,
+        "hconv: error: --cluster needs Dask: pip install 'dask[distributed]' "
+        "(hconv's dask extra: pip install '.[dask]' in its clone)\n",
+    )
 
 
 def _imported_as_a_cluster_run_imports() -> None:

@@ -24,7 +24,9 @@ def _pyplot() -> Any:
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
     except ImportError:
-        raise UsageError("charts need matplotlib: pip install 'hconv[plot]' (or pass --no-chart)") from None
+        raise UsageError(
+            "charts need matplotlib: pip install matplotlib (hconv's plot extra), or pass --no-chart"
+        ) from None
     return plt
 
 
@@ -39,7 +41,7 @@ def requested(out: str | None, no_chart: bool) -> str | None:
     import importlib.util
 
     if importlib.util.find_spec("matplotlib") is None:
-        raise UsageError("charts need matplotlib: pip install 'hconv[plot]' (or pass --no-chart)")
+        raise UsageError("charts need matplotlib: pip install matplotlib (hconv's plot extra), or pass --no-chart")
     return out
 
 

@@ -258,7 +258,7 @@ def convert_cmd(
         None,
         "--cluster",
         metavar="local|tcp://HOST:PORT",
-        help="convert a dataset's files on Dask (pip install 'hconv\\[dask]'), one task per file: "
+        help="convert a dataset's files on Dask (hconv's dask extra), one task per file: "
         "local starts worker processes here; tcp://HOST:PORT uses a running scheduler, whose "
         "workers must see IN and OUT (object storage, or a shared directory). --threads is then "
         "each worker's",

@@ -57,7 +57,7 @@ from hconv.tables.pipeline import default_threads
 from hconv.tables.planning import Plan, Task
 from hconv.tables.storage import Place, remove_run_objects
 
-EXTRA = "pip install 'hconv[dask]'"
+EXTRA = "pip install 'dask[distributed]' (hconv's dask extra: pip install '.[dask]' in its clone)"
 #: --cluster's values besides "local": the address of a running Dask scheduler.
 _ADDRESS = re.compile(r"^(tcp|tls)://[^\s/:]+:\d+/?$")
 #: How often a running task asks whether the run was stopped: each asking is a round trip to the

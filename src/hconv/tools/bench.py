@@ -6,7 +6,7 @@ job once per round), so that a slow drift of the machine falls on both sides of 
 fastest round of each job is its own cost, the least disturbed by other work (a median kept some
 of the disturbance, most on the side of the longer job). Accuracy
 is scored like `hconv stability`: against I⁻¹H solved in exact rational arithmetic. Nothing here is
-needed at run time; the chart needs matplotlib (``pip install 'hconv[bench]'``).
+needed at run time; the chart needs matplotlib (hconv's ``bench`` extra).
 """
 
 from __future__ import annotations
