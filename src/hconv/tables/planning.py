@@ -99,7 +99,7 @@ def plan_dataset(
         raise UsageError(f"{option('endpoint_url')} is for s3:// URIs, and neither {src} nor {dst} is one")
     source = storage.source(src, endpoint_url)
     out = storage.place(dst, endpoint_url)
-    overlap = UsageError(
+    overlap = OutputError(
         f"{dst} and {src} overlap; write the dataset outside its input, so that a re-run does not read outputs"
     )
     if out.contains(source.place) or (source.pattern is None and source.place.contains(out)):
@@ -185,10 +185,10 @@ def plan_dataset(
 
 
 def _refuse_links_into_out(source: Source, out: Place) -> None:
-    """UsageError, before IN is listed, when a link in IN leads into OUT or to a folder holding it
-    (the listing follows links, so outputs would come back as inputs), or back to IN or a folder
-    holding it (a loop: the listing would take IN's files again at every turn, until the system's
-    limit on links). Comparing the two paths cannot see either. A link that leads nowhere yet is
+    """Before IN is listed: OutputError when a link in IN leads into OUT or to a folder holding
+    it (the listing follows links, so outputs would come back as inputs); UsageError when one
+    leads back to IN or a folder holding it (a loop: the listing would take IN's files again at
+    every turn, until the system's limit on links). Comparing the two paths cannot see either. A link that leads nowhere yet is
     judged by where it leads: OUT is made by this run."""
     out_real = os.path.realpath(out.root)
     in_real = os.path.realpath(source.place.root)
@@ -203,7 +203,7 @@ def _refuse_links_into_out(source: Source, out: Place) -> None:
             real = os.path.realpath(path)
             rel = os.path.relpath(path, source.place.root).replace(os.sep, "/")
             if storage.inside(real, out_real) or storage.inside(out_real, real):
-                raise UsageError(
+                raise OutputError(
                     f"{source.place.name(rel)} is a link that leads to {out.shown}; "
                     "remove the link, or write the dataset to a directory it does not lead to"
                 )
@@ -217,13 +217,13 @@ def _refuse_links_into_out(source: Source, out: Place) -> None:
 def _refuse_linked_overlap(
     source: Source, out: Place, inputs: list[Listed], src_format: str | None, dst_format: str | None
 ) -> None:
-    """UsageError when a link joins IN and OUT file by file: an input that is a link to a file of
+    """OutputError when a link joins IN and OUT file by file: an input that is a link to a file of
     OUT, or an output that a folder link in OUT would put into IN."""
     out_real = os.path.realpath(out.root)
     in_real = os.path.realpath(source.place.root)
     for f in inputs:
         if storage.inside(os.path.realpath(source.place.path(f.rel)), out_real):
-            raise UsageError(
+            raise OutputError(
                 f"{source.place.name(f.rel)} is a link to a file in {out.shown}; "
                 "remove the link, or write the dataset to another directory"
             )
@@ -232,7 +232,7 @@ def _refuse_linked_overlap(
         real = os.path.realpath(folder)
         lexical = os.path.normpath(os.path.join(out_real, os.path.relpath(folder, out.root)))
         if real != lexical and storage.inside(real, in_real):
-            raise UsageError(
+            raise OutputError(
                 f"{out.name(rel)} would be written into {source.place.shown} (through a link in {out.shown}); "
                 "remove the link, or write the dataset to another directory"
             )
