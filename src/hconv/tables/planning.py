@@ -188,8 +188,8 @@ def _refuse_links_into_out(source: Source, out: Place) -> None:
     """Before IN is listed: OutputError when a link in IN leads into OUT or to a folder holding
     it (the listing follows links, so outputs would come back as inputs); UsageError when one
     leads back to IN or a folder holding it (a loop: the listing would take IN's files again at
-    every turn, until the system's limit on links). Comparing the two paths cannot see either. A link that leads nowhere yet is
-    judged by where it leads: OUT is made by this run."""
+    every turn, until the system's limit on links). Comparing the two paths cannot see either. A
+    link that leads nowhere yet is judged by where it leads: OUT is made by this run."""
     out_real = os.path.realpath(out.root)
     in_real = os.path.realpath(source.place.root)
     for folder, dirs, files in os.walk(source.place.root):
