@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 
 import pytest
 
@@ -95,6 +96,27 @@ def test_group_commit_closes_a_group_at_its_count(monkeypatch):
     for k in range(manifest.GROUP_FILES * 2 + 1):
         group.add(_record(k), None)
     assert len(writes) == 2 and group.groups == 2
+
+
+@pytest.mark.parametrize("average", ["small", "large"])
+def test_make_durable_flushes_large_outputs_each_and_small_ones_together(average, tmp_path, monkeypatch):
+    """Outputs of SYNC_EACH_BYTES or more on average get an fsync each, never a syncfs (which
+    would flush every other writer's dirty data on the file system too); smaller ones one syncfs
+    together. Their folder is flushed either way."""
+    monkeypatch.setattr(manifest, "SYNC_EACH_BYTES", 1000)
+    # by the average: one file over the limit does not make the group large; exactly on it does
+    sizes = (200, 200, 2599) if average == "small" else (1800, 1100, 100)
+    paths = [tmp_path / f"f{k}.parquet" for k in range(3)]
+    for p, n in zip(paths, sizes):
+        p.write_bytes(b"x" * n)
+    synced, whole = [], []
+    fsync = os.fsync
+    monkeypatch.setattr(os, "fsync", lambda fd: synced.append(os.fstat(fd).st_ino) or fsync(fd))
+    monkeypatch.setattr(manifest, "_syncfs", lambda folder: whole.append(folder) or True)
+    manifest.make_durable([str(p) for p in paths])
+    files = [p.stat().st_ino for p in paths] if average == "large" else []
+    assert sorted(synced) == sorted([*files, tmp_path.stat().st_ino])
+    assert whole == ([str(tmp_path)] if average == "small" else [])
 
 
 def test_make_durable_flushes_files_and_their_folders(tmp_path):

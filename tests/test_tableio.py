@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import io
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -705,6 +706,36 @@ def test_convert_file_input_rewritten_while_read_is_refused(fmt, whole, tmp_path
         pipeline.convert_file(str(src), str(tmp_path / "out.parquet"), progress=progress, threads=1, whole=whole)
     assert len(calls) >= 1
     assert sorted(p.name for p in tmp_path.iterdir()) == [f"in.{fmt}"]
+
+
+@pytest.mark.parametrize("change", ["appended", "cut"])
+def test_open_input_parquet_whole_changed_during_its_read_is_refused(change, tmp_path, monkeypatch):
+    """A small file read into memory at once (``whole``) and appended to or cut while that read
+    runs: its size and time are taken before the read, so the change is seen (taken after it,
+    an append went unseen and the file's first bytes were converted), and a cut one is named as
+    changed, not as a file without a Parquet footer."""
+    from hconv.tables import parquetio, pipeline
+
+    src = tmp_path / "in.parquet"
+    _scene_parquet(src, groups=2)
+    read_whole = parquetio._read_whole
+
+    def racing(fd: int, size: int) -> pa.Buffer:
+        if change == "cut":
+            os.truncate(src, size // 2)
+        data = read_whole(fd, size)
+        if change == "appended":
+            with open(src, "ab") as f:
+                f.write(b"late")
+        return data
+
+    monkeypatch.setattr(parquetio, "_read_whole", racing)
+    changed = r"^in\.parquet: changed while hconv read it \(from (\d+) to (\d+) bytes"
+    with pytest.raises(hconv.errors.InputError, match=changed) as err:
+        pipeline.convert_file(str(src), str(tmp_path / "out.parquet"), name="in.parquet", threads=1, whole=True)
+    before, after = map(int, re.match(changed, str(err.value)).groups())
+    assert after == (before + 4 if change == "appended" else before // 2)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.parquet"]
 
 
 def test_open_input_csv_without_a_line_end_says_so_not_that_it_is_empty(tmp_path, capsys, monkeypatch):

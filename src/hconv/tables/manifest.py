@@ -4,11 +4,12 @@ run is planned, and written while it runs and last (:mod:`hconv.tables.dataset` 
 
 While a run converts, outputs are listed by group commit (:class:`GroupCommit`), as databases
 commit groups of transactions: an output renamed into place joins the open group; the group is
-made durable together (one ``syncfs`` of OUT's file system where Linux has it, else an fsync of
-each output; then an fsync of each of their folders, which makes the renames durable), and only
-then are its records kept and the manifest rewritten, once for the whole group. So the manifest
-never lists an output that a crash could still take back, and a run killed outright loses at most
-the open group, which the next run converts again (the manifest claimed those paths first)."""
+made durable together (small outputs with one ``syncfs`` of OUT's file system where Linux has it,
+else an fsync of each output; then an fsync of each of their folders, which makes the renames
+durable), and only then are its records kept and the manifest rewritten, once for the whole
+group. So the manifest never lists an output that a crash could still take back, and a run killed
+outright loses at most the open group, which the next run converts again (the manifest claimed
+those paths first)."""
 
 from __future__ import annotations
 
@@ -259,16 +260,25 @@ class GroupCommit:
         self._cost = self._ended - t0
 
 
+#: Outputs averaging this many bytes or more are flushed with an fsync each rather than one
+#: syncfs: syncfs flushes every writer's dirty data on the file system too (another program's,
+#: or inputs written just before the run), and the run's own writers stall while it does; an
+#: fsync costs a disk cache flush of its own, which many small outputs share in one syncfs
+#: (docs/measurements.md).
+SYNC_EACH_BYTES = 1 << 20
+
+
 def make_durable(paths: list[str]) -> None:
     """Flush the files ``paths`` and their folders (so that the renames that put them there
-    survive a crash) to the disk, together: one syncfs where they share a file system that has
-    it, else an fsync of each; then each folder once. OutputError naming the folder if the disk
-    refuses."""
+    survive a crash) to the disk: small files (under :data:`SYNC_EACH_BYTES` on average) together,
+    with one syncfs where they share a file system that has it, else an fsync of each; then each
+    folder once. OutputError naming the file or folder if the disk refuses."""
     if not paths:
         return
     folders = sorted({os.path.dirname(p) or "." for p in paths})
     try:
-        if len({os.stat(f).st_dev for f in folders}) > 1 or not _syncfs(folders[0]):
+        small = sum(os.stat(p).st_size for p in paths) < SYNC_EACH_BYTES * len(paths)
+        if not small or len({os.stat(f).st_dev for f in folders}) > 1 or not _syncfs(folders[0]):
             for path in paths:
                 _fsync(path, os.O_RDONLY)
         for folder in folders:

@@ -56,13 +56,17 @@ def open_parquet(path: str, name: str, job: Job, rows: tuple[int, int] | None = 
         if whole:
             fd = os.open(path, os.O_RDONLY | getattr(os, "O_BINARY", 0))
             closers.append(lambda: os.close(fd))
-            with io.FileIO(fd, closefd=False) as f:
-                source: pa.NativeFile = pa.BufferReader(f.readall())
+            at_open = FileStat.of(fd)  # before the read: a change while it reads is one while the file is read
+            data = _read_whole(fd, at_open.size)
+            changed = changed_while_read(name, fd, at_open) if data.size < at_open.size else None
+            if changed:  # cut while read: not "no Parquet footer", which would blame the file
+                raise changed
+            source: pa.NativeFile = pa.BufferReader(data)
         else:
             source = pa.OSFile(path)
             fd = source.fileno()
+            at_open = FileStat.of(fd)
         closers.append(source.close)
-        at_open = FileStat.of(fd)
         if at_open.size == 0:
             raise InputError(f"{name}: the file is empty (0 bytes); it is not a Parquet file")
         # Stream pages rather than pre-buffering whole row groups, so that peak memory does not
@@ -91,6 +95,23 @@ def open_parquet(path: str, name: str, job: Job, rows: tuple[int, int] | None = 
         for close in reversed(closers):
             close()
         raise
+
+
+def _read_whole(fd: int, size: int) -> pa.Buffer:
+    """The first ``size`` bytes of the file open as ``fd`` (fewer if it ends sooner), in a buffer
+    of Arrow's memory pool: its allocator keeps freed memory for the next file, where the bytes
+    of ``readall`` were fresh pages from the system, each faulted in on first touch."""
+    data = pa.allocate_buffer(size)
+    view = memoryview(data).cast("B")
+    got = 0
+    with io.FileIO(fd, closefd=False) as f:
+        while got < size:
+            n = f.readinto(view[got:])
+            if not n:
+                break
+            got += n
+    view.release()
+    return data if got == size else data.slice(0, got)
 
 
 def _opened(
