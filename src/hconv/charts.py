@@ -156,14 +156,12 @@ def speed_accuracy_chart(res: BenchResult, path: str, cond: str = "10000") -> No
     if big is not None and "exact/64" in res.accuracy:
         err = max(res.accuracy["exact/64"][cond][1], FLOOR)
         for engine, secs in res.user[big].get("(N,3,3)", {}).items():
-            if engine == "auto":
-                continue
             speed = int(big) / secs
             ax.scatter(
                 speed, err, s=110, marker="^", color=colours["exact"], edgecolors="black", linewidths=0.6, zorder=3
             )
             ax.annotate(
-                f"hconv.convert, {engine} engine",
+                "hconv.convert, by default (compiled)" if engine == "auto" else f"hconv.convert, {engine} engine",
                 (speed, err),
                 textcoords="offset points",
                 xytext=(-7, -18),
@@ -194,7 +192,7 @@ def speed_accuracy_chart(res: BenchResult, path: str, cond: str = "10000") -> No
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel(
-        "rows per second with every diagnostic (median of repeats)\n"
+        "rows per second with every diagnostic (fastest of repeats)\n"
         "hconv convert, Parquet to Parquet (circles, squares); hconv.convert on (N,3,3) in memory (triangles)"
     )
     ax.set_ylabel(f"worst relative error vs exact I⁻¹H at cond(I) = {float(cond):g}")
