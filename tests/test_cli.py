@@ -494,6 +494,25 @@ def test_one_invalid_input_says_which_value_on_stderr(capsys, args, hint):
     assert json.loads(out)["status"] == "invalid_input" and err_json == err
 
 
+@pytest.mark.parametrize(
+    "I, status, fix",
+    [
+        ("1,1,5", "not_physical", "the products' sign (--products) and the point I is about"),
+        ("0,0,0", "singular", "--degenerate pinv or lock"),
+        ("1,2,3,4,5,6,7,8,9", "not_symmetric", "or its six numbers xx,yy,zz,xy,xz,yz"),
+        ("1,1,1,0,0,-2", "not_positive_definite", "the products' sign (--products)"),
+    ],
+)
+def test_one_status_of_the_tensor_says_its_usual_causes_on_stderr(capsys, I, status, fix):
+    """A newcomer saw not_physical or singular with no word on why or what to do (only
+    invalid_input was explained); stdout stays the result, the hint goes to stderr."""
+    code, out, err = run_inprocess("one", "--H", "1,2,3", "--I", I, capsys=capsys)
+    said = " ".join(err.split())
+    assert code == 0 and f"status   = {status}" in out
+    assert said.startswith(f"hconv: {status}: ") and fix in said, err
+    assert run_inprocess("one", "--H", "1,2,3", "--I", "1,2,3", capsys=capsys)[2] == ""  # ok: nothing said
+
+
 SATELLITE = ["--H", "1,2,52500000000003", "--I", "1000", "--m", "1000", "--r", "7e6,0,0", "--v", "0,7500,0"]
 
 

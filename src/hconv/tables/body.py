@@ -41,6 +41,20 @@ INVALID_HINTS = {
     "mass_negative": "is a negative mass; give m >= 0",
     "beyond_float32": "is beyond float32's range (3.4e+38) for --precision 32; use --precision 64",
 }
+#: What a status of the tensor itself means and what to check, for ``hconv one``'s stderr (the
+#: status line says which, not why nor what to do). The usual causes of a tensor no body has are
+#: the order of the six numbers, the products' sign and a unit slip (docs/design-note.md).
+STATUS_HINTS = {
+    "not_symmetric": "I's nine numbers are not symmetric (Iij and Iji differ); give a symmetric tensor, "
+    "or its six numbers xx,yy,zz,xy,xz,yz",
+    "singular": "I has a zero principal moment (a rod, a point mass), so no ω turns into this H about it; "
+    "--degenerate pinv or lock gives the ω of the other axes",
+    "not_positive_definite": "I has a negative principal moment, which no body has; check the order of the six "
+    "numbers (xx,yy,zz,xy,xz,yz) and the products' sign (--products)",
+    "not_physical": "I's principal moments break the triangle inequality (each at most the sum of the other "
+    "two), which no solid body does; check the order of the six numbers (xx,yy,zz,xy,xz,yz), the products' "
+    "sign (--products) and the point I is about",
+}
 #: What a body's residual is: measured; with --about free, measured against H_C and with the bound
 #: on what taking r × m·v out of H lost added (hconv.solve.bodies), which it cannot see.
 RESIDUAL = "(|w - I⁻¹H| / |I⁻¹H|)"
