@@ -29,7 +29,7 @@ from helpers import (
 )
 
 import hconv
-from hconv.solve import compiled
+from hconv.solve import compiled, rowcode
 from hconv.solve.status import CODE, PRECEDENCE
 
 EPS = np.finfo(float).eps
@@ -118,6 +118,39 @@ def test_convert_rows_uncovered_runs_are_numpy_whatever_is_asked():
     assert hconv.convert(np.ones((4, 3)), moments, engine="compiled").engine == "numpy"  # a division
 
 
+def _outputs(n: int) -> tuple:
+    """convert_rows' outputs, filled with values no row gets, so that a row left unwritten shows."""
+    return np.full((n, 3), -1.0), np.full(n, -1.0), np.full(n, 255, np.uint8), np.full(n, -1.0), np.ones(n, bool)
+
+
+def _row_args(I: np.ndarray, H: np.ndarray) -> tuple:
+    """The inputs of rowcode.convert and .share for an (N, 3, 3) stack: exact, with the residual."""
+    n = len(H)
+    return (I.reshape(n, 9).T, True, H.T, False, True, 4.5e9)
+
+
+def _no_thread_serving() -> None:
+    """Waits until the threads earlier calls left serving have gone back to the pool (LINGER)."""
+    for _ in range(3000):
+        if rowcode.serving() == 0:
+            return
+        time.sleep(0.01)
+    raise AssertionError("a thread still serves 30 s after its last block")
+
+
+def _serving(linger: float, threads: int) -> list:
+    """``threads`` threads in rowcode.serve(linger), once every one of them is in it."""
+    before = rowcode.serving()
+    pool = ThreadPoolExecutor(threads)
+    futures = [pool.submit(rowcode.serve, linger) for _ in range(threads)]
+    pool.shutdown(wait=False)
+    for _ in range(3000):
+        if rowcode.serving() >= before + threads:
+            return futures
+        time.sleep(0.01)
+    raise AssertionError("the serving threads did not start within 30 s")
+
+
 def test_convert_rows_same_bits_whatever_the_blocks_and_threads(rng, monkeypatch):
     """Many blocks on several threads give the bits of one call on one thread: rows are
     independent, and each block is converted without the GIL on a thread of its own."""
@@ -126,105 +159,142 @@ def test_convert_rows_same_bits_whatever_the_blocks_and_threads(rng, monkeypatch
     I, H = np.tile(I, (reps, 1, 1)), np.tile(H, (reps, 1))
     ref = _rows_of(I, H, refined=True)
     assert 0 < ref[4].mean() < 1
-    names: set = set()
-    real = compiled.rowcode.convert
+    served: list[int] = []
+    real = rowcode.serve
 
     class Recording:
-        configure = compiled.rowcode.configure
+        configure, convert, share = (rowcode.configure, rowcode.convert, rowcode.share)
 
         @staticmethod
-        def convert(*args):
-            names.add(threading.current_thread().name)
-            return real(*args)
+        def serve(linger):
+            served.append(real(linger))
+            return served[-1]
 
     monkeypatch.setattr(compiled, "rowcode", Recording)
+    monkeypatch.setattr(compiled, "_servers", compiled._Servers())
     for block, cores in ((997, 2), (4096, 3), (len(H), 4)):
         monkeypatch.setattr(compiled, "BLOCK_ROWS", block)
         monkeypatch.setattr(compiled, "available_cores", lambda cores=cores: cores)
         got = _rows_of(I, H, refined=True)
         for a, b in zip(got, ref):
             assert same_bits(a, b)
-    # blocks did run on several threads: the caller's and the pool's
-    assert "MainThread" in names and any(n.startswith("hconv-rows") for n in names)
-
-
-def test_convert_rows_caller_takes_the_blocks_a_late_thread_has_not_begun(rng, monkeypatch):
-    """A pool thread held up before its first block (a busy machine) leaves every block to the
-    caller, who converts them meanwhile: the call waits for no thread that has not begun, and the
-    late thread, when it comes, finds the counter past the last row."""
-    I, H = physical_bodies(rng, 10_000), rng.normal(size=(10_000, 3))
-    ref = _rows_of(I, H)
-    caller_done = threading.Event()
-    late_found: list[bool] = []
-    calls: list[np.ndarray] = []  # the counter of the call under test
-    real = compiled.rowcode.convert
-
-    class HeldUp:
-        configure = compiled.rowcode.configure
-
-        @staticmethod
-        def convert(*args):
-            if threading.current_thread() is threading.main_thread():
-                calls.append(args[-3])
-                lost = real(*args)
-                caller_done.set()
-                return lost
-            caller_done.wait(timeout=30)  # the pool's thread: held until the caller is done
-            counter, stop = args[-3], args[-4]
-            if counter is calls[0]:  # not a thread an earlier call left behind
-                late_found.append(int(counter[0]) >= stop)
-            return real(*args)
-
-    monkeypatch.setattr(compiled, "rowcode", HeldUp)
+    # blocks do run on the pool's threads, not only the caller's; on a busy machine a call may end
+    # before its pool thread begins (the next test's case), so calls are repeated until one does
+    monkeypatch.setattr(compiled, "BLOCK_ROWS", 997)
     monkeypatch.setattr(compiled, "available_cores", lambda: 2)
-    got = _rows_of(I, H)
-    assert caller_done.is_set()
-    for _ in range(3000):  # the call did not wait for the late thread: it comes after
-        if late_found:
+    for _ in range(200):
+        _no_thread_serving()
+        if sum(served) > 0:
             break
-        time.sleep(0.01)
-    assert late_found == [True]
+        got = _rows_of(I, H, refined=True)
+        for a, b in zip(got, ref):
+            assert same_bits(a, b)
+    assert sum(served) > 0, served
+
+
+def test_convert_rows_thread_that_begins_after_the_rows_are_done_takes_none(rng):
+    """A call whose pool threads have not begun (a busy machine) does not wait for them: the
+    caller converts every row, and a thread that begins serving afterwards finds no block of that
+    call left and writes no row of it."""
+    n = 10_000
+    I, H = physical_bodies(rng, n), rng.normal(size=(n, 3))
+    args = _row_args(I, H)
+    ref = _outputs(n)
+    rowcode.convert(*args, *ref, 0, n)
+    _no_thread_serving()
+    got = _outputs(n)
+    lost, own = rowcode.share(*args, *got, 1_000, False)
+    assert (lost, own) == (0, n)
     for a, b in zip(got, ref):
         assert same_bits(a, b)
+    for out in got:  # a block the late thread took would write over these
+        out[...] = 1
+    assert _serving(0.05, 1)[0].result(timeout=60) == 0
+    assert all((out == 1).all() for out in got)
 
 
-def test_convert_rows_caller_waits_for_a_block_another_thread_holds(rng):
-    """A caller with ``wait`` returns only when every row is done: here after another thread's
-    long first block, which it did not take, while its own block was short."""
+def test_convert_rows_caller_waits_for_the_blocks_other_threads_hold(rng):
+    """The caller returns only when every row is done, by whichever thread: when it finds no
+    block left to take, a serving thread may still be converting its last one."""
     n = 400_000
     I, H = physical_bodies(rng, n), rng.normal(size=(n, 3))
-    args = (I.reshape(n, 9).T, True, H.T, False, True, 4.5e9)
-    got = (np.full((n, 3), -1.0), np.full(n, -1.0), np.full(n, 255, np.uint8), np.full(n, -1.0), np.ones(n, bool))
-    counter, size = np.zeros(3, np.int64), n - 1_000
-    with ThreadPoolExecutor(1) as pool:
-        other = pool.submit(compiled.rowcode.convert, *args, *got, 0, n, counter, size, False)
-        while counter[0] == 0:  # the other thread has taken rows 0..size
-            time.sleep(0)
-        compiled.rowcode.convert(*args, *got, 0, n, counter, size, True)
-        whole = counter[1] == n and (got[1] != -1.0).all()
-        other.result()
-    assert whole
+    args = _row_args(I, H)
+    ref = _outputs(n)
+    rowcode.convert(*args, *ref, 0, n)
+    server = _serving(0.5, 1)[0]
+    owns = []
+    for _ in range(12):
+        got = _outputs(n)
+        # blocks of 50,000 rows: when the caller finds none left, the serving thread's last may
+        # have milliseconds to go, more than copying one output takes
+        lost, own = rowcode.share(*args, *got, 50_000, False)
+        cond_at_return = got[1].copy()
+        owns.append(own)
+        assert same_bits(cond_at_return, ref[1])
+        for a, b in zip(got, ref):
+            assert same_bits(a, b)
+    assert min(owns) < n  # the serving thread did take blocks
+    assert server.result(timeout=60) > 0
 
 
-def test_convert_rows_shared_counter_blocks_are_each_taken_once(rng):
-    """Three threads taking blocks of 7 rows from one counter write every row once, with the bits
-    of a single call over all rows, and count the fallback rows once (NaN rows fall back)."""
+def test_convert_rows_shared_blocks_are_each_taken_once(rng):
+    """Three serving threads and the caller taking blocks of 7 rows write every row once, with the
+    bits of a single call over all rows, and count the fallback rows once (NaN rows fall back)."""
     I, H = physical_bodies(rng, 1_000), rng.normal(size=(1_000, 3))
     H[::97] = np.nan
     n = len(H)
-
-    def outputs() -> tuple:
-        return np.full((n, 3), -1.0), np.full(n, -1.0), np.full(n, 255, np.uint8), np.full(n, -1.0), np.ones(n, bool)
-
-    args = (I.reshape(n, 9).T, True, H.T, False, True, 4.5e9)
-    ref, got = outputs(), outputs()
-    lost_ref = compiled.rowcode.convert(*args, *ref, 0, n)
-    counter = np.zeros(3, np.int64)
-    with ThreadPoolExecutor(3) as pool:
-        lost = sum(pool.map(lambda k: compiled.rowcode.convert(*args, *got, 0, n, counter, 7, k == 0), range(3)))
-    assert lost == lost_ref == counter[2] == len(range(0, n, 97)) and counter[1] == n
+    args = _row_args(I, H)
+    ref, got = _outputs(n), _outputs(n)
+    lost_ref = rowcode.convert(*args, *ref, 0, n)
+    servers = _serving(0.5, 3)
+    lost, own = rowcode.share(*args, *got, 7, False)
+    assert lost == lost_ref == len(range(0, n, 97))
     for a, b in zip(got, ref):
         assert same_bits(a, b)
+    # every block taken once: the servers' and the caller's (its rows in blocks of 7, or 6 for the last)
+    assert sum(f.result(timeout=60) for f in servers) + -(-own // 7) == -(-n // 7)
+
+
+def test_convert_rows_calls_in_a_row_never_write_a_returned_call_s_rows(rng):
+    """Thousands of shared calls one after another, from two threads at once (the second converts
+    alone while the first holds the post), with two threads serving: every call is whole when it
+    returns, and no thread writes a row of a call after that call has returned, however late it
+    read the call's post (its outputs, overwritten at return, stay so)."""
+    sizes = (64, 200, 333)
+    bodies = {n: (physical_bodies(rng, n), rng.normal(size=(n, 3))) for n in sizes}
+    refs = {}
+    for n, (I, H) in bodies.items():
+        refs[n] = _outputs(n)
+        rowcode.convert(*_row_args(I, H), *refs[n], 0, n)
+    servers = _serving(0.5, 2)
+    returned: list[tuple] = []
+    wrong: list[int] = []
+    shared = [0]  # calls whose blocks a serving thread took part in
+
+    def calls(first: int) -> None:
+        k = first
+        # until enough calls were shared to have raced (on a busy machine a serving thread runs
+        # beside a caller less often), from the first thread; the second keeps it company
+        while (shared[0] < 200 and k < 20_000) if first == 0 else k < 1_500:
+            n = sizes[k % len(sizes)]
+            got = _outputs(n)
+            _, own = rowcode.share(*_row_args(*bodies[n]), *got, 16, False)
+            shared[0] += own < n
+            if not all(same_bits(a, b) for a, b in zip(got, refs[n])):
+                wrong.append(k)
+            for out in got:
+                out[...] = 1
+            returned.append(got)
+            k += 2
+
+    other = threading.Thread(target=calls, args=(1,))
+    other.start()
+    calls(0)
+    other.join()
+    assert not wrong
+    assert shared[0] > 0
+    assert sum(f.result(timeout=60) for f in servers) > 0
+    assert all((out == 1).all() for got in returned for out in got)
 
 
 def test_convert_rows_same_bits_whatever_the_instruction_set(rng):
@@ -237,21 +307,21 @@ def test_convert_rows_same_bits_whatever_the_instruction_set(rng):
     scales = np.repeat([2.0**120, 2.0**-120], 100)
     H_edge = rng.normal(size=(200, 3)) * np.repeat([2.0**400, 2.0**-400], 100)[:, None]
     I, H = np.concatenate([I, edge * scales[:, None, None]]), np.concatenate([H, H_edge])
-    names = compiled.rowcode.kernels()
+    names = rowcode.kernels()
     assert "default" in names
     try:
         for refined in (False, True):
-            compiled.rowcode.use("default")
+            rowcode.use("default")
             ref = _rows_of(I, H, refined=refined)
             assert 0 < ref[4].mean() < 0.5  # the edge rows are the compiled engine's own
             assert not ref[4][-200:].any()
             for name in names:
-                compiled.rowcode.use(name)
+                rowcode.use(name)
                 got = _rows_of(I, H, refined=refined)
                 for a, b in zip(got, ref):
                     assert same_bits(a, b), name
     finally:
-        compiled.rowcode.use(names[0])
+        rowcode.use(names[0])
 
 
 def test_convert_rows_from_another_thread_stays_on_it(rng, monkeypatch):

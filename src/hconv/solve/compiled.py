@@ -27,7 +27,9 @@ Shapes: I ``(k, N)`` in its form's value order (six numbers or nine row-major), 
 from __future__ import annotations
 
 import math
+import os
 import threading
+from concurrent.futures import Future
 
 import numpy as np
 
@@ -43,6 +45,11 @@ from hconv.solve.status import CODE, ILL_CONDITIONED_TOL, SINGULAR_RTOL_EPS, SYM
 BLOCK_ROWS = 4096
 #: A large call's blocks per thread (docs/measurements.md).
 PARTS_PER_THREAD = 8
+#: How long a pool thread that served a call stays in C, spinning, for the next call's blocks
+#: before it goes back to wait in the pool (seconds): calls in a loop find it there, where a
+#: thread woken for each call cost a wake-up of the system's and the GIL (docs/engines.md); the
+#: price is at most this much of a core after the last call.
+LINGER = 0.001
 
 _EPS = float(np.finfo(np.float64).eps)
 #: The status codes this engine sets, status.py's. The C code writes them in the order of
@@ -137,22 +144,35 @@ def convert_rows(
     if threads == 1:
         return rowcode.convert(*args, 0, n)
     # Every thread, the caller's too, takes the next block until none is left (blocks handed out
-    # in advance left the caller one block and a single pool thread all the others), from a
-    # counter the C code advances, so that no thread comes back to Python between blocks (each
-    # return took the GIL, which the other threads wanted too). Blocks are small enough, at most
-    # PARTS_PER_THREAD a thread and a few chunks at least, that a thread which starts late or
-    # runs slow (a busy machine) holds up the call by little. The caller returns once the
-    # counter says every row is done, not when the pool's threads are back in Python: waiting
-    # on their futures cost a wake-up of the system's per call. A pool thread that fails before
-    # its first block (it can fail only for memory) leaves its blocks to the others.
+    # in advance left the caller one block and a single pool thread all the others), by the C
+    # code, so that no thread comes back to Python between blocks (each return took the GIL,
+    # which the other threads wanted too). Blocks are small enough, at most PARTS_PER_THREAD a
+    # thread and a few chunks at least, that a thread which starts late or runs slow (a busy
+    # machine) holds up the call by little. The pool's threads stay in C for LINGER after their
+    # last block, and the caller returns once every row is done, not when they are back in
+    # Python; a thread that has not begun when the rows are done takes none.
     size = max(BLOCK_ROWS // 16, -(-n // (PARTS_PER_THREAD * threads)))
-    counter = np.zeros(3, np.int64)  # the next block's first row, the rows done, the rows left
+    _servers.enlist(threads - 1)
+    lost, _ = rowcode.share(*args, size, False)
+    return lost
 
-    def take(wait: bool) -> int:
-        return rowcode.convert(*args, 0, n, counter, size, wait)
 
-    pool = _shared_pool(threads - 1)
-    for _ in range(threads - 1):
-        pool.submit(take, False)
-    take(True)
-    return int(counter[2])
+class _Servers:
+    """The pool's threads in ``rowcode.serve``, each until no call has come for :data:`LINGER`:
+    a call that shares its rows starts as many more as it wants beyond those still serving or
+    about to (a thread of the pool already serving is not woken again)."""
+
+    def __init__(self) -> None:
+        self._running: list[Future[int]] = []
+        self._pid = 0
+
+    def enlist(self, threads: int) -> None:
+        pool = _shared_pool(threads)
+        if self._pid != os.getpid():  # a forked child has none of its parent's threads
+            self._running, self._pid = [], os.getpid()
+        running = [f for f in self._running if not f.done()]
+        running += [pool.submit(rowcode.serve, LINGER) for _ in range(threads - len(running))]
+        self._running = running
+
+
+_servers = _Servers()

@@ -141,26 +141,90 @@ static int check(PyArrayObject *a, const char *name, int ndim, npy_intp d0, npy_
     return 0;
 }
 
-/* A call's threads share three counters (int64): the next block's first row, the rows done and
- * the rows that fell back. Each thread takes a block by adding its size to the first and getting
- * the value before, so that every block is taken once; after each block it adds its rows to the
- * second with release order, so that a caller that reads the rows done (acquire) sees every
- * output of those rows written. */
+/* A large call's rows are shared between its caller and the threads serving (serve()), which stay
+ * in C between calls, spinning, for a short while after their last block: the call after is
+ * picked up at once, where a thread woken through Python cost a wake-up of the system's and the
+ * GIL (tens of microseconds; docs/engines.md). A thread that is not serving converts nothing and
+ * is owed nothing: the caller takes every block no other thread takes.
+ *
+ * The post of the call being converted is one set of statics, written only by its caller (the
+ * one that holds `owned`). The word holds the post's generation (high 32 bits) and its next
+ * block (low 32 bits): a thread takes a block by a compare-and-swap of the word it read to the
+ * next block, and only then reads or writes a row. A swap from a word of an earlier generation
+ * fails, so that a thread that read an earlier post, however late it comes, touches no row of
+ * the arrays of a call that has returned. While a caller writes its post the word's block is
+ * BUSY, and a thread that read the post while it changed finds the word changed (seqlock
+ * order: the BUSY store, then the post; a reader: the word, the post, then the word again by
+ * its swap). After each block a thread adds its rows to the rows done with release order, so
+ * that the caller, which reads them with acquire order, sees every output of those rows
+ * written; every block of a call is done before its caller returns, so that no thread adds to
+ * the counts of the next. */
+typedef struct {
+    Job jb;
+    npy_intp n, size;
+    uint32_t blocks;
+} Post;
+#define BUSY 0xFFFFFFFFu
+/* each on a cache line of its own: the word, written at every block taken, and the counts, at
+ * every block done, would otherwise make every thread's copy of the post a miss */
+#if defined(_MSC_VER)
+#define LINE __declspec(align(64))
+#else
+#define LINE __attribute__((aligned(64)))
+#endif
+static LINE Post post;
+static LINE uint64_t word;
+static LINE npy_int64 rows_done;
+static npy_int64 rows_lost;
+static LINE int owned;
+static int serving;
+
 #if defined(_MSC_VER)
 #include <intrin.h>
 #define WIN32_LEAN_AND_MEAN
 #define NOMINMAX
 #include <windows.h>
-static npy_int64 take_block(npy_int64 *c, npy_int64 size) { return _InterlockedExchangeAdd64(c, size); }
-static void add_done(npy_int64 *c, npy_int64 v) { _InterlockedExchangeAdd64(c, v); }
-static npy_int64 read_done(npy_int64 *c) { return _InterlockedCompareExchange64(c, 0, 0); }
+static uint64_t load_word(void) { return (uint64_t)_InterlockedCompareExchange64((volatile __int64 *)&word, 0, 0); }
+static void store_word(uint64_t v) { _InterlockedExchange64((volatile __int64 *)&word, (__int64)v); }
+static int swap_word(uint64_t seen, uint64_t v)
+{
+    return (uint64_t)_InterlockedCompareExchange64((volatile __int64 *)&word, (__int64)v, (__int64)seen) == seen;
+}
+static void add(npy_int64 *c, npy_int64 v) { _InterlockedExchangeAdd64((volatile __int64 *)c, v); }
+static npy_int64 read_count(npy_int64 *c) { return _InterlockedCompareExchange64((volatile __int64 *)c, 0, 0); }
+static void set_count(npy_int64 *c, npy_int64 v) { _InterlockedExchange64((volatile __int64 *)c, v); }
+static int take_slot(int *flag) { return _InterlockedCompareExchange((volatile long *)flag, 1, 0) == 0; }
+static void give_slot(int *flag) { _InterlockedExchange((volatile long *)flag, 0); }
+static void add_int(int *c, int v) { _InterlockedExchangeAdd((volatile long *)c, v); }
+static int read_int(int *c) { return _InterlockedCompareExchange((volatile long *)c, 0, 0); }
+static void fence(void) { MemoryBarrier(); }
 static void relax(void) { YieldProcessor(); }
 static void yield_core(void) { SwitchToThread(); }
+static double seconds(void) { return (double)GetTickCount64() / 1e3; }
+static void on_fork(void) {}
 #else
+#include <pthread.h>
 #include <sched.h>
-static npy_int64 take_block(npy_int64 *c, npy_int64 size) { return __atomic_fetch_add(c, size, __ATOMIC_RELAXED); }
-static void add_done(npy_int64 *c, npy_int64 v) { __atomic_fetch_add(c, v, __ATOMIC_RELEASE); }
-static npy_int64 read_done(npy_int64 *c) { return __atomic_load_n(c, __ATOMIC_ACQUIRE); }
+#include <time.h>
+static uint64_t load_word(void) { return __atomic_load_n(&word, __ATOMIC_ACQUIRE); }
+static void store_word(uint64_t v) { __atomic_store_n(&word, v, __ATOMIC_RELEASE); }
+static int swap_word(uint64_t seen, uint64_t v)
+{
+    return __atomic_compare_exchange_n(&word, &seen, v, 0, __ATOMIC_ACQ_REL, __ATOMIC_ACQUIRE);
+}
+static void add(npy_int64 *c, npy_int64 v) { __atomic_fetch_add(c, v, __ATOMIC_RELEASE); }
+static npy_int64 read_count(npy_int64 *c) { return __atomic_load_n(c, __ATOMIC_ACQUIRE); }
+static void set_count(npy_int64 *c, npy_int64 v) { __atomic_store_n(c, v, __ATOMIC_RELAXED); }
+static int take_slot(int *flag)
+{
+    int free_ = 0;
+    return __atomic_compare_exchange_n(flag, &free_, 1, 0, __ATOMIC_ACQUIRE, __ATOMIC_RELAXED);
+}
+static void give_slot(int *flag) { __atomic_store_n(flag, 0, __ATOMIC_RELEASE); }
+static void add_int(int *c, int v) { __atomic_fetch_add(c, v, __ATOMIC_RELAXED); }
+static int read_int(int *c) { return __atomic_load_n(c, __ATOMIC_RELAXED); }
+/* orders the BUSY store before the post's writes, and a reader's reads of the post before its swap */
+static void fence(void) { __atomic_thread_fence(__ATOMIC_SEQ_CST); }
 static void relax(void)
 {
 #if defined(__x86_64__) || defined(__i386__)
@@ -170,95 +234,200 @@ static void relax(void)
 #endif
 }
 static void yield_core(void) { sched_yield(); }
+/* a child forked while a thread of its parent held the post or served has neither thread */
+static void forked(void) { owned = 0, serving = 0; }
+static void on_fork(void) { pthread_atfork(NULL, NULL, forked); }
+static double seconds(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
 #endif
-/* How many times a caller waiting for the last blocks of other threads spins before it gives its
- * core away between looks: the wait is at most one block, and a thread put to sleep took a
- * wake-up of the system's (tens of microseconds) to learn that the rows were done. */
+/* How many times a thread that waits (a caller for the last blocks of other threads, a serving
+ * thread for the next call) spins before it gives its core away between looks: a thread put to
+ * sleep took a wake-up of the system's (tens of microseconds) to learn what it waited for. */
 #define SPINS 4096
 
-/* convert(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, start, stop
- * [, counter, size, wait]): rows start..stop of I and H into the same rows of the outputs
- * (residual written with diagnostics only), a chunk of CH rows at a time, without the GIL;
- * returns how many of them are fallback. With `counter` (int64 (3,), shared by the threads of one
- * call, the counters above, from start, 0, 0) and `size`, the rows are instead the blocks of
- * `size` rows this thread takes until the counter passes stop: the threads share the work without
- * coming back to Python between blocks. It returns the fallback rows of its own blocks, and the
- * counter holds all of them; with `wait`, it returns only once every row of start..stop is done,
- * by whichever thread, waiting on the counter rather than on the other threads' return to Python
- * (the caller's thread, so that its outputs are whole when the call returns). */
-static PyObject *convert(PyObject *self, PyObject *args)
+/* rows lo..hi of jb; returns how many fell back */
+static npy_intp rows(const Job *jb, Chunk *s, npy_intp lo, npy_intp hi)
+{
+    for (npy_intp i = lo; i < hi; i += CH)
+        convert_chunk(jb, s, i, (int)(hi - i < CH ? hi - i : CH));
+    npy_intp lost = 0;
+    for (npy_intp i = lo; i < hi; i++)
+        lost += jb->fallback[i] != 0;
+    return lost;
+}
+
+/* Takes and converts one block of the post, if one is left: the rows it converted, 0 when it
+ * lost a race for the block (look again at once), -1 when the post has none left to take
+ * (`seen`: the word it found so). */
+static npy_intp take_block(Chunk *s, uint64_t *seen)
+{
+    uint64_t w = *seen = load_word();
+    uint32_t block = (uint32_t)w;
+    if (block == BUSY)
+        return -1;
+    Post p = post;
+    fence();
+    if (block >= p.blocks)
+        return -1;
+    if (!swap_word(w, w + 1))
+        return 0;
+    npy_intp lo = (npy_intp)block * p.size, hi = p.n - lo < p.size ? p.n : lo + p.size;
+    add(&rows_lost, (npy_int64)rows(&p.jb, s, lo, hi));
+    add(&rows_done, (npy_int64)(hi - lo));
+    return hi - lo;
+}
+
+/* serve(linger): this thread takes the blocks of the calls the process's callers share (share),
+ * without the GIL, until no call has been posted for `linger` seconds; returns how many blocks it
+ * took. Between calls it reads only the word, until the word changes; it spins SPINS looks after
+ * each call, then gives its core away between looks, so that on a busy machine a thread waiting
+ * for a call does not hold a core that other work wants. */
+static PyObject *serve(PyObject *self, PyObject *args)
+{
+    double linger;
+    if (!PyArg_ParseTuple(args, "d", &linger))
+        return NULL;
+    Chunk *s = PyMem_RawMalloc(sizeof(Chunk));
+    if (!s)
+        return PyErr_NoMemory();
+    long taken = 0;
+    Py_BEGIN_ALLOW_THREADS;
+    add_int(&serving, 1);
+    double last = seconds();
+    uint64_t idle = load_word(); /* a word with no block to take: look again when it changes */
+    uint64_t generation = idle >> 32;
+    for (unsigned long looks = 0;; looks++) {
+        if (load_word() != idle) {
+            npy_intp got = take_block(s, &idle);
+            if (got >= 0) {
+                taken += got > 0;
+                continue;
+            }
+        }
+        if (idle >> 32 != generation) /* a call was posted since the last look */
+            generation = idle >> 32, last = seconds(), looks = 0;
+        if (looks < SPINS)
+            relax();
+        else
+            yield_core();
+        if (looks % 256 == 255 && seconds() - last > linger)
+            break;
+    }
+    add_int(&serving, -1);
+    Py_END_ALLOW_THREADS;
+    PyMem_RawFree(s);
+    return PyLong_FromLong(taken);
+}
+
+/* serving(): how many threads are in serve() now. */
+static PyObject *serving_now(PyObject *self, PyObject *args) { return PyLong_FromLong(read_int(&serving)); }
+
+static int parse_rows(PyObject *args, const char *format, Job *jb, npy_intp *n, Py_ssize_t *a, Py_ssize_t *b)
 {
     PyArrayObject *In, *H, *w, *cond, *code, *residual, *fallback;
     int nine, refined, diagnostics;
     double cond_limit;
-    Py_ssize_t start, stop, size = 0;
-    PyArrayObject *counter = NULL;
-    int wait = 0;
-    if (!PyArg_ParseTuple(args, "O!pO!ppdO!O!O!O!O!nn|O!np", &PyArray_Type, &In, &nine, &PyArray_Type, &H, &refined,
-                          &diagnostics, &cond_limit, &PyArray_Type, &w, &PyArray_Type, &cond, &PyArray_Type, &code,
-                          &PyArray_Type, &residual, &PyArray_Type, &fallback, &start, &stop, &PyArray_Type,
-                          &counter, &size, &wait))
-        return NULL;
+    if (!PyArg_ParseTuple(args, format, &PyArray_Type, &In, &nine, &PyArray_Type, &H, &refined, &diagnostics,
+                          &cond_limit, &PyArray_Type, &w, &PyArray_Type, &cond, &PyArray_Type, &code, &PyArray_Type,
+                          &residual, &PyArray_Type, &fallback, a, b))
+        return -1;
     if (!K.ready) {
-        PyErr_SetString(PyExc_RuntimeError, "rowcode.convert: configure() first");
-        return NULL;
+        PyErr_SetString(PyExc_RuntimeError, "rowcode: configure() first");
+        return -1;
     }
     if (PyArray_NDIM(H) != 2) {
-        PyErr_SetString(PyExc_ValueError, "rowcode.convert: H must be (3, N)");
-        return NULL;
+        PyErr_SetString(PyExc_ValueError, "rowcode: H must be (3, N)");
+        return -1;
     }
-    npy_intp n = PyArray_DIM(H, 1);
-    if (check(H, "H", 2, 3, n, NPY_FLOAT64, 0) || check(In, "I", 2, nine ? 9 : 6, n, NPY_FLOAT64, 0) ||
-        check(w, "w", 2, n, 3, NPY_FLOAT64, 1) || check(cond, "cond", 1, n, 0, NPY_FLOAT64, 1) ||
-        check(code, "code", 1, n, 0, NPY_UINT8, 1) || check(fallback, "fallback", 1, n, 0, NPY_BOOL, 1) ||
-        check(residual, "residual", 1, diagnostics ? n : PyArray_DIM(residual, 0), 0, NPY_FLOAT64, 1))
+    *n = PyArray_DIM(H, 1);
+    if (check(H, "H", 2, 3, *n, NPY_FLOAT64, 0) || check(In, "I", 2, nine ? 9 : 6, *n, NPY_FLOAT64, 0) ||
+        check(w, "w", 2, *n, 3, NPY_FLOAT64, 1) || check(cond, "cond", 1, *n, 0, NPY_FLOAT64, 1) ||
+        check(code, "code", 1, *n, 0, NPY_UINT8, 1) || check(fallback, "fallback", 1, *n, 0, NPY_BOOL, 1) ||
+        check(residual, "residual", 1, diagnostics ? *n : PyArray_DIM(residual, 0), 0, NPY_FLOAT64, 1))
+        return -1;
+    Job j = {PyArray_BYTES(In), PyArray_BYTES(H), PyArray_STRIDE(In, 0), PyArray_STRIDE(In, 1),
+             PyArray_STRIDE(H, 0), PyArray_STRIDE(H, 1), nine, refined, diagnostics, cond_limit,
+             (double *)PyArray_DATA(w), (double *)PyArray_DATA(cond), (double *)PyArray_DATA(residual),
+             (uint8_t *)PyArray_DATA(code), (npy_bool *)PyArray_DATA(fallback)};
+    *jb = j;
+    return 0;
+}
+
+/* convert(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, start, stop):
+ * rows start..stop of I and H into the same rows of the outputs (residual written with
+ * diagnostics only), a chunk of CH rows at a time, on this thread without the GIL; returns how
+ * many of them are fallback. */
+static PyObject *convert(PyObject *self, PyObject *args)
+{
+    Job jb;
+    npy_intp n;
+    Py_ssize_t start, stop;
+    if (parse_rows(args, "O!pO!ppdO!O!O!O!O!nn", &jb, &n, &start, &stop) < 0)
         return NULL;
     if (start < 0 || stop > n || start > stop) {
         PyErr_SetString(PyExc_ValueError, "rowcode.convert: rows start..stop out of range");
         return NULL;
     }
-    if (counter && (check(counter, "counter", 1, 3, 0, NPY_INT64, 1) || size < 1)) {
-        if (!PyErr_Occurred())
-            PyErr_SetString(PyExc_ValueError, "rowcode.convert: a block size of at least one row");
-        return NULL;
-    }
-    Job jb = {PyArray_BYTES(In), PyArray_BYTES(H), PyArray_STRIDE(In, 0), PyArray_STRIDE(In, 1),
-              PyArray_STRIDE(H, 0), PyArray_STRIDE(H, 1), nine, refined, diagnostics, cond_limit,
-              (double *)PyArray_DATA(w), (double *)PyArray_DATA(cond), (double *)PyArray_DATA(residual),
-              (uint8_t *)PyArray_DATA(code), (npy_bool *)PyArray_DATA(fallback)};
     Chunk *s = PyMem_RawMalloc(sizeof(Chunk));
     if (!s)
         return PyErr_NoMemory();
-    npy_intp lost = 0;
+    npy_intp lost;
     Py_BEGIN_ALLOW_THREADS;
-    npy_int64 *next = counter ? (npy_int64 *)PyArray_DATA(counter) : NULL;
-    for (;;) {
-        npy_intp lo = start, hi = stop;
-        if (next) {
-            lo = (npy_intp)take_block(next, (npy_int64)size);
-            if (lo >= stop)
-                break;
-            hi = stop - lo < size ? stop : lo + size;
-        }
-        for (npy_intp i = lo; i < hi; i += CH)
-            convert_chunk(&jb, s, i, (int)(hi - i < CH ? hi - i : CH));
-        npy_intp block_lost = 0;
-        for (npy_intp i = lo; i < hi; i++)
-            block_lost += jb.fallback[i] != 0;
-        lost += block_lost;
-        if (!next)
-            break;
-        take_block(next + 2, (npy_int64)block_lost);
-        add_done(next + 1, (npy_int64)(hi - lo));
-    }
-    for (long spins = 0; next && wait && read_done(next + 1) < (npy_int64)(stop - start); spins++)
-        if (spins < SPINS)
-            relax();
-        else
-            yield_core();
+    lost = rows(&jb, s, start, stop);
     Py_END_ALLOW_THREADS;
     PyMem_RawFree(s);
     return PyLong_FromSsize_t(lost);
+}
+
+/* share(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, size, alone):
+ * every row, as convert's, in blocks of `size` rows posted to the threads serving, the caller
+ * taking blocks too; returns once every row is done, by whichever thread: (rows that fell back,
+ * rows this thread converted). With `alone`, or while another caller's rows are posted, the
+ * caller converts every row itself. */
+static PyObject *share(PyObject *self, PyObject *args)
+{
+    Job jb;
+    npy_intp n;
+    Py_ssize_t size, alone;
+    if (parse_rows(args, "O!pO!ppdO!O!O!O!O!nn", &jb, &n, &size, &alone) < 0)
+        return NULL;
+    if (size < 1 || (n + size - 1) / size >= (npy_intp)BUSY) {
+        PyErr_SetString(PyExc_ValueError, "rowcode.share: a block size of at least one row, fewer than 2**32 blocks");
+        return NULL;
+    }
+    Chunk *s = PyMem_RawMalloc(sizeof(Chunk));
+    if (!s)
+        return PyErr_NoMemory();
+    npy_intp lost, own = n;
+    Py_BEGIN_ALLOW_THREADS;
+    if (alone || !take_slot(&owned))
+        lost = rows(&jb, s, 0, n);
+    else {
+        uint64_t generation = (load_word() >> 32) + 1;
+        store_word(generation << 32 | BUSY);
+        fence();
+        post.jb = jb, post.n = n, post.size = size, post.blocks = (uint32_t)((n + size - 1) / size);
+        set_count(&rows_done, 0), set_count(&rows_lost, 0);
+        store_word(generation << 32);
+        own = 0;
+        uint64_t seen;
+        for (npy_intp got; (got = take_block(s, &seen)) >= 0;)
+            own += got;
+        for (long spins = 0; read_count(&rows_done) < (npy_int64)n; spins++)
+            if (spins < SPINS)
+                relax();
+            else
+                yield_core();
+        lost = (npy_intp)read_count(&rows_lost);
+        give_slot(&owned);
+    }
+    Py_END_ALLOW_THREADS;
+    PyMem_RawFree(s);
+    return Py_BuildValue("(nn)", lost, own);
 }
 
 /* one(I, nine, H, refined, diagnostics, cond_limit): one body, I (3, 3) or (6,) and H (3,)
@@ -395,8 +564,11 @@ static PyMethodDef methods[] = {
     {"one", one, METH_VARARGS, "one(I, nine, H, refined, diagnostics, cond_limit): one body, or None."},
     {"configure", configure, METH_VARARGS, "configure(constants): the constants of hconv's Python modules."},
     {"convert", convert, METH_VARARGS,
-     "convert(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, start, stop"
-     "[, counter, size, wait])"},
+     "convert(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, start, stop)"},
+    {"share", share, METH_VARARGS,
+     "share(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, size, alone)"},
+    {"serve", serve, METH_VARARGS, "serve(linger): take the blocks of shared calls until none comes for linger s."},
+    {"serving", serving_now, METH_NOARGS, "serving(): how many threads are in serve() now."},
     {NULL, NULL, 0, NULL},
 };
 
@@ -409,5 +581,6 @@ PyMODINIT_FUNC PyInit_rowcode(void)
     ChunkFn fns[3];
     kernels_of_cpu(names, fns);
     convert_chunk = fns[0];
+    on_fork();
     return PyModule_Create(&module);
 }

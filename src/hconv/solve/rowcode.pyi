@@ -26,8 +26,23 @@ def convert(
     fallback: np.ndarray,
     start: int,
     stop: int,
-    counter: np.ndarray = ...,
-    size: int = ...,
-    wait: bool = ...,
     /,
 ) -> int: ...
+def share(
+    I: np.ndarray,
+    nine: bool,
+    H: np.ndarray,
+    refined: bool,
+    diagnostics: bool,
+    cond_limit: float,
+    w: np.ndarray,
+    cond: np.ndarray,
+    code: np.ndarray,
+    residual: np.ndarray,
+    fallback: np.ndarray,
+    size: int,
+    alone: bool,
+    /,
+) -> tuple[int, int]: ...
+def serve(linger: float, /) -> int: ...
+def serving() -> int: ...
