@@ -192,6 +192,38 @@ def test_convert_rows_same_bits_whatever_the_blocks_and_threads(rng, monkeypatch
     assert sum(served) > 0, served
 
 
+def test_convert_rows_calls_in_a_loop_hand_no_task_to_a_thread_already_serving(rng, monkeypatch):
+    """Calls one after another find the pool's thread still serving from the call before (it
+    stays in C for LINGER): the first call hands it a task, the rest none, so that no call waits
+    for a thread's wake-up; the answers are the one-thread call's bits."""
+    n = 20_000
+    I, H = physical_bodies(rng, n), rng.normal(size=(n, 3))
+    ref = _outputs(n)
+    rowcode.convert(*_row_args(I, H), *ref, 0, n)
+    tasks: list[object] = []
+    real_pool = compiled._shared_pool
+
+    class Counting:
+        def __init__(self, pool):
+            self._pool = pool
+
+        def submit(self, fn, *args):
+            tasks.append(fn)
+            return self._pool.submit(fn, *args)
+
+    monkeypatch.setattr(compiled, "_shared_pool", lambda threads: Counting(real_pool(threads)))
+    monkeypatch.setattr(compiled, "_servers", compiled._Servers())
+    monkeypatch.setattr(compiled, "available_cores", lambda: 2)
+    monkeypatch.setattr(compiled, "LINGER", 0.5)
+    _no_thread_serving()
+    for _ in range(20):
+        got = _rows_of(I, H)
+        for a, b in zip(got, ref):
+            assert same_bits(a, b)
+    # one task; a busy machine may let a gap between two calls outlast LINGER once or twice
+    assert 1 <= len(tasks) <= 3
+
+
 def test_convert_rows_thread_that_begins_after_the_rows_are_done_takes_none(rng):
     """A call whose pool threads have not begun (a busy machine) does not wait for them: the
     caller converts every row, and a thread that begins serving afterwards finds no block of that
