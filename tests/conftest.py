@@ -18,10 +18,11 @@ def rng():
     return np.random.default_rng(20261122)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def s3_server(tmp_path_factory):
     """The URL of a local S3-compatible server (moto's server mode, the ``test-s3`` extra) on
-    127.0.0.1, running as its own process for a test module; skips without moto."""
+    127.0.0.1, running as its own process for the test session (one per xdist worker: each test
+    has a fresh bucket of its own, :func:`s3`); skips without moto."""
     need("moto.server")  # the test-s3 extra: moto's S3 backend and flask for its server mode
     need("flask")
     port = free_port()

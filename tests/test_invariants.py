@@ -147,8 +147,10 @@ def test_convert_strict_names_rows_and_writes_nothing(inputs, tmp_path, capsys):
 
 @pytest.fixture(scope="module")
 def big_file(tmp_path_factory):
+    """Four of the reader's batches: the child stops as it writes the first (helpers.StopAt), so
+    the signal lands with more to come; a longer file would only be read no further."""
     big = tmp_path_factory.mktemp("big") / "big.parquet"
-    pq.write_table(pa.table(make_scene(2_000_000, seed=5)), big)
+    pq.write_table(pa.table(make_scene(4 * parquetio.PARQUET_BATCH_ROWS, seed=5)), big)
     return big
 
 

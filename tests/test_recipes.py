@@ -6,6 +6,8 @@ and prints one line naming what it wrote and the rows there.
 Each test skips when its engine is not installed (``pip install -e '.[recipes]'``; Spark also
 needs Java); CI installs every engine, so none skips there. The Ray and Spark tests, 5 to 25 s
 each, are marked ``engines_slow``: ``pytest -m "not engines_slow"`` leaves them out locally.
+Spark runs with its web UI off and the JVM's quick compiler only (:func:`_spark_conf`): what it
+computes is the same, in much less CPU time on data this small (docs/measurements.md).
 The dataset is twelve files from ``hconv generate``, so that a directory of output
 files whose names do not sort (part.10 before part.2) shows, with rows flagged singular (ω NaN)
 and ill_conditioned among the ok ones, and with the inertia stored in g·cm² (field metadata
@@ -80,9 +82,10 @@ def _read(path: Path) -> pa.Table:
     return pa.concat_tables([pq.read_table(f) for f in files])
 
 
-def _run(recipe: str, dataset: Path, cwd: Path) -> tuple[str, str, Path]:
+def _run(recipe: str, dataset: Path, cwd: Path, env: dict[str, str] | None = None) -> tuple[str, str, Path]:
     """Run the command docs/recipes/RECIPE's docstring shows, word for word, as a user does from a
-    clone's root with the dataset in data/ (here ``cwd``, with ``docs`` and ``data`` linked in);
+    clone's root with the dataset in data/ (here ``cwd``, with ``docs`` and ``data`` linked in),
+    with ``env`` added to the environment;
     its stdout, its output as the command names it (its last argument) and that output's path."""
     command = re.search(rf"^ +python (docs/recipes/{re.escape(recipe)} .*)$", (RECIPES / recipe).read_text(), re.M)
     assert command, f"{recipe}: its docstring shows no 'python docs/recipes/{recipe} ...' command"
@@ -90,7 +93,12 @@ def _run(recipe: str, dataset: Path, cwd: Path) -> tuple[str, str, Path]:
         if not (cwd / name).exists():
             (cwd / name).symlink_to(target, target_is_directory=True)
     proc = subprocess.run(
-        [sys.executable, *shlex.split(command.group(1))], capture_output=True, cwd=cwd, timeout=600, text=True
+        [sys.executable, *shlex.split(command.group(1))],
+        capture_output=True,
+        cwd=cwd,
+        timeout=600,
+        text=True,
+        env={**os.environ, **(env or {})},
     )
     assert proc.returncode == 0, f"{recipe} failed:\n{proc.stdout}\n{proc.stderr}"
     dst = shlex.split(command.group(1))[-1]
@@ -203,10 +211,22 @@ def test_ray_tasks_recipe_writes_what_hconv_convert_writes_file_by_file(dataset,
     assert_same_units(omega, reference)
 
 
+def _spark_conf(folder: Path) -> dict[str, str]:
+    """The environment for a Spark configuration of the test machine's, in ``folder``: no web UI,
+    and the driver's JVM compiling with C1 only. C2, the JVM's optimising compiler, kept cores busy
+    beside the recipe's partitions, on CI's two, for a job that ends before its code pays off
+    (docs/measurements.md). Neither changes what Spark computes; the recipe runs as written."""
+    folder.mkdir()
+    (folder / "spark-defaults.conf").write_text(
+        "spark.ui.enabled false\nspark.driver.extraJavaOptions -XX:TieredStopAtLevel=1\n"
+    )
+    return {"SPARK_CONF_DIR": str(folder)}
+
+
 @pytest.mark.engines_slow
 def test_spark_recipe_writes_hconv_converts_rows_in_order_with_the_units_in_sparks_schema(dataset, reference, tmp_path):
     _engine("pyspark.sql")
-    said, dst, omega = _run("spark_hconv.py", dataset, tmp_path)
+    said, dst, omega = _run("spark_hconv.py", dataset, tmp_path, env=_spark_conf(tmp_path / "spark-conf"))
     got = _read(omega)
     assert_says_what_it_wrote(said, dst, got)
     assert_same_rows(got, reference)
