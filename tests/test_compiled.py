@@ -192,11 +192,13 @@ def test_convert_rows_same_bits_whatever_the_blocks_and_threads(rng, monkeypatch
     assert sum(served) > 0, served
 
 
-def test_convert_rows_calls_in_a_loop_hand_no_task_to_a_thread_already_serving(rng, monkeypatch):
+@pytest.mark.parametrize(("n", "linger", "most"), [(20_000, 0.5, 3), (100_000, 0.001, 10)])
+def test_convert_rows_calls_in_a_loop_hand_no_task_to_a_thread_already_serving(rng, monkeypatch, n, linger, most):
     """Calls one after another find the pool's thread still serving from the call before (it
-    stays in C for LINGER): the first call hands it a task, the rest none, so that no call waits
-    for a thread's wake-up; the answers are the one-thread call's bits."""
-    n = 20_000
+    stays in C for LINGER after its last block): the first call hands it a task, the rest none,
+    so that no call waits for a thread's wake-up; the answers are the one-thread call's bits.
+    Short calls and a long LINGER, and calls longer than LINGER (a thread that counted LINGER
+    from the call's start would go back to the pool at the end of every call)."""
     I, H = physical_bodies(rng, n), rng.normal(size=(n, 3))
     ref = _outputs(n)
     rowcode.convert(*_row_args(I, H), *ref, 0, n)
@@ -214,14 +216,14 @@ def test_convert_rows_calls_in_a_loop_hand_no_task_to_a_thread_already_serving(r
     monkeypatch.setattr(compiled, "_shared_pool", lambda threads: Counting(real_pool(threads)))
     monkeypatch.setattr(compiled, "_servers", compiled._Servers())
     monkeypatch.setattr(compiled, "available_cores", lambda: 2)
-    monkeypatch.setattr(compiled, "LINGER", 0.5)
+    monkeypatch.setattr(compiled, "LINGER", linger)
     _no_thread_serving()
-    for _ in range(20):
-        got = _rows_of(I, H)
+    results = [_rows_of(I, H) for _ in range(20)]
+    for got in results:
         for a, b in zip(got, ref):
             assert same_bits(a, b)
-    # one task; a busy machine may let a gap between two calls outlast LINGER once or twice
-    assert 1 <= len(tasks) <= 3
+    # one task; a busy machine may let a gap between two calls outlast LINGER now and then
+    assert 1 <= len(tasks) <= most
 
 
 def test_convert_rows_thread_that_begins_after_the_rows_are_done_takes_none(rng):
@@ -243,6 +245,40 @@ def test_convert_rows_thread_that_begins_after_the_rows_are_done_takes_none(rng)
         out[...] = 1
     assert _serving(0.05, 1)[0].result(timeout=60) == 0
     assert all((out == 1).all() for out in got)
+
+
+def test_convert_rows_thread_that_begins_during_a_call_takes_its_blocks(rng):
+    """A pool thread woken for a call begins serving once the caller is converting its first
+    block: it takes the blocks left, and does not count the call as one it has seen end, which
+    once sent it back to the pool after LINGER with the caller left to convert alone."""
+    n = 800_000
+    I, H = physical_bodies(rng, n), rng.normal(size=(n, 3))
+    args = _row_args(I, H)
+    ref = _outputs(n)
+    rowcode.convert(*args, *ref, 0, n)
+    _no_thread_serving()
+    for _ in range(20):
+        got = _outputs(n)
+        began: list[float] = []
+        taken: list[int] = []
+
+        def late(began: list[float] = began, taken: list[int] = taken) -> None:
+            time.sleep(0.002)
+            began.append(time.perf_counter())
+            taken.append(rowcode.serve(0.001))
+
+        thread = threading.Thread(target=late)
+        thread.start()
+        # four blocks of 200,000 rows: each far longer than the thread's LINGER
+        lost, own = rowcode.share(*args, *got, 200_000, False)
+        returned = time.perf_counter()
+        thread.join()
+        for a, b in zip(got, ref):
+            assert same_bits(a, b)
+        if began[0] < returned - 0.005:  # it began well before the caller was done
+            assert taken[0] > 0 and own < n
+            return
+    raise AssertionError("in 20 calls the thread never began while the caller had blocks left")
 
 
 def test_convert_rows_caller_waits_for_the_blocks_other_threads_hold(rng):

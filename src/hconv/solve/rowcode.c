@@ -283,9 +283,10 @@ static npy_intp take_block(Chunk *s, uint64_t *seen)
 
 /* serve(linger): this thread takes the blocks of the calls the process's callers share (share),
  * without the GIL, until no call has been posted for `linger` seconds; returns how many blocks it
- * took. Between calls it reads only the word, until the word changes; it spins SPINS looks after
- * each call, then gives its core away between looks, so that on a busy machine a thread waiting
- * for a call does not hold a core that other work wants. */
+ * took; `linger` counts from its last block or the last call it saw posted, whichever is later.
+ * Between calls it reads only the word, until the word changes; it spins SPINS looks after each
+ * call, then gives its core away between looks, so that on a busy machine a thread waiting for a
+ * call does not hold a core that other work wants. */
 static PyObject *serve(PyObject *self, PyObject *args)
 {
     double linger;
@@ -298,13 +299,15 @@ static PyObject *serve(PyObject *self, PyObject *args)
     Py_BEGIN_ALLOW_THREADS;
     add_int(&serving, 1);
     double last = seconds();
-    uint64_t idle = load_word(); /* a word with no block to take: look again when it changes */
-    uint64_t generation = idle >> 32;
+    /* idle: the word last found with no block to take (look again when it changes); at first
+     * none, so that a thread started during a call takes that call's blocks */
+    uint64_t idle = UINT64_MAX, generation = UINT64_MAX;
     for (unsigned long looks = 0;; looks++) {
         if (load_word() != idle) {
             npy_intp got = take_block(s, &idle);
             if (got >= 0) {
                 taken += got > 0;
+                last = seconds(), looks = 0;
                 continue;
             }
         }
