@@ -129,6 +129,15 @@ def _row_args(I: np.ndarray, H: np.ndarray) -> tuple:
     return (I.reshape(n, 9).T, True, H.T, False, True, 4.5e9)
 
 
+def _rows_and_reference(rng: np.random.Generator, n: int) -> tuple[tuple, tuple, np.ndarray, np.ndarray]:
+    """n physical bodies and H: (rowcode's inputs, their outputs on one thread, I, H)."""
+    I, H = physical_bodies(rng, n), rng.normal(size=(n, 3))
+    args = _row_args(I, H)
+    ref = _outputs(n)
+    rowcode.convert(*args, *ref, 0, n)
+    return args, ref, I, H
+
+
 def _no_thread_serving() -> None:
     """Waits until the threads earlier calls left serving have gone back to the pool (LINGER)."""
     for _ in range(3000):
@@ -199,9 +208,7 @@ def test_convert_rows_calls_in_a_loop_hand_no_task_to_a_thread_already_serving(r
     so that no call waits for a thread's wake-up; the answers are the one-thread call's bits.
     Short calls and a long LINGER, and calls longer than LINGER (a thread that counted LINGER
     from the call's start would go back to the pool at the end of every call)."""
-    I, H = physical_bodies(rng, n), rng.normal(size=(n, 3))
-    ref = _outputs(n)
-    rowcode.convert(*_row_args(I, H), *ref, 0, n)
+    _, ref, I, H = _rows_and_reference(rng, n)
     tasks: list[object] = []
     real_pool = compiled._shared_pool
 
@@ -231,10 +238,7 @@ def test_convert_rows_thread_that_begins_after_the_rows_are_done_takes_none(rng)
     caller converts every row, and a thread that begins serving afterwards finds no block of that
     call left and writes no row of it."""
     n = 10_000
-    I, H = physical_bodies(rng, n), rng.normal(size=(n, 3))
-    args = _row_args(I, H)
-    ref = _outputs(n)
-    rowcode.convert(*args, *ref, 0, n)
+    args, ref, _, _ = _rows_and_reference(rng, n)
     _no_thread_serving()
     got = _outputs(n)
     lost, own = rowcode.share(*args, *got, 1_000, False)
@@ -252,10 +256,7 @@ def test_convert_rows_thread_that_begins_during_a_call_takes_its_blocks(rng):
     block: it takes the blocks left, and does not count the call as one it has seen end, which
     once sent it back to the pool after LINGER with the caller left to convert alone."""
     n = 800_000
-    I, H = physical_bodies(rng, n), rng.normal(size=(n, 3))
-    args = _row_args(I, H)
-    ref = _outputs(n)
-    rowcode.convert(*args, *ref, 0, n)
+    args, ref, _, _ = _rows_and_reference(rng, n)
     _no_thread_serving()
     for _ in range(20):
         got = _outputs(n)
@@ -285,10 +286,7 @@ def test_convert_rows_caller_waits_for_the_blocks_other_threads_hold(rng):
     """The caller returns only when every row is done, by whichever thread: when it finds no
     block left to take, a serving thread may still be converting its last one."""
     n = 400_000
-    I, H = physical_bodies(rng, n), rng.normal(size=(n, 3))
-    args = _row_args(I, H)
-    ref = _outputs(n)
-    rowcode.convert(*args, *ref, 0, n)
+    args, ref, _, _ = _rows_and_reference(rng, n)
     server = _serving(0.5, 1)[0]
     owns = []
     for _ in range(12):
@@ -329,11 +327,9 @@ def test_convert_rows_calls_in_a_row_never_write_a_returned_call_s_rows(rng):
     returns, and no thread writes a row of a call after that call has returned, however late it
     read the call's post (its outputs, overwritten at return, stay so)."""
     sizes = (64, 200, 333)
-    bodies = {n: (physical_bodies(rng, n), rng.normal(size=(n, 3))) for n in sizes}
-    refs = {}
-    for n, (I, H) in bodies.items():
-        refs[n] = _outputs(n)
-        rowcode.convert(*_row_args(I, H), *refs[n], 0, n)
+    made = {n: _rows_and_reference(rng, n) for n in sizes}
+    inputs = {n: args for n, (args, _, _, _) in made.items()}
+    refs = {n: ref for n, (_, ref, _, _) in made.items()}
     servers = _serving(0.5, 2)
     returned: list[tuple] = []
     wrong: list[int] = []
@@ -346,7 +342,7 @@ def test_convert_rows_calls_in_a_row_never_write_a_returned_call_s_rows(rng):
         while (shared[0] < 200 and k < 20_000) if first == 0 else k < 1_500:
             n = sizes[k % len(sizes)]
             got = _outputs(n)
-            _, own = rowcode.share(*_row_args(*bodies[n]), *got, 16, False)
+            _, own = rowcode.share(*inputs[n], *got, 16, False)
             shared[0] += own < n
             if not all(same_bits(a, b) for a, b in zip(got, refs[n])):
                 wrong.append(k)
