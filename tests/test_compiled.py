@@ -10,6 +10,8 @@ computed the rows itself, so that agreement cannot come from handing every row t
 from __future__ import annotations
 
 import importlib
+import os
+import sys
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -280,6 +282,84 @@ def test_convert_rows_thread_that_begins_during_a_call_takes_its_blocks(rng):
             assert taken[0] > 0 and own < n
             return
     raise AssertionError("in 20 calls the thread never began while the caller had blocks left")
+
+
+def test_convert_rows_child_forked_during_a_call_takes_none_of_its_blocks(rng):
+    """A child forked (by another thread: a multiprocessing pool's handler) while its parent's
+    main thread converts a call inherits that call's post with blocks left and no caller: its
+    serving thread must take none of them, or its own next call counts their rows as its own and
+    returns before its rows are written."""
+    if not hasattr(os, "fork"):
+        pytest.skip("no fork on this platform")
+    n_dead, n = 1_000_000, 200_000
+    dead = _row_args(np.full((n_dead, 3, 3), np.nan), np.zeros((n_dead, 3)))  # every row falls back
+    args, ref, _, _ = _rows_and_reference(rng, n)
+
+    def child() -> None:
+        code = 3
+        try:
+            server = threading.Thread(target=rowcode.serve, args=(0.2,))
+            server.start()
+            time.sleep(0.005)  # time to take the parent's blocks, were they offered
+            got = _outputs(n)
+            lost, _ = rowcode.share(*args, *got, 10_000, False)
+            whole = all(same_bits(a, b) for a, b in zip(got, ref))
+            server.join()
+            code = 0 if lost == 0 and whole else 1
+        finally:
+            os._exit(code)
+
+    for _ in range(3):
+        pids: list[int] = []
+
+        def fork_soon(pids: list[int] = pids) -> None:
+            time.sleep(0.02)  # a fifth of the way through the call's 50 blocks, on one thread
+            pid = os.fork()
+            if pid == 0:
+                child()
+            pids.append(pid)
+
+        outputs = _outputs(n_dead)
+        forker = threading.Thread(target=fork_soon)
+        forker.start()
+        lost, _ = rowcode.share(*dead, *outputs, 20_000, False)
+        forker.join()
+        assert lost == n_dead
+        _, status = os.waitpid(pids[0], 0)
+        assert os.waitstatus_to_exitcode(status) == 0
+
+
+def test_convert_rows_share_and_serve_refuse_what_they_cannot_do(rng):
+    """A block size that is not one row at least, or a linger that is not a time (NaN would keep
+    the thread forever), is refused; a block size above the rows (even the largest, whose block
+    count once overflowed) is one block."""
+    n = 50
+    args, ref, _, _ = _rows_and_reference(rng, n)
+    for size in (1, 7, n, n + 1, sys.maxsize):
+        got = _outputs(n)
+        assert rowcode.share(*args, *got, size, False)[0] == 0
+        assert all(same_bits(a, b) for a, b in zip(got, ref))
+    for size in (0, -1):
+        with pytest.raises(ValueError, match="block size"):
+            rowcode.share(*args, *_outputs(n), size, False)
+    for linger in (float("nan"), float("inf"), -1.0):
+        with pytest.raises(ValueError, match="linger"):
+            rowcode.serve(linger)
+
+
+def test_convert_rows_when_the_pool_takes_no_more_tasks_converts_on_the_caller(rng, monkeypatch):
+    """A large call made while the interpreter shuts down (an atexit handler), whose pool refuses
+    new tasks, is converted by its caller alone, not refused."""
+    n = 20_000
+    _, ref, I, H = _rows_and_reference(rng, n)
+    closed = ThreadPoolExecutor(1)
+    closed.shutdown()
+    monkeypatch.setattr(compiled, "_shared_pool", lambda threads: closed)
+    monkeypatch.setattr(compiled, "_servers", compiled._Servers())
+    monkeypatch.setattr(compiled, "available_cores", lambda: 2)
+    got = _rows_of(I, H)
+    for a, b in zip(got, ref):
+        assert same_bits(a, b)
 
 
 def test_convert_rows_caller_waits_for_the_blocks_other_threads_hold(rng):

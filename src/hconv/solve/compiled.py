@@ -26,6 +26,7 @@ Shapes: I ``(k, N)`` in its form's value order (six numbers or nine row-major), 
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import threading
@@ -171,7 +172,8 @@ class _Servers:
         if self._pid != os.getpid():  # a forked child has none of its parent's threads
             self._running, self._pid = [], os.getpid()
         running = [f for f in self._running if not f.done()]
-        running += [pool.submit(rowcode.serve, LINGER) for _ in range(threads - len(running))]
+        with contextlib.suppress(RuntimeError):  # the interpreter is shutting down: the caller converts alone
+            running += [pool.submit(rowcode.serve, LINGER) for _ in range(threads - len(running))]
         self._running = running
 
 

@@ -200,7 +200,12 @@ static int read_int(int *c) { return _InterlockedCompareExchange((volatile long 
 static void fence(void) { MemoryBarrier(); }
 static void relax(void) { YieldProcessor(); }
 static void yield_core(void) { SwitchToThread(); }
-static double seconds(void) { return (double)GetTickCount64() / 1e3; }
+static double seconds(void)
+{
+    LARGE_INTEGER t, f;
+    QueryPerformanceCounter(&t), QueryPerformanceFrequency(&f);
+    return (double)t.QuadPart / (double)f.QuadPart;
+}
 static void on_fork(void) {}
 #else
 #include <pthread.h>
@@ -234,8 +239,15 @@ static void relax(void)
 #endif
 }
 static void yield_core(void) { sched_yield(); }
-/* a child forked while a thread of its parent held the post or served has neither thread */
-static void forked(void) { owned = 0, serving = 0; }
+/* A child forked while a thread of its parent held the post or served has neither thread; the
+ * post of a call its parent was converting would still offer blocks, to be written into arrays
+ * no caller waits for, and counted in the child's next call: the post is retired (BUSY in a new
+ * generation). The child has one thread here. */
+static void forked(void)
+{
+    owned = 0, serving = 0;
+    word = (((word >> 32) + 1) << 32) | BUSY;
+}
 static void on_fork(void) { pthread_atfork(NULL, NULL, forked); }
 static double seconds(void)
 {
@@ -292,6 +304,10 @@ static PyObject *serve(PyObject *self, PyObject *args)
     double linger;
     if (!PyArg_ParseTuple(args, "d", &linger))
         return NULL;
+    if (!(linger >= 0.0 && linger <= 3600.0)) { /* NaN too: a thread that never returns */
+        PyErr_SetString(PyExc_ValueError, "rowcode.serve: linger in seconds, 0 to 3600");
+        return NULL;
+    }
     Chunk *s = PyMem_RawMalloc(sizeof(Chunk));
     if (!s)
         return PyErr_NoMemory();
@@ -398,7 +414,10 @@ static PyObject *share(PyObject *self, PyObject *args)
     Py_ssize_t size, alone;
     if (parse_rows(args, "O!pO!ppdO!O!O!O!O!nn", &jb, &n, &size, &alone) < 0)
         return NULL;
-    if (size < 1 || (n + size - 1) / size >= (npy_intp)BUSY) {
+    /* without n + size - 1, which overflows for a huge size; compared unsigned, as BUSY is -1 in
+     * a 32-bit npy_intp */
+    npy_intp blocks = size < 1 ? 0 : n / size + (n % size != 0);
+    if (size < 1 || (uint64_t)blocks >= (uint64_t)BUSY) {
         PyErr_SetString(PyExc_ValueError, "rowcode.share: a block size of at least one row, fewer than 2**32 blocks");
         return NULL;
     }
@@ -413,14 +432,14 @@ static PyObject *share(PyObject *self, PyObject *args)
         uint64_t generation = (load_word() >> 32) + 1;
         store_word(generation << 32 | BUSY);
         fence();
-        post.jb = jb, post.n = n, post.size = size, post.blocks = (uint32_t)((n + size - 1) / size);
+        post.jb = jb, post.n = n, post.size = size, post.blocks = (uint32_t)blocks;
         set_count(&rows_done, 0), set_count(&rows_lost, 0);
         store_word(generation << 32);
         own = 0;
         uint64_t seen;
         for (npy_intp got; (got = take_block(s, &seen)) >= 0;)
             own += got;
-        for (long spins = 0; read_count(&rows_done) < (npy_int64)n; spins++)
+        for (npy_int64 spins = 0; read_count(&rows_done) < (npy_int64)n; spins++)
             if (spins < SPINS)
                 relax();
             else
