@@ -243,7 +243,7 @@ def test_convert_rows_thread_that_begins_after_the_rows_are_done_takes_none(rng)
     args, ref, _, _ = _rows_and_reference(rng, n)
     _no_thread_serving()
     got = _outputs(n)
-    lost, own = rowcode.share(*args, *got, 1_000, False)
+    lost, own = rowcode.share(*args, *got, 1_000)
     assert (lost, own) == (0, n)
     for a, b in zip(got, ref):
         assert same_bits(a, b)
@@ -273,7 +273,7 @@ def test_convert_rows_thread_that_begins_during_a_call_takes_its_blocks(rng):
         thread = threading.Thread(target=late)
         thread.start()
         # four blocks of 200,000 rows: each far longer than the thread's LINGER
-        lost, own = rowcode.share(*args, *got, 200_000, False)
+        lost, own = rowcode.share(*args, *got, 200_000)
         returned = time.perf_counter()
         thread.join()
         for a, b in zip(got, ref):
@@ -302,7 +302,7 @@ def test_convert_rows_child_forked_during_a_call_takes_none_of_its_blocks(rng):
             server.start()
             time.sleep(0.005)  # time to take the parent's blocks, were they offered
             got = _outputs(n)
-            lost, _ = rowcode.share(*args, *got, 10_000, False)
+            lost, _ = rowcode.share(*args, *got, 10_000)
             whole = all(same_bits(a, b) for a, b in zip(got, ref))
             server.join()
             code = 0 if lost == 0 and whole else 1
@@ -322,7 +322,7 @@ def test_convert_rows_child_forked_during_a_call_takes_none_of_its_blocks(rng):
         outputs = _outputs(n_dead)
         forker = threading.Thread(target=fork_soon)
         forker.start()
-        lost, _ = rowcode.share(*dead, *outputs, 20_000, False)
+        lost, _ = rowcode.share(*dead, *outputs, 20_000)
         forker.join()
         assert lost == n_dead
         _, status = os.waitpid(pids[0], 0)
@@ -337,11 +337,11 @@ def test_convert_rows_share_and_serve_refuse_what_they_cannot_do(rng):
     args, ref, _, _ = _rows_and_reference(rng, n)
     for size in (1, 7, n, n + 1, sys.maxsize):
         got = _outputs(n)
-        assert rowcode.share(*args, *got, size, False)[0] == 0
+        assert rowcode.share(*args, *got, size)[0] == 0
         assert all(same_bits(a, b) for a, b in zip(got, ref))
     for size in (0, -1):
         with pytest.raises(ValueError, match="block size"):
-            rowcode.share(*args, *_outputs(n), size, False)
+            rowcode.share(*args, *_outputs(n), size)
     for linger in (float("nan"), float("inf"), -1.0):
         with pytest.raises(ValueError, match="linger"):
             rowcode.serve(linger)
@@ -373,7 +373,7 @@ def test_convert_rows_caller_waits_for_the_blocks_other_threads_hold(rng):
         got = _outputs(n)
         # blocks of 50,000 rows: when the caller finds none left, the serving thread's last may
         # have milliseconds to go, more than copying one output takes
-        lost, own = rowcode.share(*args, *got, 50_000, False)
+        lost, own = rowcode.share(*args, *got, 50_000)
         cond_at_return = got[1].copy()
         owns.append(own)
         assert same_bits(cond_at_return, ref[1])
@@ -393,7 +393,7 @@ def test_convert_rows_shared_blocks_are_each_taken_once(rng):
     ref, got = _outputs(n), _outputs(n)
     lost_ref = rowcode.convert(*args, *ref, 0, n)
     servers = _serving(0.5, 3)
-    lost, own = rowcode.share(*args, *got, 7, False)
+    lost, own = rowcode.share(*args, *got, 7)
     assert lost == lost_ref == len(range(0, n, 97))
     for a, b in zip(got, ref):
         assert same_bits(a, b)
@@ -422,7 +422,7 @@ def test_convert_rows_calls_in_a_row_never_write_a_returned_call_s_rows(rng):
         while (shared[0] < 200 and k < 20_000) if first == 0 else k < 1_500:
             n = sizes[k % len(sizes)]
             got = _outputs(n)
-            _, own = rowcode.share(*inputs[n], *got, 16, False)
+            _, own = rowcode.share(*inputs[n], *got, 16)
             shared[0] += own < n
             if not all(same_bits(a, b) for a, b in zip(got, refs[n])):
                 wrong.append(k)

@@ -154,7 +154,7 @@ def convert_rows(
     # Python; a thread that has not begun when the rows are done takes none.
     size = max(BLOCK_ROWS // 16, -(-n // (PARTS_PER_THREAD * threads)))
     _servers.enlist(threads - 1)
-    lost, _ = rowcode.share(*args, size, False)
+    lost, _ = rowcode.share(*args, size)
     return lost
 
 

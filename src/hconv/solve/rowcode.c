@@ -345,8 +345,10 @@ static PyObject *serve(PyObject *self, PyObject *args)
 /* serving(): how many threads are in serve() now. */
 static PyObject *serving_now(PyObject *self, PyObject *args) { return PyLong_FromLong(read_int(&serving)); }
 
-static int parse_rows(PyObject *args, const char *format, Job *jb, npy_intp *n, Py_ssize_t *a, Py_ssize_t *b)
+/* the arguments convert and share begin with, then one integer (b NULL) or two */
+static int parse_rows(PyObject *args, Job *jb, npy_intp *n, Py_ssize_t *a, Py_ssize_t *b)
 {
+    const char *format = b ? "O!pO!ppdO!O!O!O!O!nn" : "O!pO!ppdO!O!O!O!O!n";
     PyArrayObject *In, *H, *w, *cond, *code, *residual, *fallback;
     int nine, refined, diagnostics;
     double cond_limit;
@@ -385,7 +387,7 @@ static PyObject *convert(PyObject *self, PyObject *args)
     Job jb;
     npy_intp n;
     Py_ssize_t start, stop;
-    if (parse_rows(args, "O!pO!ppdO!O!O!O!O!nn", &jb, &n, &start, &stop) < 0)
+    if (parse_rows(args, &jb, &n, &start, &stop) < 0)
         return NULL;
     if (start < 0 || stop > n || start > stop) {
         PyErr_SetString(PyExc_ValueError, "rowcode.convert: rows start..stop out of range");
@@ -402,17 +404,17 @@ static PyObject *convert(PyObject *self, PyObject *args)
     return PyLong_FromSsize_t(lost);
 }
 
-/* share(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, size, alone):
+/* share(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, size):
  * every row, as convert's, in blocks of `size` rows posted to the threads serving, the caller
  * taking blocks too; returns once every row is done, by whichever thread: (rows that fell back,
- * rows this thread converted). With `alone`, or while another caller's rows are posted, the
- * caller converts every row itself. */
+ * rows this thread converted). While another caller's rows are posted, the caller converts
+ * every row itself. */
 static PyObject *share(PyObject *self, PyObject *args)
 {
     Job jb;
     npy_intp n;
-    Py_ssize_t size, alone;
-    if (parse_rows(args, "O!pO!ppdO!O!O!O!O!nn", &jb, &n, &size, &alone) < 0)
+    Py_ssize_t size;
+    if (parse_rows(args, &jb, &n, &size, NULL) < 0)
         return NULL;
     /* without n + size - 1, which overflows for a huge size; compared unsigned, as BUSY is -1 in
      * a 32-bit npy_intp */
@@ -426,7 +428,7 @@ static PyObject *share(PyObject *self, PyObject *args)
         return PyErr_NoMemory();
     npy_intp lost, own = n;
     Py_BEGIN_ALLOW_THREADS;
-    if (alone || !take_slot(&owned))
+    if (!take_slot(&owned))
         lost = rows(&jb, s, 0, n);
     else {
         uint64_t generation = (load_word() >> 32) + 1;
@@ -588,7 +590,7 @@ static PyMethodDef methods[] = {
     {"convert", convert, METH_VARARGS,
      "convert(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, start, stop)"},
     {"share", share, METH_VARARGS,
-     "share(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, size, alone)"},
+     "share(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, size)"},
     {"serve", serve, METH_VARARGS, "serve(linger): take the blocks of shared calls until none comes for linger s."},
     {"serving", serving_now, METH_NOARGS, "serving(): how many threads are in serve() now."},
     {NULL, NULL, 0, NULL},

@@ -41,7 +41,6 @@ def share(
     residual: np.ndarray,
     fallback: np.ndarray,
     size: int,
-    alone: bool,
     /,
 ) -> tuple[int, int]: ...
 def serve(linger: float, /) -> int: ...
