@@ -364,7 +364,7 @@ def test_convert_dataset_interrupted_keeps_complete_files_in_a_partial_manifest_
     out = tmp_path / "out"
     # The child stops as its third file starts, two written (helpers.StopAt): the signal lands
     # mid-run however slow the machine.
-    stop = StopAt(tmp_path / "hook", "hconv.tables.runners:convert_one#3")
+    stop = StopAt(tmp_path / "hook", "hconv.tables.processes:convert_one#3")
     env = stop.env(dict(os.environ, TMPDIR=str(spools), COLUMNS="200"))
     proc = subprocess.Popen(
         [sys.executable, "-m", "hconv", "convert", "data", "out", "--threads", "1"],
@@ -733,7 +733,7 @@ def test_convert_dataset_small_files_share_a_pool_of_threads_and_start_none(tmp_
     this thread with its batch writer, as one file does. Each output is its single conversion."""
     import threading
 
-    from hconv.tables import onefile, runners
+    from hconv.tables import onefile, processes, runners
 
     data = tmp_path / "data"
     for k in range(9):
@@ -751,7 +751,8 @@ def test_convert_dataset_small_files_share_a_pool_of_threads_and_start_none(tmp_
         writers.append(threading.current_thread())
         return real_enter(self)
 
-    monkeypatch.setattr(runners, "convert_one", convert_one)
+    monkeypatch.setattr(runners, "convert_one", convert_one)  # a large file
+    monkeypatch.setattr(processes, "convert_one", convert_one)  # small ones, on threads below PROCESS_FILES
     monkeypatch.setattr(pipeline.BackgroundWriter, "__enter__", enter)
     run = hconv.convert_dataset(str(data), str(tmp_path / "out"), threads=2)
     assert run.complete and len(run.files) == 9
