@@ -203,10 +203,18 @@ class Workers:
         return future
 
     def _feed(self, slot: _Worker) -> None:
-        while (item := self._queue.get()) is not None:
-            tasks, future = item
-            if future.set_running_or_notify_cancel():
-                future.set_result(slot.convert(tasks))
+        # The slot's worker is started, restarted and ended on this thread alone: Linux sends
+        # PR_SET_PDEATHSIG when the thread that started a process ends, not its process.
+        try:
+            while (item := self._queue.get()) is not None:
+                tasks, future = item
+                if future.set_running_or_notify_cancel():
+                    try:
+                        future.set_result(slot.convert(tasks))
+                    except BaseException as exc:  # its waiter raises it; it must not wait forever
+                        future.set_exception(exc)
+        finally:
+            slot.close()
 
     def __enter__(self) -> Workers:
         return self
@@ -219,7 +227,5 @@ class Workers:
             self._queue.put(None)
         for thread in self._threads:
             thread.join()
-        for slot in self._slots:
-            slot.close()
         if any(slot.died for slot in self._slots) and self._dst.local:
             temporaries.remove_run_temporaries(self._dst.root, self._run, recursive=True)
