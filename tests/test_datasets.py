@@ -876,6 +876,16 @@ def _worker_pids(pid: int) -> list[int]:
     return pids
 
 
+def _rerun_completes(tmp_path: Path, data: Path, out: Path) -> None:
+    """The same command run again on tmp_path/data: it completes the manifest, leaves nothing
+    temporary, and every output is its file's single conversion."""
+    proc = run_hconv("convert", "data", "out", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr.decode()
+    assert _manifest(out)["complete"] is True and _no_temporaries(out) == []
+    for rel in _files(out) - {MANIFEST}:
+        assert (out / rel).read_bytes() == _single(data / rel, tmp_path), rel
+
+
 def test_convert_dataset_many_small_files_on_worker_processes_write_what_threads_write(tmp_path, monkeypatch):
     """From PROCESS_FILES small files a run converts them on worker processes: each output is
     its file's single conversion, a bad file fails alone with the message a run on threads
@@ -941,11 +951,7 @@ def test_convert_dataset_on_worker_processes_interrupted_keeps_what_it_lists(tmp
     assert m["complete"] is False and 19 <= len(listed) < 80, err.decode()
     assert _files(out) == set(listed) | {MANIFEST}
     assert not [pid for pid in workers if Path(f"/proc/{pid}").exists()]
-    proc2 = run_hconv("convert", "data", "out", cwd=tmp_path)
-    assert proc2.returncode == 0, proc2.stderr.decode()
-    assert _manifest(out)["complete"] is True and _no_temporaries(out) == []
-    for rel in _files(out) - {MANIFEST}:
-        assert (out / rel).read_bytes() == _single(data / rel, tmp_path), rel
+    _rerun_completes(tmp_path, data, out)
 
 
 def test_convert_dataset_killed_outright_on_worker_processes_takes_its_workers_along(tmp_path):
@@ -973,8 +979,4 @@ def test_convert_dataset_killed_outright_on_worker_processes_takes_its_workers_a
             break
         time.sleep(0.01)
     assert not [pid for pid in workers if Path(f"/proc/{pid}").exists()]
-    proc2 = run_hconv("convert", "data", "out", cwd=tmp_path)
-    assert proc2.returncode == 0, proc2.stderr.decode()
-    assert _manifest(out)["complete"] is True and _no_temporaries(out) == []
-    for rel in _files(out) - {MANIFEST}:
-        assert (out / rel).read_bytes() == _single(data / rel, tmp_path), rel
+    _rerun_completes(tmp_path, data, out)
