@@ -10,6 +10,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pyarrow as pa
@@ -364,7 +365,7 @@ def test_convert_dataset_interrupted_keeps_complete_files_in_a_partial_manifest_
     out = tmp_path / "out"
     # The child stops as its third file starts, two written (helpers.StopAt): the signal lands
     # mid-run however slow the machine.
-    stop = StopAt(tmp_path / "hook", "hconv.tables.runners:convert_one#3")
+    stop = StopAt(tmp_path / "hook", "hconv.tables.processes:convert_one#3")
     env = stop.env(dict(os.environ, TMPDIR=str(spools), COLUMNS="200"))
     proc = subprocess.Popen(
         [sys.executable, "-m", "hconv", "convert", "data", "out", "--threads", "1"],
@@ -733,7 +734,7 @@ def test_convert_dataset_small_files_share_a_pool_of_threads_and_start_none(tmp_
     this thread with its batch writer, as one file does. Each output is its single conversion."""
     import threading
 
-    from hconv.tables import onefile, runners
+    from hconv.tables import onefile, processes, runners
 
     data = tmp_path / "data"
     for k in range(9):
@@ -751,7 +752,8 @@ def test_convert_dataset_small_files_share_a_pool_of_threads_and_start_none(tmp_
         writers.append(threading.current_thread())
         return real_enter(self)
 
-    monkeypatch.setattr(runners, "convert_one", convert_one)
+    monkeypatch.setattr(runners, "convert_one", convert_one)  # a large file
+    monkeypatch.setattr(processes, "convert_one", convert_one)  # small ones, on threads below PROCESS_FILES
     monkeypatch.setattr(pipeline.BackgroundWriter, "__enter__", enter)
     run = hconv.convert_dataset(str(data), str(tmp_path / "out"), threads=2)
     assert run.complete and len(run.files) == 9
@@ -855,3 +857,126 @@ def test_convert_dataset_takes_a_pyarrow_dataset_of_files(tmp_path):
         hconv.convert_dataset(pads.dataset(pa.table({"Hx": [1.0]})), tmp_path / "out3")
     with pytest.raises(hconv.errors.UsageError, match=r"^convert_dataset takes a directory, .* got dict"):
         hconv.convert_dataset({"Hx": [1.0]}, tmp_path / "out4")
+
+
+# Many small files: worker processes (hconv.tables.processes), from runners.PROCESS_FILES files.
+
+
+def _small_dataset(root: Path, files: int) -> Path:
+    for k in range(files):
+        _write(root / f"day={k % 4}" / f"part-{k:03d}.parquet", 20 + k % 7, seed=k)
+    return root
+
+
+def _worker_pids(pid: int) -> list[int]:
+    """The children of process ``pid`` (Linux's /proc)."""
+    pids = []
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        pids += [int(p) for p in (task / "children").read_text().split()]
+    return pids
+
+
+def _rerun_completes(tmp_path: Path, data: Path, out: Path) -> None:
+    """The same command run again on tmp_path/data: it completes the manifest, leaves nothing
+    temporary, and every output is its file's single conversion."""
+    proc = run_hconv("convert", "data", "out", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr.decode()
+    assert _manifest(out)["complete"] is True and _no_temporaries(out) == []
+    for rel in _files(out) - {MANIFEST}:
+        assert (out / rel).read_bytes() == _single(data / rel, tmp_path), rel
+
+
+def test_convert_dataset_many_small_files_on_worker_processes_write_what_threads_write(tmp_path, monkeypatch):
+    """From PROCESS_FILES small files a run converts them on worker processes: each output is
+    its file's single conversion, a bad file fails alone with the message a run on threads
+    gives, a large file still converts on this thread, and nothing temporary is left."""
+    from hconv.tables import processes, runners
+
+    data = _small_dataset(tmp_path / "data", 11)
+    (data / "day=1" / "part-bad.parquet").write_bytes(b"PAR1 not really")
+    _write(data / "day=2" / "z-big.parquet", 400, seed=99)
+    made = []
+    real_init = processes.Workers.__init__
+
+    def init(self, count, *args, **kw):
+        made.append(count)
+        real_init(self, count, *args, **kw)
+
+    monkeypatch.setattr(processes.Workers, "__init__", init)
+    monkeypatch.setattr(runners, "SMALL_FILE_BYTES", (data / "day=2" / "z-big.parquet").stat().st_size)
+    errors = {}
+    for mode, at_least in (("threads", 10**9), ("processes", 4)):
+        monkeypatch.setattr(runners, "PROCESS_FILES", at_least)
+        with pytest.raises(dataset.DatasetError) as caught:
+            hconv.convert_dataset(str(data), str(tmp_path / mode), threads=2)
+        run = caught.value.result
+        assert len(run.files) == 12 and [rel for rel, _ in run.failed] == ["day=1/part-bad.parquet"]
+        errors[mode] = str(run.failed[0][1])
+        assert _no_temporaries(tmp_path / mode) == []
+    assert made == [2]  # the second run only
+    assert errors["processes"] == errors["threads"] and "day=1/part-bad.parquet" in errors["threads"]
+    for rel in _files(tmp_path / "threads") - {MANIFEST}:
+        assert (tmp_path / "processes" / rel).read_bytes() == _single(data / rel, tmp_path), rel
+    records = [{k: v for k, v in f.items() if k != "seconds"} for f in _manifest(tmp_path / "processes")["files"]]
+    assert records == [{k: v for k, v in f.items() if k != "seconds"} for f in _manifest(tmp_path / "threads")["files"]]
+
+
+def test_convert_dataset_on_worker_processes_interrupted_keeps_what_it_lists(tmp_path):
+    """Ctrl-C at a terminal (SIGINT to the whole process group, workers too) while worker
+    processes convert: the command exits 130, the manifest lists only complete outputs, no
+    temporary file and no worker is left, and the same command then converts the rest, each
+    output its file's single conversion."""
+    data = _small_dataset(tmp_path / "data", 80)
+    out = tmp_path / "out"
+    stop = StopAt(tmp_path / "hook", "hconv.tables.manifest:GroupCommit.add#20")  # 19 files settled
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hconv", "convert", "data", "out", "--threads", "2"],
+        cwd=tmp_path,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        env=stop.env(),
+        preexec_fn=lambda: (terminal_signals(), os.setpgrp()),
+        pass_fds=stop.fds,
+    )
+    stop.started()
+    assert stop.reached(), proc.communicate()[1].decode()
+    workers = _worker_pids(proc.pid)
+    assert len(workers) == 2
+    os.killpg(proc.pid, signal.SIGINT)
+    stop.release()
+    _, err = proc.communicate()
+    assert proc.returncode == 130, err.decode()
+    m = _manifest(out)
+    listed = [f["output"] for f in m["files"]]
+    assert m["complete"] is False and 19 <= len(listed) < 80, err.decode()
+    assert _files(out) == set(listed) | {MANIFEST}
+    assert not [pid for pid in workers if Path(f"/proc/{pid}").exists()]
+    _rerun_completes(tmp_path, data, out)
+
+
+def test_convert_dataset_killed_outright_on_worker_processes_takes_its_workers_along(tmp_path):
+    """kill -9 of the command while its worker processes convert: the workers end with it (none
+    goes on writing into OUT behind the next run), and the next run converts what the manifest
+    does not list, each output its file's single conversion, leaving nothing temporary."""
+    data = _small_dataset(tmp_path / "data", 80)
+    out = tmp_path / "out"
+    stop = StopAt(tmp_path / "hook", "hconv.tables.manifest:GroupCommit.add#20")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hconv", "convert", "data", "out", "--threads", "2"],
+        cwd=tmp_path,
+        stderr=subprocess.PIPE,
+        env=stop.env(),
+        pass_fds=stop.fds,
+    )
+    stop.started()
+    assert stop.reached(), proc.communicate()[1].decode()
+    workers = _worker_pids(proc.pid)
+    assert len(workers) == 2
+    proc.kill()
+    proc.communicate()
+    for _ in range(500):  # the kernel ends them as their parent ends: within moments
+        if not [pid for pid in workers if Path(f"/proc/{pid}").exists()]:
+            break
+        time.sleep(0.01)
+    assert not [pid for pid in workers if Path(f"/proc/{pid}").exists()]
+    _rerun_completes(tmp_path, data, out)

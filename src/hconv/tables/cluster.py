@@ -41,7 +41,6 @@ import re
 import shutil
 import tempfile
 import time
-import uuid
 import warnings
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -208,7 +207,7 @@ class Session:
         self.client = client
         self.where = where
         self.threads = threads
-        self.run_id = uuid.uuid4().hex[:12]
+        self.run_id = temporaries.new_run_tag()
         self.workers = 0
         self.addresses: set[str] = set()
         self.dst: Place | None = None
@@ -265,7 +264,16 @@ class Session:
 
         self.dst = plan.dst
         stop = distributed.Event(f"hconv-stop-{self.run_id}", client=self.client)
-        args = (plan.src.place, plan.dst, plan.job, strict, self.threads, self.run_id, stop.name, _cli())
+        args = (
+            plan.src.place,
+            plan.dst,
+            plan.job,
+            strict,
+            self.threads,
+            self.run_id,
+            stop.name,
+            errors.on_command_line(),
+        )
         by_key: dict[str, list[Task]] = {}
         files = []  # the futures whose results are files' records: a batch's, a join's
         limit = batch_bytes(plan.todo, self.workers)
@@ -286,7 +294,15 @@ class Session:
             self.futures += done
             files.append(
                 self.client.submit(
-                    _join_on_worker, task, parts, done, plan.dst, self.run_id, _cli(), key=key, pure=False
+                    _join_on_worker,
+                    task,
+                    parts,
+                    done,
+                    plan.dst,
+                    self.run_id,
+                    errors.on_command_line(),
+                    key=key,
+                    pure=False,
                 )
             )
         self.futures += files
@@ -406,11 +422,6 @@ def _batches(tasks: list[Task], limit: int) -> Iterator[list[Task]]:
             group, size = [], 0
     if group:
         yield group
-
-
-def _cli() -> bool:
-    """Whether messages are spelled for the command line, so that a worker's are too."""
-    return option("threads") == "--threads"
 
 
 def _prepare_worker() -> str:

@@ -101,6 +101,7 @@ def convert_one(
             else:
                 storage.put(staged, dst, task.output)
             record.seconds = time.perf_counter() - t0
+            record.encoded()  # here, on the thread or process that converted it, not the manifest's writer
             if done is not None:
                 done(record)
             interrupts.point("file")

@@ -11,6 +11,7 @@ import re
 import socket
 import sys
 import tempfile
+import uuid
 import zlib
 from collections.abc import Iterator
 from pathlib import Path
@@ -137,6 +138,11 @@ def is_run_temporary(name: str, run: str) -> bool:
     return (
         name.endswith(TEMP_SUFFIX) and f"run-{run}." in name and bool(_TEMP_NAME.match(name) or _PART_NAME.match(name))
     )
+
+
+def new_run_tag() -> str:
+    """A new run's tag, for :func:`run_prefix`: 12 random hex digits."""
+    return uuid.uuid4().hex[:12]
 
 
 def run_prefix(prefix: str, run: str | None) -> str:
