@@ -148,3 +148,13 @@ class _Sleeps:
 
     def __reduce__(self):
         return (time.sleep, (60,))
+
+
+def test_available_only_where_sys_executable_is_a_python(monkeypatch, tmp_path):
+    assert processes.available()  # the interpreter running the tests
+    blender = tmp_path / "blender"
+    blender.write_text("#!/bin/sh\n")
+    blender.chmod(0o755)
+    for embedded in (str(blender), ""):  # an application embedding Python; none to tell
+        monkeypatch.setattr(sys, "executable", embedded)
+        assert not processes.available()

@@ -28,6 +28,7 @@ files start a new one."""
 from __future__ import annotations
 
 import contextlib
+import os
 import pickle
 import queue
 import struct
@@ -66,6 +67,14 @@ serve(sys.stdin.buffer, replies)
 """
 
 _LENGTH = struct.Struct("<Q")
+
+
+def available() -> bool:
+    """Whether this interpreter can start workers: ``sys.executable`` is a Python to run with
+    ``-c``. In an application that embeds Python (Blender, uWSGI) it is the application's own
+    program, or empty, and the run converts on threads instead."""
+    name = os.path.basename(sys.executable or "").lower()
+    return name.startswith(("python", "pypy")) and os.access(sys.executable, os.X_OK)
 
 
 def send(stream: IO[bytes], message: object) -> None:
@@ -128,8 +137,6 @@ class _Worker:
         self.died = False  #: a worker of this slot ended before its stdin closed
 
     def _start(self) -> subprocess.Popen[bytes]:
-        import os
-
         process = subprocess.Popen(
             [sys.executable, "-c", _BOOT, str(os.getpid())], stdin=subprocess.PIPE, stdout=subprocess.PIPE
         )

@@ -28,9 +28,9 @@ if TYPE_CHECKING:
 
 
 #: A run converts its small files on worker processes (:mod:`hconv.tables.processes`) when it
-#: has at least this many, both its input and output are local, and it may use two cores or more:
-#: with fewer, starting the processes (an interpreter and hconv's imports each) costs more than
-#: they save.
+#: has at least this many (with fewer, starting the processes, an interpreter and hconv's
+#: imports each, costs more than they save), both its input and output are local, it may use
+#: two cores or more, and this interpreter can start them (:func:`hconv.tables.processes.available`).
 PROCESS_FILES = 64
 #: Small files handed to a worker process at a time: enough to make the exchange's cost small
 #: against theirs, few enough that a stopped run waits for little.
@@ -59,7 +59,7 @@ def in_process(
     size = threads or available_cores()
     src, dst, job = plan.src.place, plan.dst, plan.job
     small = sum(task.input.size < SMALL_FILE_BYTES for task in plan.todo)
-    if size > 1 and small >= PROCESS_FILES and src.local and dst.local:
+    if size > 1 and small >= PROCESS_FILES and src.local and dst.local and processes.available():
         pool: processes.Workers | ThreadPoolExecutor = processes.Workers(
             size, src, dst, job, strict=strict, cli=errors.on_command_line()
         )
