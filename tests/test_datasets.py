@@ -864,7 +864,7 @@ def test_convert_dataset_takes_a_pyarrow_dataset_of_files(tmp_path):
 
 def _small_dataset(root: Path, files: int) -> Path:
     for k in range(files):
-        _write(root / f"day={k % 4}" / f"part-{k:03d}.parquet", 20 + k % 7, seed=k)
+        _write(root / f"day={k % 4}" / f"part-{k:04d}.parquet", 20 + k % 7, seed=k)
     return root
 
 
@@ -933,7 +933,7 @@ def test_convert_dataset_on_worker_processes_interrupted_keeps_what_it_lists(tmp
     # More files than the runner hands out ahead of those it settled (17 chunks of 8 for 2
     # workers): the workers cannot finish them all while the run is stopped, however slow the
     # machine, so the Ctrl-C finds files to leave (with all done, a run ends as if never stopped).
-    files = 200
+    files = runners.PROCESS_FILES
     assert files > (runners.WORKER_CHUNKS_AHEAD * 2 + 1) * runners.CHUNK_FILES + 24
     data = _small_dataset(tmp_path / "data", files)
     out = tmp_path / "out"
@@ -967,7 +967,7 @@ def test_convert_dataset_killed_outright_on_worker_processes_takes_its_workers_a
     """kill -9 of the command while its worker processes convert: the workers end with it (none
     goes on writing into OUT behind the next run), and the next run converts what the manifest
     does not list, each output its file's single conversion, leaving nothing temporary."""
-    data = _small_dataset(tmp_path / "data", 80)
+    data = _small_dataset(tmp_path / "data", runners.PROCESS_FILES)
     out = tmp_path / "out"
     stop = StopAt(tmp_path / "hook", "hconv.tables.manifest:GroupCommit.add#20")
     proc = subprocess.Popen(

@@ -80,27 +80,63 @@ def test_workers_worker_that_dies_fails_its_files_alone_and_the_next_start_anoth
         after = pool.submit(plan.todo[2:]).result()
     assert isinstance(first[0], FileRecord) and isinstance(after[0], FileRecord)
     assert [str(e) for e in died] == [
-        f"{rel}: not converted: the process converting it ended (exit code 3); it may need more "
-        "memory than this machine has; run the same command again to retry it"
+        f"{rel}: not converted: the process converting it failed (exit code 3; its error is above); "
+        "run the same command again to retry it, or with --threads 1 to convert in this process"
         for rel in ("part-1.parquet", "crash.parquet")
     ]
     assert not (tmp_path / "out" / "part-1.parquet").exists()
 
 
-def test_workers_ignore_ctrl_c_and_sigterm(tmp_path):
+class _Killed:
+    """Unpickled in a worker, has it killed by SIGKILL, as the out-of-memory killer does."""
+
+    input = SimpleNamespace(rel="huge.parquet")
+
+    def __reduce__(self):
+        return (os.system, ("kill -9 $PPID",))
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="a POSIX shell's kill")
+def test_workers_worker_killed_names_the_signal_and_what_to_do(tmp_path):
+    plan = _plan(tmp_path, 1)
+    with _workers(plan) as pool:
+        (died,) = pool.submit([_Killed()]).result()
+        assert isinstance(pool.submit(plan.todo).result()[0], FileRecord)
+    assert str(died) == (
+        "huge.parquet: not converted: the process converting it was killed (signal 9, as the system does "
+        "when memory runs out); run the same command again to retry it, with fewer --threads if memory is short"
+    )
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="/proc")
+def test_workers_ignore_ctrl_c_and_sigterm_from_their_start(tmp_path):
     """The parent stops a run and waits for the files under way: a terminal's Ctrl-C, which
-    reaches every process of the group, must not cut a worker's file short."""
+    reaches every process of the group, must not cut a worker's file short, nor, while its
+    interpreter starts, print a traceback: the worker starts with both blocked (inherited from
+    the thread that starts it) and then ignores them."""
     plan = _plan(tmp_path, 1)
     with _workers(plan) as pool:
         assert pool.submit([]).result() == []  # the worker has started
         (pid,) = [slot._process.pid for slot in pool._slots]
-        ignored = int(
-            next(
-                line for line in Path(f"/proc/{pid}/status").read_text().splitlines() if line.startswith("SigIgn:")
-            ).split()[1],
-            16,
-        )
-    assert ignored >> 1 & 1 and ignored >> 14 & 1  # SIGINT (2) and SIGTERM (15)
+        status = dict(line.split(":", 1) for line in Path(f"/proc/{pid}/status").read_text().splitlines())
+    for field in ("SigIgn", "SigBlk"):
+        mask = int(status[field], 16)
+        assert mask >> (signal.SIGINT - 1) & 1 and mask >> (signal.SIGTERM - 1) & 1, field
+    assert signal.SIGINT not in signal.pthread_sigmask(signal.SIG_BLOCK, [])  # this thread still takes them
+
+
+def test_workers_start_whatever_the_current_folder_holds(tmp_path, monkeypatch):
+    """A ``signal.py`` or ``types.py`` in the current folder, which ``python -c`` would import
+    in place of the standard module while the worker starts, changes nothing."""
+    plan = _plan(tmp_path, 2)
+    shadow = tmp_path / "shadow"
+    shadow.mkdir()
+    for name in ("signal", "types", "struct", "pickle"):
+        (shadow / f"{name}.py").write_text("raise SystemExit(7)\n")
+    monkeypatch.chdir(shadow)
+    with _workers(plan) as pool:
+        results = pool.submit(plan.todo).result()
+    assert all(isinstance(r, FileRecord) for r in results), results
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="PR_SET_PDEATHSIG is Linux's")

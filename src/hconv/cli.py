@@ -247,8 +247,8 @@ def convert_cmd(
     threads: int | None = typer.Option(
         None,
         "--threads",
-        help="batches converted at once; default: the cores available, "
-        "at most 4 (the output is the same for any number)",
+        help="batches converted at once (in a dataset, small files, on as many worker processes "
+        "from 300 files); default: the cores available, at most 4 (the output is the same for any number)",
     ),
     endpoint_url: str | None = typer.Option(
         None,

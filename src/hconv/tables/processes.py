@@ -6,9 +6,10 @@ process has its own interpreter (docs/scaling.md has the figures).
 
 How a worker runs
 -----------------
-A worker is ``python -c`` (:data:`_BOOT`), not a multiprocessing child: that would import the
-caller's main script again in the child, which a script without a ``__main__`` guard cannot
-survive. It talks over its stdin and a copy of its stdout, one pickled message at a time, each
+A worker is ``python -I -c`` (:data:`_BOOT`), not a multiprocessing child: that would import
+the caller's main script again in the child, which a script without a ``__main__`` guard cannot
+survive. Isolated (``-I``), so that a ``signal.py`` or ``types.py`` in the current folder cannot
+stand in for the standard module while it starts. It talks over its stdin and a copy of its stdout, one pickled message at a time, each
 after its length (stray prints of the worker go to stderr): first the parent's ``sys.path``, so
 that it imports the same hconv, then the run's setup, then lists of files to convert, each
 answered by a list of their records or errors. It ends when its stdin closes.
@@ -18,7 +19,8 @@ What a worker does not do
 It commits each output (renamed into place) but does not flush it: its records go to the
 parent's :class:`hconv.tables.manifest.GroupCommit`, which makes the outputs durable by group
 before the manifest lists them, as for files converted on threads. It ignores Ctrl-C and
-SIGTERM: the parent stops the run, waits for the files under way, and keeps their records. It
+SIGTERM from its start (they are blocked in the thread that starts it, and a child inherits the
+mask): the parent stops the run, waits for the files under way, and keeps their records. It
 dies with its parent (Linux's ``PR_SET_PDEATHSIG``), so that a run killed outright leaves no
 worker converting behind the next run; its temporary files carry the run's tag, and the parent
 removes those of a worker that died (:func:`hconv.tables.temporaries.remove_run_temporaries`).
@@ -43,6 +45,7 @@ from hconv.tables import temporaries
 from hconv.tables.job import Job
 from hconv.tables.manifest import FileRecord
 from hconv.tables.onefile import convert_one
+from hconv.tables.pipeline import main_thread_signals
 from hconv.tables.planning import Task
 from hconv.tables.storage import Place
 
@@ -138,7 +141,7 @@ class _Worker:
 
     def _start(self) -> subprocess.Popen[bytes]:
         process = subprocess.Popen(
-            [sys.executable, "-c", _BOOT, str(os.getpid())], stdin=subprocess.PIPE, stdout=subprocess.PIPE
+            [sys.executable, "-I", "-c", _BOOT, str(os.getpid())], stdin=subprocess.PIPE, stdout=subprocess.PIPE
         )
         assert process.stdin is not None
         send(process.stdin, list(sys.path))
@@ -154,21 +157,16 @@ class _Worker:
             send(self._process.stdin, tasks)
             return list(receive(self._process.stdout))
         except (EOFError, OSError, pickle.UnpicklingError):
-            ended = self._end(kill=True)
+            why = _death(self._end(kill=True))
             self.died = True
-            return [
-                OutputError(
-                    f"{task.input.rel}: not converted: the process converting it ended ({ended}); "
-                    "it may need more memory than this machine has; run the same command again to retry it"
-                )
-                for task in tasks
-            ]
+            return [OutputError(f"{task.input.rel}: not converted: {why}") for task in tasks]
 
-    def _end(self, kill: bool = False) -> str:
-        """Close the worker (it ends at the end of its stdin); how it ended."""
+    def _end(self, kill: bool = False) -> int | None:
+        """Close the worker (it ends at the end of its stdin); its return code (-N: killed by
+        signal N), None if there was none."""
         process, self._process = self._process, None
         if process is None:
-            return "never started"
+            return None
         with contextlib.suppress(OSError):
             assert process.stdin is not None
             process.stdin.close()
@@ -179,11 +177,30 @@ class _Worker:
             code = process.wait()
         assert process.stdout is not None
         process.stdout.close()
-        return f"killed by signal {-code}" if code < 0 else f"exit code {code}"
+        return code
 
     def close(self) -> None:
-        if self._end() != "exit code 0":
+        if self._end() not in (0, None):
             self.died = True
+
+
+def _death(code: int | None) -> str:
+    """What a file's error says of the worker process that died converting it, from its return
+    code, with what to do."""
+    retry = "run the same command again to retry it"
+    if code is None:
+        return f"no process could be started to convert it; {retry} with --threads 1 to convert in this process"
+    if -code == 9:
+        return (
+            "the process converting it was killed (signal 9, as the system does when memory runs out); "
+            f"{retry}, with fewer --threads if memory is short"
+        )
+    if code < 0:
+        return f"the process converting it was killed (signal {-code}); {retry}"
+    return (
+        f"the process converting it failed (exit code {code}; its error is above); {retry}, "
+        "or with --threads 1 to convert in this process"
+    )
 
 
 class Workers:
@@ -211,7 +228,11 @@ class Workers:
 
     def _feed(self, slot: _Worker) -> None:
         # The slot's worker is started, restarted and ended on this thread alone: Linux sends
-        # PR_SET_PDEATHSIG when the thread that started a process ends, not its process.
+        # PR_SET_PDEATHSIG when the thread that started a process ends, not its process. Its
+        # Ctrl-C and SIGTERM are blocked, so that the kernel gives them to the main thread, and
+        # a worker inherits the mask: one cannot land while its interpreter starts, before
+        # _BOOT ignores them (it printed a traceback then).
+        main_thread_signals()
         try:
             while (item := self._queue.get()) is not None:
                 tasks, future = item
