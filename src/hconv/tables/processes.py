@@ -9,10 +9,11 @@ How a worker runs
 A worker is ``python -I -c`` (:data:`_BOOT`), not a multiprocessing child: that would import
 the caller's main script again in the child, which a script without a ``__main__`` guard cannot
 survive. Isolated (``-I``), so that a ``signal.py`` or ``types.py`` in the current folder cannot
-stand in for the standard module while it starts. It talks over its stdin and a copy of its stdout, one pickled message at a time, each
-after its length (stray prints of the worker go to stderr): first the parent's ``sys.path``, so
-that it imports the same hconv, then the run's setup, then lists of files to convert, each
-answered by a list of their records or errors. It ends when its stdin closes.
+stand in for the standard module while it starts. It talks over its stdin and a copy of its
+stdout, one pickled message at a time, each after its length (stray prints of the worker go to
+stderr): first the parent's ``sys.path``, so that it imports the same hconv, then the run's
+setup, then lists of files to convert, each answered by a list of their records or errors. It
+ends when its stdin closes.
 
 What a worker does not do
 -------------------------
