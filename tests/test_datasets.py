@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -877,13 +878,22 @@ def _worker_pids(pid: int) -> list[int]:
 
 
 def _rerun_completes(tmp_path: Path, data: Path, out: Path) -> None:
-    """The same command run again on tmp_path/data: it completes the manifest, leaves nothing
-    temporary, and every output is its file's single conversion."""
+    """The same command run again on tmp_path/data: it completes the manifest and leaves nothing
+    temporary; each output the stopped run listed, and every tenth of the rest, is its file's
+    single conversion (all of them cost seconds more, and the rerun's come from the same code)."""
+    kept = {f["output"] for f in _manifest(out)["files"]}
     proc = run_hconv("convert", "data", "out", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr.decode()
     assert _manifest(out)["complete"] is True and _no_temporaries(out) == []
-    for rel in _files(out) - {MANIFEST}:
+    rest = sorted(_files(out) - kept - {MANIFEST})
+    for rel in sorted(kept) + rest[::10]:
         assert (out / rel).read_bytes() == _single(data / rel, tmp_path), rel
+
+
+@pytest.fixture(scope="module")
+def process_dataset(tmp_path_factory) -> Path:
+    """A dataset of runners.PROCESS_FILES small files, written once for the tests that copy it."""
+    return _small_dataset(tmp_path_factory.mktemp("many") / "data", runners.PROCESS_FILES)
 
 
 def test_convert_dataset_many_small_files_on_worker_processes_write_what_threads_write(tmp_path, monkeypatch):
@@ -925,7 +935,7 @@ def test_convert_dataset_many_small_files_on_worker_processes_write_what_threads
     assert records == [{k: v for k, v in f.items() if k != "seconds"} for f in _manifest(tmp_path / "threads")["files"]]
 
 
-def test_convert_dataset_on_worker_processes_interrupted_keeps_what_it_lists(tmp_path):
+def test_convert_dataset_on_worker_processes_interrupted_keeps_what_it_lists(tmp_path, process_dataset):
     """Ctrl-C at a terminal (SIGINT to the whole process group, workers too) while worker
     processes convert: the command exits 130, the manifest lists only complete outputs, no
     temporary file and no worker is left, and the same command then converts the rest, each
@@ -935,7 +945,7 @@ def test_convert_dataset_on_worker_processes_interrupted_keeps_what_it_lists(tmp
     # machine, so the Ctrl-C finds files to leave (with all done, a run ends as if never stopped).
     files = runners.PROCESS_FILES
     assert files > (runners.WORKER_CHUNKS_AHEAD * 2 + 1) * runners.CHUNK_FILES + 24
-    data = _small_dataset(tmp_path / "data", files)
+    data = Path(shutil.copytree(process_dataset, tmp_path / "data"))
     out = tmp_path / "out"
     stop = StopAt(tmp_path / "hook", "hconv.tables.manifest:GroupCommit.add#20")  # 19 files settled
     proc = subprocess.Popen(
@@ -963,11 +973,11 @@ def test_convert_dataset_on_worker_processes_interrupted_keeps_what_it_lists(tmp
     _rerun_completes(tmp_path, data, out)
 
 
-def test_convert_dataset_killed_outright_on_worker_processes_takes_its_workers_along(tmp_path):
+def test_convert_dataset_killed_outright_on_worker_processes_takes_its_workers_along(tmp_path, process_dataset):
     """kill -9 of the command while its worker processes convert: the workers end with it (none
     goes on writing into OUT behind the next run), and the next run converts what the manifest
     does not list, each output its file's single conversion, leaving nothing temporary."""
-    data = _small_dataset(tmp_path / "data", runners.PROCESS_FILES)
+    data = Path(shutil.copytree(process_dataset, tmp_path / "data"))
     out = tmp_path / "out"
     stop = StopAt(tmp_path / "hook", "hconv.tables.manifest:GroupCommit.add#20")
     proc = subprocess.Popen(
