@@ -287,6 +287,10 @@ def test_convert_dataset_never_overwrites_or_deletes_files_it_did_not_write_with
     (out / "README.txt").write_text("mine\n")
     code, err = _hconv("convert", "data", "out", capsys=capsys)
     assert code == 4
+    # the start counts what it converts of the inputs, which the summary counts (newcomer trial)
+    n = len(PARTS) + 1  # and the CSV
+    assert f"hconv: converting {n - 1} of {n} files (1 in the way, named below)\n" in err
+    assert f"# hconv convert · {n} files" in err
     assert (
         f"hconv: error: out/{PARTS[0]}: already exists, and {MANIFEST} does not say hconv wrote it; move it away, "
         "or pass --force to overwrite it\n"

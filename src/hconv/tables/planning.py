@@ -52,9 +52,16 @@ class Plan:
             return f"{self.why}; converting all {len(self.todo)} files"
         if not self.todo:
             return f"all {n} files already converted and up to date; nothing to convert" if kept == n else ""
+        todo = len(self.todo)
         if kept:
-            return f"{kept} of {n} files already converted and up to date; converting {len(self.todo)}"
-        return f"converting {len(self.todo)} files" if n > 1 else f"converting {len(self.todo)} file"
+            said = f"{kept} of {n} files already converted and up to date; converting {todo}"
+        elif self.refused:  # the summary counts every input: say both counts here
+            said = f"converting {todo} of {n} files"
+        else:
+            said = f"converting {todo} file" + ("s" if todo != 1 else "")
+        if self.refused:
+            said += f" ({len(self.refused)} in the way, named below)"
+        return said
 
 
 def _output_rel(rel: str, fmt_in: str, dst_format: str | None) -> tuple[str, str]:
