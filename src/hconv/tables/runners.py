@@ -29,8 +29,9 @@ if TYPE_CHECKING:
 
 #: A run converts its small files on worker processes (:mod:`hconv.tables.processes`) when it
 #: has at least this many (with fewer, starting the processes, an interpreter and hconv's
-#: imports each, costs as much as they save: docs/scaling.md), both its input and output are local, it may use
-#: two cores or more, and this interpreter can start them (:func:`hconv.tables.processes.available`).
+#: imports each, costs as much as they save: docs/scaling.md), both its input and output are
+#: local, it may use two cores or more, and this interpreter can start them
+#: (:func:`hconv.tables.processes.available`).
 PROCESS_FILES = 300
 #: Small files handed to a worker process at a time: enough to make the exchange's cost small
 #: against theirs, few enough that a stopped run waits for little.
