@@ -84,6 +84,29 @@ def test_convert_rows_keeps_the_common_rows_itself(rng):
     assert 0.1 < fallback.mean() < 0.6  # NaN, not symmetric, not definite, extreme scales, ... but not the rest
 
 
+def test_convert_rows_near_lamina_decided_by_the_largest_moment_s_exact_error_bound(rng):
+    """Bodies whose largest moment exceeds the sum of the other two by delta (a lamina has 0):
+    the closed form decides them only where the margin delta beats 1e-9·trace plus four times
+    its error bound hi_err, which the C code computes for a row only when a cheaper upper bound
+    of hi_err (p·√eps) leaves the row unsure. With moments 1, 2 and 3 + delta, the cheap bound
+    clears delta = 1e-7, leaves 2e-8 to hi_err (about 1e-15 here), which clears it, and 1e-9
+    fails both (numpy's eigvalsh decides it). Each row as the numpy engine converts it, each
+    kept or left as the numpy engine's test says."""
+    deltas = np.repeat([1e-7, 2e-8, 1e-9], 40)
+    R = random_rotations(rng, len(deltas))
+    moments = np.zeros((len(deltas), 3, 3))
+    moments[:, 0, 0], moments[:, 1, 1], moments[:, 2, 2] = 1.0, 2.0, 3.0 + deltas
+    I = R @ moments @ R.transpose(0, 2, 1)
+    I = (I + I.transpose(0, 2, 1)) / 2  # symmetric to the bit, as the C code's nine numbers must be
+    H = rng.normal(size=(len(deltas), 3))
+    for refined, diagnostics in [(False, False), (False, True), (True, False)]:
+        fallback = _rows_of(I, H, refined, diagnostics)[4]
+        assert not fallback[deltas > 1e-9].any() and fallback[deltas == 1e-9].all()
+        method = "refined" if refined else "exact"
+        got = hconv.convert(H, I, method=method, diagnostics=diagnostics, engine="compiled")
+        assert_same_answers(got, hconv.convert(H, I, method=method, diagnostics=diagnostics, engine="numpy"), method)
+
+
 def test_convert_rows_refined_within_two_eps_of_mpmath_to_cond_1e12(rng):
     for cond in (1e4, 1e8, 1e12):
         I, H = spd_bodies(rng, 60, cond), rng.normal(size=(60, 3))

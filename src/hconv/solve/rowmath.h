@@ -19,13 +19,15 @@ static struct {
 /* spectrum.ROOT_NEWTON_STEPS, a constant here so that the loop unrolls; configure() refuses
  * another value. */
 #define NEWTON_STEPS 2
-/* Rows per chunk: the chunk's scratch (35 numbers a row, 18 kB) stays in the L1 cache. */
+/* Rows per chunk: the chunk's scratch (39 numbers a row, 20 kB) stays in the L1 cache. */
 #define CH 64
 /* What the verdict says of a row: the numpy engine must convert it, it has no answer (singular),
- * or it has one. */
+ * or it has one. A row whose verdict waits on the largest moment's exact error bound holds
+ * NO_ANSWER or ANSWER plus UNSURE until that bound decides it (numbers_chunk). */
 #define FALLBACK 0.0
 #define NO_ANSWER 1.0
 #define ANSWER 2.0
+#define UNSURE 4.0
 
 /* The loops over a chunk: inlined into chunk_body and it into each of its versions (chunk_avx512,
  * chunk_avx2, chunk_plain), so that each has them compiled for its own vectors. */
@@ -60,7 +62,8 @@ static inline int final_w(double w0, double w1, double w2)
 /* One chunk's scratch, a column per quantity: the inputs; LDL^T's factors and answer; the
  * verdict's cond, status code, state and safe; a refinement's x, last correction c and whether
  * it goes on (X for the answer's, R for the reference's); the residual and whether the row's
- * answers are final. Columns of one struct, so that the compiler can prove them apart. */
+ * answers are final; the largest moment's p, r, q and value, for its exact error bound. Columns
+ * of one struct, so that the compiler can prove them apart. */
 typedef struct {
     double xx[CH], yy[CH], zz[CH], xy[CH], xz[CH], yz[CH], h0[CH], h1[CH], h2[CH];
     double d1[CH], d2[CH], d3[CH], l21[CH], l31[CH], l32[CH], w0[CH], w1[CH], w2[CH];
@@ -68,6 +71,7 @@ typedef struct {
     double x0[CH], x1[CH], x2[CH], xc[CH], xon[CH];
     double r0[CH], r1[CH], r2[CH], rc[CH], ron[CH];
     double res[CH], fin[CH], asym[CH];
+    double ep[CH], er[CH], eq[CH], ehi[CH];
 } Chunk;
 
 /* The numbers and the verdict of the m rows, with no branch. The numbers: LDL^T
@@ -75,7 +79,7 @@ typedef struct {
  * smallest principal moments (spectrum). The verdict: cond, the status code, and the state; each
  * test is the numpy engine's (blocks._convert_block, spectrum.eigenvalues), and a row that any of
  * them cannot settle is FALLBACK. */
-HOT static void numbers_chunk(Chunk *restrict s, int m, double cond_limit)
+HOT static void numbers_chunk(Chunk *restrict s, int m, double cond_limit, int more)
 {
     for (int j = 0; j < m; j++) {
         double xx = s->xx[j], yy = s->yy[j], zz = s->zz[j], xy = s->xy[j], xz = s->xz[j], yz = s->yz[j];
@@ -106,7 +110,6 @@ HOT static void numbers_chunk(Chunk *restrict s, int m, double cond_limit)
             tt -= (t2 + k * t2 * tt - (1.0 / 6.0)) / (2.0 * tt + 3.0 * k * t2);
         }
         double hi = q + p * (1.0 + 2.0 * (u * tt));
-        double hi_err = p * pmin(K.sqrt_eps, 16.0 * K.eps / sqrt(pmax(1.0 - r * r, K.eps))) + 8.0 * K.eps * fabs(q);
         /* the smallest, from the pivots (spectrum.smallest_root) */
         double tr = xx + yy + zz;
         double inv = 1.0 / hi;
@@ -131,8 +134,13 @@ HOT static void numbers_chunk(Chunk *restrict s, int m, double cond_limit)
         double big = pmax(pmax(pmax(fabs(xx), fabs(yy)), pmax(fabs(zz), fabs(xy))), pmax(fabs(xz), fabs(yz)));
         int usable = finite & (big >= K.inv_root_range) & (big <= K.root_range);
         usable &= (pmin(pmin(d1, d2), d3) > 0) & (fabs(l32) <= K.max); /* positive definite: LDL^T is stable */
-        /* where the closed form cannot decide, the numpy engine asks LAPACK */
-        usable &= (fabs(lo) <= K.max) & (lo > 0) & (fabs(2.0 * hi - tr) > 1e-9 * tr + 4.0 * hi_err);
+        usable &= (fabs(lo) <= K.max) & (lo > 0);
+        /* where the closed form cannot decide, the numpy engine asks LAPACK: the margin must
+         * beat 1e-9 tr + 4 hi_err. hi_err is at most p SQRT_EPS + 8 EPS |q| (its min's first
+         * term, and every rounding is monotone), so a margin above that bound beats hi_err's
+         * too; the exact bound, a square root and a division a row, waits for the rare rows
+         * the cheap one leaves unsure (the loop after this one) */
+        int clear = fabs(2.0 * hi - tr) > 1e-9 * tr + 4.0 * (p * K.sqrt_eps + 8.0 * K.eps * fabs(q));
         double mid = tr - hi - lo;
         double a0 = fabs(lo), a1 = fabs(mid), a2 = fabs(hi);
         double top = pmax(a0, a2);
@@ -147,10 +155,26 @@ HOT static void numbers_chunk(Chunk *restrict s, int m, double cond_limit)
         /* overflow, or omega on the grid of subnormal numbers: the numpy engine's rules */
         int w_ok = final_w(w0, w1, w2);
         double state = usable ? (singular ? NO_ANSWER : (w_ok ? ANSWER : FALLBACK)) : FALLBACK;
-        int sf = safe(xx) & safe(yy) & safe(zz) & safe(xy) & safe(xz) & safe(yz) & safe(h0) & safe(h1) & safe(h2);
+        state = state != FALLBACK && !clear ? state + UNSURE : state;
+        /* only the residual and refinement ask whether a row is in the safe range */
+        int sf = more && safe(xx) & safe(yy) & safe(zz) & safe(xy) & safe(xz) & safe(yz) & safe(h0) & safe(h1) & safe(h2);
         s->d1[j] = d1, s->d2[j] = d2, s->d3[j] = d3, s->l21[j] = l21, s->l31[j] = l31, s->l32[j] = l32;
         s->w0[j] = w0, s->w1[j] = w1, s->w2[j] = w2;
         s->cond[j] = cond, s->code[j] = code, s->state[j] = state, s->safe[j] = sf ? 1.0 : 0.0;
+        s->ep[j] = p, s->er[j] = r, s->eq[j] = q, s->ehi[j] = hi;
+    }
+    int unsure = 0;
+    for (int j = 0; j < m; j++)
+        unsure += s->state[j] >= UNSURE;
+    if (unsure == 0)
+        return;
+    for (int j = 0; j < m; j++) {
+        /* spectrum._largest_root's error bound, and eigenvalues' test with it */
+        double p = s->ep[j], r = s->er[j], q = s->eq[j], hi = s->ehi[j], tr = s->xx[j] + s->yy[j] + s->zz[j];
+        double hi_err = p * pmin(K.sqrt_eps, 16.0 * K.eps / sqrt(pmax(1.0 - r * r, K.eps))) + 8.0 * K.eps * fabs(q);
+        double state = s->state[j];
+        int decided = fabs(2.0 * hi - tr) > 1e-9 * tr + 4.0 * hi_err;
+        s->state[j] = state >= UNSURE ? (decided ? state - UNSURE : FALLBACK) : state;
     }
 }
 
@@ -449,8 +473,11 @@ HOT static void chunk_body(const Job *jb, Chunk *restrict s, npy_intp start, int
         }
     }
 #undef AT
-    numbers_chunk(s, m, jb->cond_limit);
     int more = jb->refined || jb->diagnostics;
+    if (more) /* a constant in each call, so that each has only the work it needs */
+        numbers_chunk(s, m, jb->cond_limit, 1);
+    else
+        numbers_chunk(s, m, jb->cond_limit, 0);
     if (more)
         finish_chunk(s, m, jb->refined, jb->diagnostics, fused);
     const double *a0 = jb->refined ? s->x0 : s->w0, *a1 = jb->refined ? s->x1 : s->w1;
