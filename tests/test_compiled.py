@@ -89,7 +89,7 @@ def test_convert_rows_near_lamina_decided_by_the_largest_moment_s_exact_error_bo
     the closed form decides them only where the margin delta beats 1e-9·trace plus four times
     its error bound hi_err, which the C code computes for a row only when a cheaper upper bound
     of hi_err (p·√eps) leaves the row unsure. With moments 1, 2 and 3 + delta, the cheap bound
-    clears delta = 1e-7, leaves 2e-8 to hi_err (about 1e-15 here), which clears it, and 1e-9
+    clears delta = 1e-7, leaves 2e-8 to hi_err (about 6e-15 here), which clears it, and 1e-9
     fails both (numpy's eigvalsh decides it). Each row as the numpy engine converts it, each
     kept or left as the numpy engine's test says."""
     deltas = np.repeat([1e-7, 2e-8, 1e-9], 40)

@@ -475,7 +475,7 @@ static PyObject *one(PyObject *self, PyObject *args)
     npy_bool fallback;
     Job jb = {PyArray_BYTES(In), PyArray_BYTES(H), sizeof(double), 0, sizeof(double), 0, nine, refined, diagnostics,
               cond_limit, w, &cond, &residual, &code, &fallback};
-    Chunk s; /* about 23 kB of stack */
+    Chunk s; /* about 20 kB of stack */
     convert_chunk(&jb, &s, 0, 1);
     npy_intp three = 3;
     PyObject *wa = PyArray_SimpleNew(1, &three, NPY_FLOAT64);

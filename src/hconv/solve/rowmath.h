@@ -136,10 +136,12 @@ HOT static void numbers_chunk(Chunk *restrict s, int m, double cond_limit, int m
         usable &= (pmin(pmin(d1, d2), d3) > 0) & (fabs(l32) <= K.max); /* positive definite: LDL^T is stable */
         usable &= (fabs(lo) <= K.max) & (lo > 0);
         /* where the closed form cannot decide, the numpy engine asks LAPACK: the margin must
-         * beat 1e-9 tr + 4 hi_err. hi_err is at most p SQRT_EPS + 8 EPS |q| (its min's first
-         * term, and every rounding is monotone), so a margin above that bound beats hi_err's
-         * too; the exact bound, a square root and a division a row, waits for the rare rows
-         * the cheap one leaves unsure (the loop after this one) */
+         * beat 1e-9 tr + 4 hi_err. hi_err is at most p SQRT_EPS + 8 EPS |q|: its min is at
+         * most SQRT_EPS, p is not negative (a square root; NaN only in rows that fall back
+         * anyway, lo being NaN too), and rounding to nearest keeps the order of every step. So
+         * a margin above that bound beats hi_err's too; the exact bound, a square root and a
+         * division a row, waits for the rare rows the cheap one leaves unsure (the loop after
+         * this one). */
         int clear = fabs(2.0 * hi - tr) > 1e-9 * tr + 4.0 * (p * K.sqrt_eps + 8.0 * K.eps * fabs(q));
         double mid = tr - hi - lo;
         double a0 = fabs(lo), a1 = fabs(mid), a2 = fabs(hi);
