@@ -124,10 +124,7 @@ def speed_accuracy_chart(res: BenchResult, path: str, cond: str = "10000") -> No
         if np.isfinite(err):
             pts.append((speed, max(err, FLOOR), name, int(prec)))
     fig, ax = plt.subplots(figsize=(12, 7.5), constrained_layout=True)
-    # each label takes the next free place around its point among the points already drawn
-    # close to it, so that a cluster's labels do not overprint
-    places = ((7, 6), (7, -14), (-7, 20), (-7, -28), (7, 34), (7, -42), (-7, 6), (-7, -14))
-    drawn: list[tuple[float, float]] = []
+    labels = []  # (speed, err, text, side): placed once every point is drawn (_place_labels)
     for speed, err, name, prec in sorted(pts, key=lambda p: (round(np.log10(p[1])), p[0])):
         ax.scatter(
             speed,
@@ -139,17 +136,7 @@ def speed_accuracy_chart(res: BenchResult, path: str, cond: str = "10000") -> No
             linewidths=0.6,
             zorder=3,
         )
-        near = sum(abs(np.log10(s / speed)) < 0.05 and abs(np.log10(e / err)) < 1.5 for s, e in drawn)
-        dx, dy = places[near % len(places)]
-        drawn.append((speed, err))
-        ax.annotate(
-            f"{name} f{prec}",
-            (speed, err),
-            textcoords="offset points",
-            xytext=(dx, dy),
-            ha="left" if dx > 0 else "right",
-            fontsize=9,
-        )
+        labels.append((speed, err, f"{name} f{prec}", 1))
     # hconv.convert in memory, with every diagnostic, engine by engine: exact's error is the same
     # bits in every engine, so each engine is one more point at exact's accuracy
     big = max((n for n in res.user if n.isdigit()), key=int, default=None)
@@ -160,14 +147,8 @@ def speed_accuracy_chart(res: BenchResult, path: str, cond: str = "10000") -> No
             ax.scatter(
                 speed, err, s=110, marker="^", color=colours["exact"], edgecolors="black", linewidths=0.6, zorder=3
             )
-            ax.annotate(
-                "hconv.convert, by default (compiled)" if engine == "auto" else f"hconv.convert, {engine} engine",
-                (speed, err),
-                textcoords="offset points",
-                xytext=(-7, -18),
-                ha="right",
-                fontsize=9,
-            )
+            text = "hconv.convert, by default (compiled)" if engine == "auto" else f"hconv.convert, {engine} engine"
+            labels.append((speed, err, text, -1))
             pts.append((speed, err, "exact", 64))
     front, best = [], np.inf
     for speed, err, _name, _prec in sorted(pts, key=lambda p: -p[0]):
@@ -197,8 +178,44 @@ def speed_accuracy_chart(res: BenchResult, path: str, cond: str = "10000") -> No
     )
     ax.set_ylabel(f"worst relative error vs exact I⁻¹H at cond(I) = {float(cond):g}")
     ax.set_ylim(FLOOR / 3, 10)
+    ax.set_xlim(*ax.get_xlim())  # final, so that the labels can be placed in the picture's pixels
+    _place_labels(fig, ax, labels)
     ax.grid(True, which="major", alpha=0.3)
     ax.legend(loc="center", fontsize=9, title="circles float64, squares float32\nat the floor: correctly rounded")
     ax.set_title(f"hconv: speed against accuracy, {res.rows:,} rows\n{res.machine}", fontsize=11)
     fig.savefig(path, dpi=90)
     plt.close(fig)
+
+
+#: Where a label may go around its point, in points (x, y), tried in this order; x's sign is the
+#: side the text extends to.
+_PLACES = ((7, 6), (7, -14), (7, 20), (7, -28), (-7, 6), (-7, -14), (-7, 20), (-7, -28), (7, 34), (7, -42))
+
+
+def _place_labels(fig: Any, ax: Any, labels: list) -> None:
+    """Each label ``(x, y, text, side)`` at the first of :data:`_PLACES` (those on ``side`` first)
+    where it covers no label placed before it and no point: points close in speed have labels as
+    wide as the gap between them, so a rule on the points' distances alone overprinted."""
+    renderer = fig.canvas.get_renderer()
+    to_pixels = ax.transData.transform
+    points = [to_pixels((x, y)) for x, y, _text, _side in labels]
+    taken: list = []
+    for x, y, text, side in labels:
+        places = sorted(_PLACES, key=lambda p: (p[0] > 0) != (side > 0))
+        for k, (dx, dy) in enumerate(places):
+            label = ax.annotate(
+                text,
+                (x, y),
+                textcoords="offset points",
+                xytext=(dx, dy),
+                ha="left" if dx > 0 else "right",
+                fontsize=9,
+            )
+            box = label.get_window_extent(renderer).expanded(1.02, 1.1)
+            free = not any(box.overlaps(b) for b in taken) and not any(
+                box.x0 - 6 < px < box.x1 + 6 and box.y0 - 6 < py < box.y1 + 6 for px, py in points
+            )
+            if free or k == len(places) - 1:
+                taken.append(box)
+                break
+            label.remove()
