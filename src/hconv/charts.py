@@ -179,43 +179,71 @@ def speed_accuracy_chart(res: BenchResult, path: str, cond: str = "10000") -> No
     ax.set_ylabel(f"worst relative error vs exact I⁻¹H at cond(I) = {float(cond):g}")
     ax.set_ylim(FLOOR / 3, 10)
     ax.set_xlim(*ax.get_xlim())  # final, so that the labels can be placed in the picture's pixels
-    _place_labels(fig, ax, labels)
     ax.grid(True, which="major", alpha=0.3)
-    ax.legend(loc="center", fontsize=9, title="circles float64, squares float32\nat the floor: correctly rounded")
+    legend = ax.legend(
+        loc="center", fontsize=9, title="circles float64, squares float32\nat the floor: correctly rounded"
+    )
     ax.set_title(f"hconv: speed against accuracy, {res.rows:,} rows\n{res.machine}", fontsize=11)
+    _place_labels(fig, ax, labels, legend)
     fig.savefig(path, dpi=90)
     plt.close(fig)
 
 
-#: Where a label may go around its point, in points (x, y), tried in this order; x's sign is the
+#: Where a label may go beside its point, in points (x, y), tried in this order; x's sign is the
 #: side the text extends to.
-_PLACES = ((7, 6), (7, -14), (7, 20), (7, -28), (-7, 6), (-7, -14), (-7, 20), (-7, -28), (7, 34), (7, -42))
+_PLACES = ((7, 6), (7, -14), (-7, 6), (-7, -14), (7, 20), (7, -28), (-7, 20), (-7, -28))
+#: Where it goes when none of those is free, with a line to its point: farther out, around it.
+_FAR = tuple(
+    (round(r * np.cos(a)), round(r * np.sin(a)))
+    for r in (35, 55, 80, 110)
+    for a in np.radians((-30, 30, -60, 60, -150, 150, -120, 120))
+)
 
 
-def _place_labels(fig: Any, ax: Any, labels: list) -> None:
+def _place_labels(fig: Any, ax: Any, labels: list, legend: Any = None) -> None:
     """Each label ``(x, y, text, side)`` at the first of :data:`_PLACES` (those on ``side`` first)
-    where it covers no label placed before it and no point: points close in speed have labels as
-    wide as the gap between them, so a rule on the points' distances alone overprinted."""
+    where it stays inside the axes and covers no label placed before it, no point and not the
+    legend, and where the point nearest the side of its text that faces it is its own; else at
+    the first such place of :data:`_FAR` (nearness aside), with a line to its point. Points close
+    in speed have labels as wide as the gap between them: a rule on the points' distances alone
+    overprinted, and one without the nearness test set labels beside the wrong points."""
+    from matplotlib.text import Text
+
+    fig.canvas.draw()  # the layout (title, axis labels, legend) as it will be saved
     renderer = fig.canvas.get_renderer()
-    to_pixels = ax.transData.transform
-    points = [to_pixels((x, y)) for x, y, _text, _side in labels]
-    taken: list = []
-    for x, y, text, side in labels:
-        places = sorted(_PLACES, key=lambda p: (p[0] > 0) != (side > 0))
-        for k, (dx, dy) in enumerate(places):
+    frame = ax.get_window_extent(renderer)
+    blocked = [legend.get_window_extent(renderer)] if legend is not None else []
+    points = ax.transData.transform([(x, y) for x, y, _text, _side in labels])
+    for k, (x, y, text, side) in enumerate(labels):
+        near = sorted(_PLACES, key=lambda p: (p[0] > 0) != (side > 0))
+        tries = [(p, False) for p in near] + [(p, True) for p in _FAR]
+        for t, ((dx, dy), far) in enumerate(tries):
             label = ax.annotate(
                 text,
                 (x, y),
                 textcoords="offset points",
                 xytext=(dx, dy),
                 ha="left" if dx > 0 else "right",
+                va="center" if far else "baseline",
                 fontsize=9,
+                arrowprops={"arrowstyle": "-", "color": "grey", "lw": 0.6, "shrinkB": 5} if far else None,
             )
-            box = label.get_window_extent(renderer).expanded(1.02, 1.1)
-            free = not any(box.overlaps(b) for b in taken) and not any(
-                box.x0 - 6 < px < box.x1 + 6 and box.y0 - 6 < py < box.y1 + 6 for px, py in points
+            label.set_in_layout(False)
+            # the text's own box (an Annotation's includes its line), where the offset puts it
+            label.update_positions(renderer)
+            box = Text.get_window_extent(label, renderer).expanded(1.02, 1.1)
+            facing = np.array([box.x0 if dx > 0 else box.x1, (box.y0 + box.y1) / 2])  # the side by the point
+            reach = np.hypot(*(points - facing).T)
+            fits = (
+                frame.x0 <= box.x0
+                and box.x1 <= frame.x1
+                and frame.y0 <= box.y0
+                and box.y1 <= frame.y1
+                and not any(box.overlaps(b) for b in blocked)
+                and not any(box.x0 - 4 < px < box.x1 + 4 and box.y0 - 4 < py < box.y1 + 4 for px, py in points)
+                and (far or reach[k] * 1.3 < np.delete(reach, k).min(initial=np.inf))
             )
-            if free or k == len(places) - 1:
-                taken.append(box)
+            if fits or t == len(tries) - 1:
+                blocked.append(box)
                 break
             label.remove()
