@@ -455,6 +455,11 @@ def test_one_singular_json_has_null_w_and_inf_cond(capsys):
         (["--H", "[[1,2,3]]", "--I", "1,1,1"], "--H takes nested brackets only for an inertia matrix"),
         (["--H", "[1,2,3]", "--I", "[[1,0,0][0,1,0],[0,0,1]]"], "needs a comma between the rows"),
         (["--H", "[1 2 3]", "--I", "1,1,1"], "--H takes comma-separated numbers"),
+        # Python's float() reads 1_0 as 10 (before: I = 10, 2, 3, and a status for those)
+        (
+            ["--H", "1,2,3", "--I", "1_0,2,3"],
+            "--I: '1_0' in '1_0,2,3' has an underscore; write '10' for that number, or '1,0' for two",
+        ),
         # numpy's print of a matrix (before: "needs a comma between the rows", as if rows were the only lack)
         (
             ["--H", "1,2,3", "--I", "[[1. 0. 0.]\n [0. 2. 0.]\n [0. 0. 3.]]"],

@@ -323,6 +323,12 @@ def numbers(option: str, text: str, allowed: tuple[int, ...]) -> list[float]:
     parts = [p.strip() for p in flat.split(",")]
     if "" in parts:
         raise UsageError(f"{option} has an empty value in {text!r}; give comma-separated numbers, like 1,2,3")
+    grouped = next((p for p in parts if "_" in p), None)
+    if grouped is not None:  # Python's float() reads 1_0 as 10: a typo for 1,0 would pass unseen
+        raise UsageError(
+            f"{option}: {grouped!r} in {text!r} has an underscore; write {grouped.replace('_', '')!r} "
+            f"for that number, or {grouped.replace('_', ',')!r} for two"
+        )
     try:
         values = [float(v) for v in parts]
     except ValueError:
