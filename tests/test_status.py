@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import mp_solve
+from helpers import mp_solve, random_rotations
 
 import hconv
 from hconv.solve import status
@@ -100,6 +100,48 @@ def test_status_boundary_bodies_are_physical():
     """A thin plate (I3 = I1 + I2 exactly) is on the boundary and must not be flagged."""
     res = hconv.convert([1, 2, 3], [1.0, 2.0, 3.0, 0, 0, 0])
     assert res.status == "ok"
+
+
+def _float32_bodies(rng, moments):
+    """Bodies R·diag(moments)·Rᵀ computed in float32, as an engine in float32 holds them: each
+    row's products differ from their transposes by float32's roundings (not symmetrised)."""
+    R = random_rotations(rng, 2000).astype(np.float32)
+    diag = np.zeros((2000, 3, 3), np.float32)
+    diag[:, [0, 1, 2], [0, 1, 2]] = moments
+    return R @ diag @ R.transpose(0, 2, 1), rng.normal(size=(2000, 3)).astype(np.float32)
+
+
+@pytest.mark.parametrize("engine", ["auto", "numpy"])
+def test_status_precision_32_takes_float32_tensors_as_symmetric_and_plates_as_physical(engine, rng):
+    """With precision 32 the numbers are float32's: a tensor computed in float32 is symmetric
+    to its roundings, and a thin plate (I3 = I1 + I2) is on the boundary to them. Both came back
+    not_symmetric (no ω) or not_physical from 1e-12 and 1e-9, float64's tolerances. ω is then
+    I⁻¹H of the symmetric part, within float32's bound (cond 2.5 here)."""
+    for moments in ((1.0, 2.0, 2.5), (1.0, 2.0, 3.0)):
+        I, H = _float32_bodies(rng, moments)
+        res = hconv.convert(H, I, precision=32, engine=engine)
+        assert res.counts() == {"ok": 2000}
+        sym = (I.astype(np.float64) + I.transpose(0, 2, 1)) / 2
+        ref = np.linalg.solve(sym, H.astype(np.float64)[..., None])[..., 0]
+        err = np.linalg.norm(res.w - ref, axis=1) / np.linalg.norm(ref, axis=1)
+        assert err.max() < 50 * np.finfo(np.float32).eps
+        # the same numbers taken as float64's are flagged, as that precision promises
+        flagged = hconv.convert(H, I, engine=engine).counts()
+        assert flagged.get("not_symmetric", 0) + flagged.get("not_physical", 0) > 500
+
+
+def test_status_precision_32_still_flags_what_is_beyond_float32_rounding(rng):
+    I, H = _float32_bodies(rng, (1.0, 2.0, 2.5))
+    I[:1000, 0, 1] += 1e-4 * np.abs(I[:1000]).max(axis=(1, 2))  # 1e-4 of the largest entry
+    assert hconv.convert(H, I, precision=32).counts() == {"not_symmetric": 1000, "ok": 1000}
+    plates = np.tile(np.diag(np.float32([1.0, 2.0, 3.001])), (4, 1, 1))  # broken by 1.7e-4 of the trace
+    assert hconv.convert(np.ones((4, 3)), plates, precision=32).counts() == {"not_physical": 4}
+
+
+def test_status_tolerances_are_float64_s_stated_ones_and_64_eps_in_float32():
+    assert status.symmetry_rtol(np.float64) == status.SYMMETRY_RTOL
+    assert status.triangle_rtol(np.float64) == status.TRIANGLE_RTOL
+    assert status.symmetry_rtol(np.float32) == status.triangle_rtol(np.float32) == 64 * 2.0**-23
 
 
 def test_status_frame_ambiguous_symmetric_top():

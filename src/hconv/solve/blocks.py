@@ -73,7 +73,7 @@ def convert_blocks(
         with np.errstate(all="ignore"):
             _convert_block(
                 opts,
-                *form.as_sym3(I[:, sl]),
+                *form.as_sym3(I[:, sl], status.symmetry_rtol(opts.dtype)),
                 H[:, sl],
                 None if r is None else r[:, sl],
                 w[sl],
@@ -178,7 +178,7 @@ def _convert_block(
         "singular": singular & ~dropped,
         "not_positive_definite": (lam[0] < -tol) | ((lam[0] < 0) & ~dropped),
         "degenerate": dropped,
-        "not_physical": lam[2] - lam[1] - lam[0] > status.TRIANGLE_RTOL * (a0 + a1 + a2),
+        "not_physical": lam[2] - lam[1] - lam[0] > status.triangle_rtol(dtype) * (a0 + a1 + a2),
         "ill_conditioned": cond > cond_limit,
     }
 

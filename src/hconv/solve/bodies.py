@@ -217,7 +217,8 @@ def _solve(
         six = np.where(finite, six, np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])[:, None])
         lam = eigenvalues(Sym3(*six))
         with np.errstate(invalid="ignore", over="ignore"):
-            broken = finite & (lam[2] - lam[1] - lam[0] > status.TRIANGLE_RTOL * np.abs(lam).sum(axis=0))
+            rtol = status.triangle_rtol(np.float64 if precision == 64 else np.float32)
+            broken = finite & (lam[2] - lam[1] - lam[0] > rtol * np.abs(lam).sum(axis=0))
         code = status.merge(code, broken, "not_physical")
     return dataclasses.replace(res, w=w_out, null_axis=axis_out, status_code=code)
 

@@ -39,7 +39,7 @@ from hconv.kernels.linsolve import MAX_REFINE_STEPS, STOP_TOL
 from hconv.kernels.spectrum import ROOT_NEWTON_STEPS, ROOT_RANGE, ROOT_START
 from hconv.solve import rowcode  # the C extension (setup.py)
 from hconv.solve.engines import SharedPool, available_cores
-from hconv.solve.status import CODE, ILL_CONDITIONED_TOL, SINGULAR_RTOL_EPS, SYMMETRY_RTOL, TRIANGLE_RTOL
+from hconv.solve.status import CODE, ILL_CONDITIONED_TOL, SINGULAR_RTOL_EPS, symmetry_rtol, triangle_rtol
 
 #: Rows per thread below which a call stays on its caller's thread (handing rows to another
 #: thread would cost more than it saves).
@@ -79,8 +79,9 @@ def constants() -> dict[str, float]:
         "ROOT_NEWTON_STEPS": float(ROOT_NEWTON_STEPS),
         "ROOT_RANGE": float(ROOT_RANGE),
         "MAX_REFINE_STEPS": float(MAX_REFINE_STEPS),
-        "SYMMETRY_RTOL": SYMMETRY_RTOL,
-        "TRIANGLE_RTOL": TRIANGLE_RTOL,
+        # float64's: the engine converts float64 only (precision 32 is the numpy engine's)
+        "SYMMETRY_RTOL": symmetry_rtol(np.float64),
+        "TRIANGLE_RTOL": triangle_rtol(np.float64),
         "ILL_CONDITIONED_TOL": ILL_CONDITIONED_TOL,
         "EPS": _EPS,
         "SQRT_EPS": math.sqrt(_EPS),

@@ -31,7 +31,6 @@ import numpy as np
 
 from hconv.kernels.inertia import Sym3, max_abs
 from hconv.registry import Registry
-from hconv.solve.status import SYMMETRY_RTOL
 
 #: The six numbers' order, and the name of each entry.
 SIX = ("Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz")
@@ -48,10 +47,11 @@ class Form:
     diagonal: bool  #: moments about the given axes only (no products): solved by division
     #: values per row in a list column ``I``; None when the form has no list spelling
     list_size: int | None
-    #: ``(k, N)`` → the one internal representation: a :class:`Sym3` of contiguous ``(N,)``
-    #: columns, and the ``(N,)`` mask of rows whose nine numbers are not symmetric (those rows
-    #: keep the mean of the two entries, so that the arrays stay finite; the caller flags them)
-    as_sym3: Callable[[np.ndarray], tuple[Sym3, np.ndarray]]
+    #: ``(k, N)``, symmetry tolerance → the one internal representation: a :class:`Sym3` of
+    #: contiguous ``(N,)`` columns, and the ``(N,)`` mask of rows whose nine numbers are not
+    #: symmetric within the tolerance (:func:`hconv.solve.status.symmetry_rtol`; those rows keep
+    #: the mean of the two entries, so that the arrays stay finite; the caller flags them)
+    as_sym3: Callable[[np.ndarray, float], tuple[Sym3, np.ndarray]]
     #: ``(k, N)`` → the three diagonal entries and the three products ``(xy, xz, yz)`` as
     #: :class:`Sym3`-ordered rows ``(6, N)``; products are averaged for a nine-number form
     as_six: Callable[[np.ndarray], np.ndarray]
@@ -169,32 +169,32 @@ def _six_of_diagonal(diag: np.ndarray) -> np.ndarray:
     return np.stack([diag[0], diag[1], diag[2], zero, zero, zero])
 
 
-def _sym3_of_diagonal(diag: np.ndarray) -> tuple[Sym3, np.ndarray]:
+def _sym3_of_diagonal(diag: np.ndarray, rtol: float) -> tuple[Sym3, np.ndarray]:  # no products: symmetric
     n = diag.shape[1]
     xx, yy, zz = (np.ascontiguousarray(d, dtype=np.float64) for d in diag)
     return Sym3(xx, yy, zz, np.zeros(n), np.zeros(n), np.zeros(n)), np.zeros(n, dtype=bool)
 
 
-def _sym3_of_six(I: np.ndarray) -> tuple[Sym3, np.ndarray]:
+def _sym3_of_six(I: np.ndarray, rtol: float) -> tuple[Sym3, np.ndarray]:
     xx, yy, zz, xy, xz, yz = (np.ascontiguousarray(c, dtype=np.float64) for c in I)
     return Sym3(xx, yy, zz, xy, xz, yz), np.zeros(I.shape[1], dtype=bool)
 
 
-def _sym3_of_nine(I: np.ndarray) -> tuple[Sym3, np.ndarray]:
+def _sym3_of_nine(I: np.ndarray, rtol: float) -> tuple[Sym3, np.ndarray]:
     """The symmetric part of row-major nine numbers, and where they are not symmetric:
-    |Iij − Iji| > SYMMETRY_RTOL · max|I| on that row."""
+    |Iij − Iji| > rtol · max|I| on that row."""
     skew = np.abs(I[1] - I[3])
     with np.errstate(invalid="ignore"):
         np.maximum(skew, np.abs(I[2] - I[6]), out=skew)
         np.maximum(skew, np.abs(I[5] - I[7]), out=skew)
         # The largest entry is at least the largest diagonal one, so a row whose skew is within
         # tolerance of that is symmetric: only the others (and NaN rows) need all nine.
-        doubt = ~(skew <= SYMMETRY_RTOL * max_abs([I[0], I[4], I[8]]))
+        doubt = ~(skew <= rtol * max_abs([I[0], I[4], I[8]]))
         asym = np.zeros(skew.shape, dtype=bool)
         if doubt.any():
             rows = np.flatnonzero(doubt)
             # row by row: a reduction over the strided axis of an (N, 3, 3) stack is slow
-            asym[rows] = skew[rows] > SYMMETRY_RTOL * max_abs(I[:, rows])
+            asym[rows] = skew[rows] > rtol * max_abs(I[:, rows])
     return Sym3(
         I[0].copy(), I[4].copy(), I[8].copy(), 0.5 * (I[1] + I[3]), 0.5 * (I[2] + I[6]), 0.5 * (I[5] + I[7])
     ), asym
@@ -208,7 +208,7 @@ register(
         "isotropic",
         diagonal=True,
         list_size=None,
-        as_sym3=lambda I: _sym3_of_diagonal(np.repeat(I, 3, axis=0)),
+        as_sym3=lambda I, rtol: _sym3_of_diagonal(np.repeat(I, 3, axis=0), rtol),
         as_six=lambda I: _six_of_diagonal(np.repeat(I, 3, axis=0)),
         flip_products=_no_products,
         shifted=lambda I, d: _shift_diagonal(np.repeat(I, 3, axis=0), d),

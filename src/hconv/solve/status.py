@@ -72,6 +72,23 @@ REPEATED_RTOL = 1e-9
 TRIANGLE_RTOL = 1e-9
 #: r lies on axis i when r_j² + r_k² <= R_AXIS_RTOL · |r|² (or r = 0).
 R_AXIS_RTOL = 1e-9
+#: With precision 32 the numbers are float32's: a tensor computed in float32 is symmetric, and a
+#: body on the triangle inequality's boundary lies on it, only to float32's roundings (a float32
+#: R·D·Rᵀ differs from its transpose by a few eps). So both tolerances are at least this many
+#: eps of the working precision (symmetry_rtol, triangle_rtol): 7.6e-6 in float32, and below
+#: both in float64, where they stand as stated.
+ROUNDING_RTOL_EPS = 64.0
+
+
+def symmetry_rtol(dtype: DTypeLike) -> float:
+    """|Iij − Iji| / max|I| above which nine numbers in ``dtype`` are ``not_symmetric``."""
+    return max(SYMMETRY_RTOL, ROUNDING_RTOL_EPS * float(np.finfo(dtype).eps))
+
+
+def triangle_rtol(dtype: DTypeLike) -> float:
+    """The fraction of the trace by which moments in ``dtype`` may break the triangle
+    inequality before a row is ``not_physical``."""
+    return max(TRIANGLE_RTOL, ROUNDING_RTOL_EPS * float(np.finfo(dtype).eps))
 
 
 def singular_rtol(dtype: DTypeLike) -> float:
