@@ -46,7 +46,8 @@ INVALID_HINTS = {
 #: the order of the six numbers, the products' sign and a unit slip (docs/design-note.md).
 STATUS_HINTS = {
     "not_symmetric": "I's nine numbers are not symmetric (Iij and Iji differ); give a symmetric tensor, "
-    "or its six numbers xx,yy,zz,xy,xz,yz",
+    "or its six numbers xx,yy,zz,xy,xz,yz; numbers computed in float32 are symmetric only to its "
+    "roundings: give --precision 32",
     "singular": "I has a zero principal moment (a rod, a point mass), so no ω turns into this H about it; "
     "--degenerate pinv or lock gives the ω of the other axes",
     "not_positive_definite": "I has a negative principal moment, which no body has; check the order of the six "
