@@ -487,3 +487,24 @@ def test_solve_pivot_precision_32_keeps_a_float32_plate_about_its_centre_physica
     # (ill_conditioned: float32 cannot promise 1e-6 with the shift's rounding, docs/methods.md)
     assert sum(counts.values()) == 500 and "not_physical" not in counts
     assert bodies.solve(sets, "sym6", "exact", 64, Conventions(about="pivot")).counts().get("not_physical", 0) > 50
+
+
+@pytest.mark.parametrize("precision", [64, 32])
+def test_solve_pivot_checks_the_given_nine_numbers_symmetry_about_the_centre(precision):
+    """Shifted to a pivot 1 m away with 100 kg, the tensor's largest entry is 50× the given
+    one's, so a skew of 1e-4 of the given tensor was measured as 2e-6 of the shifted one: within
+    float32's tolerance (7.6e-6), and ω came back for a tensor that is not symmetric."""
+    from hconv.solve import bodies
+
+    nine = np.array([1.0, 0.3, 0.0, 0.30025, 2.0, 0.0, 0.0, 0.0, 2.5])  # Iyx off by 2.5e-4 of max|I|
+    sets = {
+        "H": np.array([[1.0, 1.0], [2.0, 2.0], [3.0, 3.0]]),
+        "I": np.stack([nine, np.where(np.arange(9) == 3, 0.3, nine)], axis=1),
+        "m": np.array([100.0, 100.0]),
+        "r": np.array([[1.0, 1.0], [0.0, 0.0], [0.0, 0.0]]),
+    }
+    for method in ("exact", "diagonal"):
+        res = bodies.solve(sets, "full9", method, precision, Conventions(about="pivot"))
+        assert list(res.status)[0] == "not_symmetric" and np.isnan(res.w[0]).all()
+        assert list(res.status)[1] != "not_symmetric" and np.isfinite(res.w[1]).all()
+        assert res.residual is None or np.isnan(res.residual[0])

@@ -207,7 +207,10 @@ def one(
             print("      see docs/design-note.md, the design note's questions")
     if state in body.STATUS_HINTS:  # the status names the problem, not its usual causes
         sys.stdout.flush()
-        print(fill(f"hconv: {state}: {body.STATUS_HINTS[state]}", sys.stderr), file=sys.stderr)
+        hint = body.STATUS_HINTS[state]
+        if job.precision == 64 and state in body.FLOAT32_HINTS:
+            hint += "; " + body.FLOAT32_HINTS[state]
+        print(fill(f"hconv: {state}: {hint}", sys.stderr), file=sys.stderr)
     if cancelled and not math.isnan(residual):  # the status says that digits were lost, not how many, nor what to do
         sys.stdout.flush()  # after the result on a shared terminal too
         print(fill(body.cancellation_hint(state, residual), sys.stderr), file=sys.stderr)

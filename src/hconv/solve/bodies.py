@@ -209,18 +209,33 @@ def _solve(
         # Without --about, I may be about a distant pivot: only "too dense" is certain then.
         slip = units.implausible(form.trace(I_given), m, both_sides=conv.about != "same")
         code = status.merge(code, slip, "unit_suspect")
+    residual = res.residual
     if conv.about == "pivot":
         # The shift adds a point mass's tensor, which can make a centre-of-mass tensor that no
-        # body has look valid about the pivot: the triangle inequality is checked about C too.
+        # body has look valid about the pivot: symmetry and the triangle inequality are checked
+        # about C too (the shift's large entries would hide the given nine numbers' skew, which
+        # is measured against the largest entry).
+        dtype = np.float64 if precision == 64 else np.float32
+        asym = form.as_sym3(I_given, status.symmetry_rtol(dtype))[1]
+        code = status.merge(code, asym, "not_symmetric")
+        if asym.any():  # no answer there, as for a tensor that is not symmetric about the pivot
+            gone = code == status.CODE["not_symmetric"]
+            w_out, residual = w_out.copy(), None if residual is None else residual.copy()
+            w_out[gone] = np.nan
+            if axis_out is not None:
+                axis_out = axis_out.copy()
+                axis_out[gone] = np.nan
+            if residual is not None:
+                residual[gone] = np.nan
         six = form.as_six(I_given)
         finite = np.isfinite(six).all(axis=0)  # the others are invalid_input already
         six = np.where(finite, six, np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])[:, None])
         lam = eigenvalues(Sym3(*six))
         with np.errstate(invalid="ignore", over="ignore"):
-            rtol = status.triangle_rtol(np.float64 if precision == 64 else np.float32)
+            rtol = status.triangle_rtol(dtype)
             broken = finite & (lam[2] - lam[1] - lam[0] > rtol * np.abs(lam).sum(axis=0))
         code = status.merge(code, broken, "not_physical")
-    return dataclasses.replace(res, w=w_out, null_axis=axis_out, status_code=code)
+    return dataclasses.replace(res, w=w_out, residual=residual, null_axis=axis_out, status_code=code)
 
 
 def _cancellation(res: core.Result, eps_C: np.ndarray, k: float, precision: int) -> core.Result:

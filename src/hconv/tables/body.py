@@ -46,8 +46,7 @@ INVALID_HINTS = {
 #: the order of the six numbers, the products' sign and a unit slip (docs/design-note.md).
 STATUS_HINTS = {
     "not_symmetric": "I's nine numbers are not symmetric (Iij and Iji differ); give a symmetric tensor, "
-    "or its six numbers xx,yy,zz,xy,xz,yz; numbers computed in float32 are symmetric only to its "
-    "roundings: give --precision 32",
+    "or its six numbers xx,yy,zz,xy,xz,yz",
     "singular": "I has a zero principal moment (a rod, a point mass), so no ω turns into this H about it; "
     "--degenerate pinv or lock gives the ω of the other axes",
     "not_positive_definite": "I has a negative principal moment, which no body has; check the order of the six "
@@ -55,6 +54,12 @@ STATUS_HINTS = {
     "not_physical": "I's principal moments break the triangle inequality (each at most the sum of the other "
     "two), which no solid body does; check the order of the six numbers (xx,yy,zz,xy,xz,yz), the products' "
     "sign (--products) and the point I is about",
+}
+#: What to add to a hint in float64: numbers computed in float32 meet these statuses by its
+#: roundings alone (docs/input.md, "Numbers computed in float32").
+FLOAT32_HINTS = {
+    "not_symmetric": "numbers computed in float32 are symmetric only to its roundings: give --precision 32",
+    "not_physical": "a thin plate computed in float32 is on the boundary only to its roundings: give --precision 32",
 }
 #: What a body's residual is: measured; with --about free, measured against H_C and with the bound
 #: on what taking r × m·v out of H lost added (hconv.solve.bodies), which it cannot see.
