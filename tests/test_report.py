@@ -15,6 +15,7 @@ from helpers import BOX, assert_fits, shown, terminal
 from rich.console import Console
 
 from hconv import report
+from hconv.solve import status
 from hconv.solve.methods import METHODS
 from hconv.tables.pipeline import Tally
 from hconv.tools import bench, compare, diagnose, stability
@@ -202,6 +203,26 @@ def test_summary_says_when_the_engine_asked_for_converted_no_row(asked, ran, tol
     text = "\n".join(shown(console))
     assert (f"--engine {asked} computes --method exact or refined" in text) is told, text
     assert ("this run's rows went to numpy" in text) is told
+
+
+@pytest.mark.parametrize(
+    "flagged, precision, told",
+    [({"not_symmetric": 5}, 64, "not_symmetric: if I was computed in float32")]
+    + [({"not_symmetric": 5, "not_physical": 2}, 64, "not_symmetric and not_physical: if I was")]
+    + [({"not_symmetric": 5}, 32, None), ({"singular": 5}, 64, None)],
+)
+def test_summary_names_precision_32_where_float64_tolerances_flagged_tensors(flagged, precision, told):
+    """A file of float32 tensors came back mostly not_symmetric with no word on why (newcomer
+    trial); the hint is wrong where --precision 32 was given, or for another status."""
+    tally = Tally("exact", "rad/s", rows=10, seconds=0.5, precision=precision)
+    for name, n in flagged.items():
+        tally.per_status[status.STATUSES.index(name)] = n
+    console = pipe()
+    report.summary(tally, console)
+    text = "\n".join(shown(console))
+    assert (told is not None and told in text and "give --precision 32, or its six numbers" in text) or (
+        told is None and "--precision 32" not in text
+    ), text
 
 
 def test_progress_bar_of_bytes_shows_the_percentage_and_the_bytes():

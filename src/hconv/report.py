@@ -42,6 +42,7 @@ def summary(tally: Tally, console: Console | None = None, asked: str = "auto") -
     if tally.worst_row is not None:
         note(console, f"worst residual {tally.worst_residual:.3g} (data row {tally.worst_row}), relative to I⁻¹H")
     _engine_note(console, tally, asked)
+    _float32_note(console, tally)
     note(console, f"time {tally.seconds:.3f} s ({rate})")
 
 
@@ -53,6 +54,20 @@ def _engine_note(console: Console, tally: Tally, asked: str) -> None:
 
     if asked not in ("auto", "numpy") and tally.rows and asked not in tally.engines:
         note(console, f"--engine {asked} computes {engines.scope_text()}; this run's rows went to numpy")
+
+
+def _float32_note(console: Console, tally: Tally) -> None:
+    """Where float64's tolerances flagged tensors, say that numbers computed in float32 meet
+    them by its roundings alone, and what converts those (docs/input.md)."""
+    from hconv.tables.body import FLOAT32_HINTS
+
+    flagged = [name for name in FLOAT32_HINTS if tally.counts().get(name)]
+    if tally.precision == 64 and flagged:
+        note(
+            console,
+            f"{' and '.join(flagged)}: if I was computed in float32, give --precision 32, or its six "
+            "numbers (docs/input.md, numbers computed in float32)",
+        )
 
 
 def _status_table(console: Console, tally: Tally, head: Text) -> None:
@@ -90,6 +105,7 @@ def dataset_summary(result: DatasetResult, console: Console | None = None, asked
     parts += [f"{len(result.failed):,} failed"] if result.failed else []
     parts += [f"{len(result.pending):,} not reached"] if result.pending else []
     state = "complete" if result.complete else "not complete"
+    _float32_note(console, tally)
     note(console, f"files: {', '.join(parts)}; {result.manifest} says the dataset is {state}")
     if result.orphans:  # the manifest no longer lists them, so nothing else would say they are there
         shown = ", ".join(result.orphans[:3]) + (", …" if len(result.orphans) > 3 else "")

@@ -197,7 +197,7 @@ def manifest_text(m: dict, files: list[FileRecord]) -> str:
 
 def tally_of(job: Job, files: list[FileRecord]) -> tuple[Tally, FileRecord | None]:
     """The whole dataset's tally from its files' records, and the file with the worst residual."""
-    tally = Tally(methods.get(job.method).name, job.unit)
+    tally = Tally(methods.get(job.method).name, job.unit, precision=job.precision)
     worst = None
     for r in files:
         if tally.add_counts(r.rows, r.statuses, r.engines, r.worst_residual, r.worst_row):

@@ -46,6 +46,7 @@ class Tally:
     seconds: float = 0.0
     engines: dict = field(default_factory=dict)  #: engine -> rows it converted, in order of first use
     read_as: str = ""  #: how a CSV input was read, where it is not plain CSV (hconv.tables.sniff.Dialect)
+    precision: int = 64  #: the working precision's bits (the summary's float32 hint)
 
     def add(self, table: pa.Table, engine: str | None = None) -> None:
         if engine is not None:
@@ -299,7 +300,7 @@ def _convert(
     """One pass of :func:`convert_file`: every batch of ``inp`` into ``out``. ``types``: the
     types of ``inp``'s text columns (None: the first batch's; :class:`~hconv.tables.csvtypes.Retype`
     when a later one does not fit)."""
-    tally = Tally(methods.get(job.method).name, job.unit)
+    tally = Tally(methods.get(job.method).name, job.unit, precision=job.precision)
     batches: Iterator[pa.RecordBatch] = inp.batches
     if types is None:
         first = next(batches, None)
