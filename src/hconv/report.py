@@ -61,7 +61,8 @@ def _float32_note(console: Console, tally: Tally) -> None:
     them by its roundings alone, and what converts those (docs/input.md)."""
     from hconv.tables.body import FLOAT32_HINTS
 
-    flagged = [name for name in FLOAT32_HINTS if tally.counts().get(name)]
+    counts = tally.counts()
+    flagged = [name for name in FLOAT32_HINTS if counts.get(name)]
     if tally.precision == 64 and flagged:
         note(
             console,

@@ -40,7 +40,7 @@ from hconv.kernels.inertia import Sym3
 from hconv.kernels.spectrum import eigenvalues
 from hconv.solve import blocks, forms, methods, status, units
 from hconv.solve import convert as core
-from hconv.solve.options import Conventions
+from hconv.solve.options import DTYPES, Conventions
 
 #: Rounding a vector through a rotation costs about this many cond(I)·eps in ω.
 ROTATION_K = 2.0
@@ -215,7 +215,7 @@ def _solve(
         # body has look valid about the pivot: symmetry and the triangle inequality are checked
         # about C too (the shift's large entries would hide the given nine numbers' skew, which
         # is measured against the largest entry).
-        dtype = np.float64 if precision == 64 else np.float32
+        dtype = DTYPES[precision]
         asym = form.as_sym3(I_given, status.symmetry_rtol(dtype))[1]
         code = status.merge(code, asym, "not_symmetric")
         if asym.any():  # no answer there, as for a tensor that is not symmetric about the pivot
