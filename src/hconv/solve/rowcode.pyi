@@ -24,6 +24,7 @@ def convert(
     code: np.ndarray,
     residual: np.ndarray,
     fallback: np.ndarray,
+    stream: bool,
     start: int,
     stop: int,
     /,
@@ -40,8 +41,12 @@ def share(
     code: np.ndarray,
     residual: np.ndarray,
     fallback: np.ndarray,
+    stream: bool,
     size: int,
     /,
 ) -> tuple[int, int]: ...
 def serve(linger: float, /) -> int: ...
 def serving() -> int: ...
+def outputs(n: int, diagnostics: bool, /) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]: ...
+def pool() -> dict[str, float]: ...
+def release() -> None: ...

@@ -19,7 +19,7 @@ static struct {
 /* spectrum.ROOT_NEWTON_STEPS, a constant here so that the loop unrolls; configure() refuses
  * another value. */
 #define NEWTON_STEPS 2
-/* Rows per chunk: the chunk's scratch (39 numbers a row, 20 kB) stays in the L1 cache. */
+/* Rows per chunk: the chunk's scratch (48 numbers a row, 25 kB) stays in the L1 cache. */
 #define CH 64
 /* What the verdict says of a row: the numpy engine must convert it, it has no answer (singular),
  * or it has one. A row whose verdict waits on the largest moment's exact error bound holds
@@ -62,8 +62,9 @@ static inline int final_w(double w0, double w1, double w2)
 /* One chunk's scratch, a column per quantity: the inputs; LDL^T's factors and answer; the
  * verdict's cond, status code, state and safe; a refinement's x, last correction c and whether
  * it goes on (X for the answer's, R for the reference's); the residual and whether the row's
- * answers are final; the largest moment's p, r, q and value, for its exact error bound. Columns
- * of one struct, so that the compiler can prove them apart. */
+ * answers are final; the largest moment's p, r, q and value, for its exact error bound; and the
+ * outputs of a streamed chunk, as they go to memory (chunk_body). Columns of one struct, so that
+ * the compiler can prove them apart. */
 typedef struct {
     double xx[CH], yy[CH], zz[CH], xy[CH], xz[CH], yz[CH], h0[CH], h1[CH], h2[CH];
     double d1[CH], d2[CH], d3[CH], l21[CH], l31[CH], l32[CH], w0[CH], w1[CH], w2[CH];
@@ -72,7 +73,13 @@ typedef struct {
     double r0[CH], r1[CH], r2[CH], rc[CH], ron[CH];
     double res[CH], fin[CH], asym[CH];
     double ep[CH], er[CH], eq[CH], ehi[CH];
+    double ow[3 * CH], ocond[CH], ores[CH];
+    uint8_t ocode[CH];
+    npy_bool ofb[CH];
 } Chunk;
+/* Copies `bytes` (a multiple of 64) from src to dst (64-byte aligned) with stores that bypass the
+ * caches; a store fence must follow before another thread reads dst (rowcode.c's rows()). */
+typedef void (*StreamFn)(void *restrict dst, const void *restrict src, size_t bytes);
 
 /* The numbers and the verdict of the m rows, with no branch. The numbers: LDL^T
  * (linsolve.ldlt_factor) and its answer (linsolve.ldlt_solve), the closed-form largest and
@@ -355,6 +362,7 @@ typedef struct {
     double *w, *cond, *residual;
     uint8_t *code;
     npy_bool *fallback;
+    int stream; /* outputs too large to stay in the caches: stream whole chunks (chunk_body) */
 } Job;
 
 /* m rows of nine numbers each, together (an (N, 3, 3) stack as numpy holds it), into s: each
@@ -437,12 +445,16 @@ HOT static void store_chunk(Chunk *restrict s, int m, const double *restrict a0,
 #undef STORE
 }
 
+#define ALIGNED(p) (((uintptr_t)(p) & 63) == 0)
 /* Rows start..start+m (m <= CH) of the job, through one chunk's scratch. With `fused`, the
  * residual's products have their errors from fma() rather than from Dekker's splits: within the
  * safe range, which every row that keeps its answer is in (linsolve.in_safe_range's rule), both
  * are that error exactly, so the bits are the same; fma() only where the CPU has it (a library
- * fma without it costs far more than the splits). */
-HOT static void chunk_body(const Job *jb, Chunk *restrict s, npy_intp start, int m, int fused)
+ * fma without it costs far more than the splits). With `stream` (not NULL), a whole chunk whose
+ * outputs start on cache lines is stored into the chunk's own columns, then streamed to the
+ * outputs: a store to a line that is not in the cache first reads it from memory, which the
+ * streaming stores skip. */
+HOT static void chunk_body(const Job *jb, Chunk *restrict s, npy_intp start, int m, int fused, StreamFn stream)
 {
 #define AT(base, s0, s1, k, i) (*(const double *)((base) + (k) * (s0) + (i) * (s1)))
     if (jb->nine && jb->Is0 == sizeof(double) && jb->Is1 == 9 * sizeof(double)) {
@@ -484,7 +496,17 @@ HOT static void chunk_body(const Job *jb, Chunk *restrict s, npy_intp start, int
         finish_chunk(s, m, jb->refined, jb->diagnostics, fused);
     const double *a0 = jb->refined ? s->x0 : s->w0, *a1 = jb->refined ? s->x1 : s->w1;
     const double *a2 = jb->refined ? s->x2 : s->w2;
-    store_chunk(s, m, a0, a1, a2, jb->w + 3 * start, jb->cond + start, jb->residual + (jb->diagnostics ? start : 0),
-                jb->code + start, jb->fallback + start, more, jb->diagnostics);
+    double *w = jb->w + 3 * start, *cond = jb->cond + start, *res = jb->residual + (jb->diagnostics ? start : 0);
+    uint8_t *code = jb->code + start;
+    npy_bool *fallback = jb->fallback + start;
+    if (stream && m == CH && ALIGNED(w) && ALIGNED(cond) && ALIGNED(code) && ALIGNED(fallback) &&
+        (!jb->diagnostics || ALIGNED(res))) {
+        store_chunk(s, m, a0, a1, a2, s->ow, s->ocond, s->ores, s->ocode, s->ofb, more, jb->diagnostics);
+        stream(w, s->ow, sizeof s->ow), stream(cond, s->ocond, sizeof s->ocond);
+        stream(code, s->ocode, sizeof s->ocode), stream(fallback, s->ofb, sizeof s->ofb);
+        if (jb->diagnostics)
+            stream(res, s->ores, sizeof s->ores);
+    } else
+        store_chunk(s, m, a0, a1, a2, w, cond, res, code, fallback, more, jb->diagnostics);
 }
 #endif /* HCONV_ROWMATH_H */
