@@ -3,7 +3,9 @@
  * What it computes and what it leaves is hconv.solve.compiled's docstring; this file is its
  * arithmetic. Every operation is the numpy engine's (hconv.kernels.linsolve, .spectrum, .metrics,
  * hconv.solve.blocks), written in the same order with the same parentheses, so that `exact`'s
- * omega, cond and every status are the same bits. It must be compiled so that it rounds as
+ * omega, cond and every status are the same bits; only the refinement steps and the residual's
+ * norms multiply by reciprocals where the numpy engine divides (rowmath.h says where), as
+ * refined's omega and the residual are within 2 eps of the numpy engine's, not its bits. It must be compiled so that it rounds as
  * written (setup.py): no contraction into fused multiply-adds (-ffp-contract=off) and no
  * fast-math; -fno-math-errno and -fno-trapping-math only let the compiler vectorise sqrt and
  * turn branches into selects, which changes no result. The one fused multiply-add is the
@@ -670,7 +672,7 @@ static PyObject *one(PyObject *self, PyObject *args)
     npy_bool fallback;
     Job jb = {PyArray_BYTES(In), PyArray_BYTES(H), sizeof(double), 0, sizeof(double), 0, nine, refined, diagnostics,
               cond_limit, w, &cond, &residual, &code, &fallback, 0};
-    Chunk s; /* about 25 kB of stack */
+    Chunk s; /* about 26 kB of stack */
     convert_chunk(&jb, &s, 0, 1);
     npy_intp three = 3;
     PyObject *wa = PyArray_SimpleNew(1, &three, NPY_FLOAT64);
