@@ -530,7 +530,7 @@ def test_outputs_memory_of_a_dropped_result_serves_the_next_call_of_its_size(rng
     so no page fault and no zeroing by the system), and that memory holds the new call's answers
     whole: the numpy engine's bits, nothing left of the old rows."""
     compiled.release()
-    n = 60_000  # ω 1.4 MB
+    n = 200_000  # ω 4.8 MB
     assert 24 * n >= compiled.pool()["least_bytes"]
     I, H = physical_bodies(rng, n), rng.normal(size=(n, 3))
     first = hconv.convert(H, I)

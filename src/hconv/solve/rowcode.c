@@ -301,12 +301,14 @@ static double seconds(void)
  * Arrays made with it are ordinary ndarrays that own their data: numpy remembers each array's
  * handler and frees its data through it. Every entry point takes the pool's lock (a spin: each
  * holds it for a few comparisons, or one free). */
-#define POOL_MIN ((size_t)1 << 20)
+/* Smaller blocks come from the C library's heap, which keeps freed ones for reuse itself: glibc
+ * maps a block of its own from 128 kB, a threshold it raises to each freed block's size up to
+ * 32 MB, or from the 4 MB the hconv command fixes (hconv.kernels.allocator). From POOL_MIN the
+ * blocks are asked for huge pages, as numpy asks for its own. */
+#define POOL_MIN ((size_t)4 << 20)
 #define POOL_MAX ((size_t)256 << 20)
 #define POOL_SLOTS 16
 #define POOL_IDLE 1.0
-/* where the system maps blocks of this size or more, ask it for huge pages, as numpy does */
-#define HUGE_FROM ((size_t)4 << 20)
 static struct {
     void *at;
     size_t size;
@@ -362,7 +364,7 @@ static void *pool_malloc(void *ctx, size_t size)
     if (posix_memalign(&at, 64, size ? size : 1))
         return NULL;
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
-    if (size >= HUGE_FROM) {
+    if (size >= POOL_MIN) {
         uintptr_t lo = ((uintptr_t)at + 4095) & ~(uintptr_t)4095, hi = ((uintptr_t)at + size) & ~(uintptr_t)4095;
         if (hi > lo)
             madvise((void *)lo, hi - lo, MADV_HUGEPAGE);
