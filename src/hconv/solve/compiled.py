@@ -50,9 +50,9 @@ PARTS_PER_THREAD = 8
 #: well beyond a core's cache): at this size stores that first read each line cost more than
 #: finding the outputs in a cache would save (docs/engines.md).
 STREAM_ROWS = 1 << 20
-#: Blocks are whole chunks of the C code's rows (its CH), so that each starts on a cache line of
-#: every output and can be streamed.
-_CHUNK_ROWS = 64
+#: Blocks are whole chunks of the C code's rows, so that each starts on a cache line of every
+#: output and can be streamed.
+_CHUNK_ROWS = rowcode.CHUNK_ROWS
 #: How long a pool thread that served a call stays in C, spinning, for the next call's blocks
 #: before it goes back to wait in the pool (seconds): calls in a loop find it there, where a
 #: thread woken for each call cost a wake-up of the system's and the GIL (docs/engines.md); the

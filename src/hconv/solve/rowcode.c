@@ -808,5 +808,8 @@ PyMODINIT_FUNC PyInit_rowcode(void)
     kernels_of_cpu(names, fns);
     convert_chunk = fns[0];
     on_fork();
-    return PyModule_Create(&module);
+    PyObject *m = PyModule_Create(&module);
+    if (m && PyModule_AddIntConstant(m, "CHUNK_ROWS", CH) < 0)
+        Py_CLEAR(m);
+    return m;
 }

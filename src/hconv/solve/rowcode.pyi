@@ -3,6 +3,9 @@ from typing import Any
 
 import numpy as np
 
+#: rows the C code converts together (its chunk, CH)
+CHUNK_ROWS: int
+
 def configure(constants: dict[str, float], /) -> None: ...
 def kernels() -> list[str]: ...
 def use(name: str, /) -> None: ...
