@@ -533,14 +533,14 @@ def test_outputs_memory_of_a_dropped_result_serves_the_next_call_of_its_size(rng
     n = 200_000  # ω 4.8 MB
     assert 24 * n >= compiled.pool()["least_bytes"]
     I, H = physical_bodies(rng, n), rng.normal(size=(n, 3))
-    first = hconv.convert(H, I)
+    first = hconv.convert(H, I, engine="compiled")  # HCONV_ENGINE=numpy would make auto numpy
     at = first.w.ctypes.data
     assert first.w.flags.owndata and at % 64 == 0
     del first
     kept = compiled.pool()
     assert kept["blocks"] >= 1 and kept["bytes"] >= 24 * n
     I2, H2 = physical_bodies(rng, n), rng.normal(size=(n, 3))
-    second = hconv.convert(H2, I2)
+    second = hconv.convert(H2, I2, engine="compiled")
     assert second.w.ctypes.data == at and compiled.pool()["reused"] > kept["reused"]
     want = hconv.convert(H2, I2, engine="numpy")
     assert same_bits(second.w, want.w) and same_bits(second.status_code, want.status_code)
