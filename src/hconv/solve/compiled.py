@@ -124,9 +124,9 @@ one = rowcode.one
 #: ``outputs(n, diagnostics)``: new ``(w (n, 3), cond, code (uint8), residual ((n,) with
 #: diagnostics, else (0,)), fallback (bool))`` for :func:`convert_rows`, starting on cache lines,
 #: from memory the C code keeps: the large blocks numpy frees (a dropped result's) are kept, to a
-#: limit, for the next call of the same size, which then writes to memory already mapped; a block
-#: left unused for a while is given back at the pool's next request (:data:`pool` gives the
-#: limits; docs/engines.md). The arrays own their data.
+#: limit, for the next calls, which then write to memory already mapped; each is given back once
+#: a whole call has left it unused, or a while after it was kept (:data:`pool` gives the limits;
+#: rowcode.c and docs/engines.md the rules). The arrays own their data.
 outputs = rowcode.outputs
 #: ``pool()``: what :data:`outputs` keeps now, the requests it has served, and its limits.
 pool = rowcode.pool

@@ -206,7 +206,7 @@ static LINE npy_int64 rows_done;
 static npy_int64 rows_lost;
 static LINE int owned;
 static int serving;
-static int pool_lock; /* outputs()'s pool, below */
+static int pool_lock, reaping; /* outputs()'s pool and whether its thread runs, below */
 
 #if defined(_MSC_VER)
 #include <intrin.h>
@@ -274,7 +274,7 @@ static void yield_core(void) { sched_yield(); }
  * generation). The child has one thread here. */
 static void forked(void)
 {
-    owned = 0, serving = 0, pool_lock = 0;
+    owned = 0, serving = 0, pool_lock = 0, reaping = 0;
     word = (((word >> 32) + 1) << 32) | BUSY;
 }
 static void on_fork(void) { pthread_atfork(NULL, NULL, forked); }
@@ -293,14 +293,18 @@ static double seconds(void)
 /* The memory of the outputs of large calls (outputs()): a numpy memory handler whose blocks start
  * on cache lines, so that whole chunks can be streamed to them, and which keeps the blocks of at
  * least POOL_MIN bytes that numpy frees, up to POOL_MAX bytes and POOL_SLOTS blocks, for the next
- * request of the same size. Fresh memory costs a page fault and the system's zeroing of each
- * page at its first store; a call in a loop, whose last result the caller has dropped, writes
- * to memory already mapped instead (docs/engines.md). A block kept POOL_IDLE seconds unused is
- * given back at the handler's next request or free, whatever its size; release() gives back
- * every block kept.
- * Arrays made with it are ordinary ndarrays that own their data: numpy remembers each array's
- * handler and frees its data through it. Every entry point takes the pool's lock (a spin: each
- * holds it for a few comparisons, or one free). */
+ * calls. Fresh memory costs a page fault and the system's zeroing of each page at its first
+ * store; a call in a loop, whose last result the caller has dropped, writes to memory already
+ * mapped instead (docs/engines.md). A request takes the smallest kept block that holds it and is
+ * at most twice its size (a loop's sizes vary), and the block's whole size is remembered while
+ * it is lent (`lent`), since numpy frees it with the size it asked for. A kept block is given
+ * back once it has been kept through a whole call of outputs() unused (a loop keeps the result
+ * it dropped, not older ones), and POOL_IDLE seconds after it was kept, by a thread of the
+ * pool's own, however the program goes on (with or without further calls); release() gives back
+ * every block kept. Arrays made with it are ordinary ndarrays that own their data: numpy
+ * remembers each array's handler and frees its data through it. Every entry point takes the
+ * pool's lock (a spin: each holds it for a few comparisons, or a few frees). Without POSIX
+ * threads (MSVC) nothing is kept: there is no thread to give blocks back. */
 /* Smaller blocks come from the C library's heap, which keeps freed ones for reuse itself: glibc
  * maps a block of its own from 128 kB, a threshold it raises to each freed block's size up to
  * 32 MB, or from the 4 MB the hconv command fixes (hconv.kernels.allocator). From POOL_MIN the
@@ -308,14 +312,18 @@ static double seconds(void)
 #define POOL_MIN ((size_t)4 << 20)
 #define POOL_MAX ((size_t)256 << 20)
 #define POOL_SLOTS 16
+#define LENT_SLOTS 64
 #define POOL_IDLE 1.0
-static struct {
+typedef struct {
     void *at;
     size_t size;
-    double since;
-} kept[POOL_SLOTS];
-static int nkept;
+    double since;       /* when it was kept */
+    npy_uint64 call;    /* outputs()'s calls when it was kept */
+} Block;
+static Block kept[POOL_SLOTS], lent[LENT_SLOTS];
+static int nkept, nlent;
 static size_t kept_bytes;
+static npy_uint64 calls;
 static npy_int64 pool_reused, pool_fresh;
 
 static void pool_enter(void)
@@ -325,39 +333,83 @@ static void pool_enter(void)
 }
 static void pool_leave(void) { give_slot(&pool_lock); }
 
-/* gives back the kept blocks idle since before `before` (every block: INFINITY); the lock held */
-static void pool_expire(double before)
+/* gives back the kept blocks kept before `before`, or through a whole call unused (`every`: all);
+ * the lock held */
+static void pool_expire(double before, int every)
 {
     int k = 0;
     for (int i = 0; i < nkept; i++)
-        if (kept[i].since < before)
+        if (every || kept[i].since < before || kept[i].call + 1 < calls)
             free(kept[i].at), kept_bytes -= kept[i].size;
         else
             kept[k++] = kept[i];
     nkept = k;
 }
 
+#if defined(_MSC_VER)
+static int start_reaper(void) { return -1; }
+#else
+static void snooze(double s)
+{
+    struct timespec t = {(time_t)s, (long)((s - (double)(time_t)s) * 1e9)};
+    nanosleep(&t, NULL);
+}
+/* the pool's thread: gives back each kept block POOL_IDLE after it was kept, and ends when none
+ * is left (the next block kept starts another) */
+static void *reaper(void *arg)
+{
+    (void)arg;
+    for (;;) {
+        pool_enter();
+        double now = seconds(), first = INFINITY;
+        pool_expire(now - POOL_IDLE, 0);
+        for (int i = 0; i < nkept; i++)
+            first = pmin(first, kept[i].since);
+        if (nkept == 0)
+            reaping = 0;
+        pool_leave();
+        if (first == INFINITY)
+            return NULL;
+        snooze(first + POOL_IDLE - now + 0.001);
+    }
+}
+static int start_reaper(void)
+{
+    pthread_t t;
+    pthread_attr_t a;
+    if (pthread_attr_init(&a))
+        return -1;
+    pthread_attr_setdetachstate(&a, PTHREAD_CREATE_DETACHED);
+    int failed = pthread_create(&t, &a, reaper, NULL);
+    pthread_attr_destroy(&a);
+    return failed ? -1 : 0;
+}
+#endif
+
 static void *pool_malloc(void *ctx, size_t size)
 {
     (void)ctx;
     void *at = NULL;
-    pool_enter();
-    pool_expire(seconds() - POOL_IDLE);
     if (size >= POOL_MIN) {
+        pool_enter();
         int best = -1;
-        for (int i = 0; i < nkept; i++) /* the block kept last: the likeliest still in the caches */
-            if (kept[i].size == size && (best < 0 || kept[i].since >= kept[best].since))
+        for (int i = 0; i < nkept; i++) /* the smallest that holds it; of equals, the one kept last */
+            if (kept[i].size >= size && kept[i].size / 2 <= size &&
+                (best < 0 || kept[i].size < kept[best].size ||
+                 (kept[i].size == kept[best].size && kept[i].since >= kept[best].since)))
                 best = i;
-        if (best >= 0) {
-            at = kept[best].at, kept_bytes -= size;
+        if (best >= 0 && (kept[best].size == size || nlent < LENT_SLOTS)) {
+            at = kept[best].at, kept_bytes -= kept[best].size;
+            if (kept[best].size != size)
+                lent[nlent++] = kept[best];
             kept[best] = kept[--nkept];
             pool_reused++;
         } else
             pool_fresh++;
+        pool_leave();
+        if (at)
+            return at;
     }
-    pool_leave();
-    if (at)
-        return at;
 #if defined(_MSC_VER) /* _aligned_malloc's blocks need their own free and realloc: malloc's alignment */
     return malloc(size ? size : 1);
 #else
@@ -378,24 +430,50 @@ static void *pool_calloc(void *ctx, size_t n, size_t size)
     (void)ctx;
     return calloc(n, size);
 }
+/* the block's whole size, if it was lent larger than asked (then no longer lent); else `size` */
+static size_t unlend(void *at, size_t size)
+{
+    for (int i = 0; i < nlent; i++)
+        if (lent[i].at == at) {
+            size = lent[i].size;
+            lent[i] = lent[--nlent];
+            break;
+        }
+    return size;
+}
 static void *pool_realloc(void *ctx, void *at, size_t size)
 {
     (void)ctx;
+    pool_enter();
+    unlend(at, 0); /* the C library knows its size; numpy frees it with the new one */
+    pool_leave();
     return realloc(at, size);
 }
-/* `size` is what numpy asked for (an array's bytes), never more than the block holds */
+/* `size` is what numpy asked for (an array's bytes): the block's own, unless it was lent */
 static void pool_free(void *ctx, void *at, size_t size)
 {
     (void)ctx;
-    pool_enter();
-    double now = seconds();
-    pool_expire(now - POOL_IDLE);
-    if (at && size >= POOL_MIN && ALIGNED(at) && nkept < POOL_SLOTS && kept_bytes + size <= POOL_MAX) {
-        kept[nkept].at = at, kept[nkept].size = size, kept[nkept].since = now;
-        nkept++, kept_bytes += size, at = NULL;
+    int start = 0;
+    if (at && size >= POOL_MIN) {
+        pool_enter();
+        size = unlend(at, size);
+        double now = seconds();
+#if !defined(_MSC_VER)
+        if (ALIGNED(at) && nkept < POOL_SLOTS && kept_bytes + size <= POOL_MAX) {
+            kept[nkept].at = at, kept[nkept].size = size, kept[nkept].since = now, kept[nkept].call = calls;
+            nkept++, kept_bytes += size, at = NULL;
+            start = !reaping, reaping = 1;
+        }
+#endif
+        pool_leave();
     }
-    pool_leave();
     free(at);
+    if (start && start_reaper() < 0) { /* no thread: nothing kept */
+        pool_enter();
+        pool_expire(0.0, 1);
+        reaping = 0;
+        pool_leave();
+    }
 }
 static PyDataMem_Handler pool_handler = {
     "hconv", 1, {NULL, pool_malloc, pool_calloc, pool_realloc, pool_free}};
@@ -415,22 +493,31 @@ static PyObject *outputs(PyObject *self, PyObject *args)
     }
     if (!pool_capsule && !(pool_capsule = PyCapsule_New(&pool_handler, "mem_handler", NULL)))
         return NULL;
+    pool_enter();
+    calls++;
+    pool_expire(seconds() - POOL_IDLE, 0);
+    pool_leave();
     PyObject *before = PyDataMem_SetHandler(pool_capsule);
     if (!before)
         return NULL;
-    npy_intp w_dims[2] = {n, 3}, dims[1] = {n}, none[1] = {0};
-    PyObject *w = PyArray_SimpleNew(2, w_dims, NPY_FLOAT64), *cond = PyArray_SimpleNew(1, dims, NPY_FLOAT64);
-    PyObject *code = PyArray_SimpleNew(1, dims, NPY_UINT8);
-    PyObject *res = PyArray_SimpleNew(1, diagnostics ? dims : none, NPY_FLOAT64);
-    PyObject *fallback = PyArray_SimpleNew(1, dims, NPY_BOOL);
+    npy_intp shapes[5][2] = {{n, 3}, {n, 0}, {n, 0}, {diagnostics ? n : 0, 0}, {n, 0}};
+    int types[5] = {NPY_FLOAT64, NPY_FLOAT64, NPY_UINT8, NPY_FLOAT64, NPY_BOOL};
+    PyObject *out = PyTuple_New(5);
+    for (int i = 0; out && i < 5; i++) { /* the first that fails says why, with its own shape */
+        PyObject *a = PyArray_SimpleNew(i == 0 ? 2 : 1, shapes[i], types[i]);
+        if (!a)
+            Py_CLEAR(out);
+        else
+            PyTuple_SET_ITEM(out, i, a);
+    }
     PyObject *after = PyDataMem_SetHandler(before);
     Py_DECREF(before);
-    Py_XDECREF(after);
-    if (!w || !cond || !code || !res || !fallback || !after) {
-        Py_XDECREF(w), Py_XDECREF(cond), Py_XDECREF(code), Py_XDECREF(res), Py_XDECREF(fallback);
+    if (!after) {
+        Py_XDECREF(out);
         return NULL;
     }
-    return Py_BuildValue("(NNNNN)", w, cond, code, res, fallback);
+    Py_DECREF(after);
+    return out;
 }
 
 /* pool(): what the pool keeps now (blocks, bytes), the requests it has served from kept blocks
@@ -450,7 +537,7 @@ static PyObject *pool(PyObject *self, PyObject *args)
 static PyObject *release(PyObject *self, PyObject *args)
 {
     pool_enter();
-    pool_expire(INFINITY);
+    pool_expire(0.0, 1);
     pool_leave();
     Py_RETURN_NONE;
 }
