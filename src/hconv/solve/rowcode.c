@@ -298,10 +298,10 @@ static double seconds(void)
  * mapped instead (docs/engines.md). A request takes the smallest kept block that holds it and is
  * at most twice its size (a loop's sizes vary), and the block's whole size is remembered while
  * it is lent (`lent`), since numpy frees it with the size it asked for. A kept block is given
- * back once it has been kept through a whole call of outputs() unused (a loop keeps the result
- * it dropped, not older ones), and POOL_IDLE seconds after it was kept, by a thread of the
- * pool's own, however the program goes on (with or without further calls); release() gives back
- * every block kept. Arrays made with it are ordinary ndarrays that own their data: numpy
+ * back once two calls of outputs() have left it unused (a loop of one or two kinds of call keeps
+ * what it dropped last, not older blocks), and POOL_IDLE seconds after it was kept, by a thread
+ * of the pool's own, however the program goes on (with or without further calls); release()
+ * gives back every block kept. Arrays made with it are ordinary ndarrays that own their data: numpy
  * remembers each array's handler and frees its data through it. Every entry point takes the
  * pool's lock (a spin: each holds it for a few comparisons, or a few frees). Without POSIX
  * threads (MSVC) nothing is kept: there is no thread to give blocks back. */
@@ -310,7 +310,7 @@ static double seconds(void)
  * 32 MB, or from the 4 MB the hconv command fixes (hconv.kernels.allocator). From POOL_MIN the
  * blocks are asked for huge pages, as numpy asks for its own. */
 #define POOL_MIN ((size_t)4 << 20)
-#define POOL_MAX ((size_t)256 << 20)
+#define POOL_MAX ((size_t)128 << 20)
 #define POOL_SLOTS 16
 #define LENT_SLOTS 64
 #define POOL_IDLE 1.0
@@ -333,13 +333,13 @@ static void pool_enter(void)
 }
 static void pool_leave(void) { give_slot(&pool_lock); }
 
-/* gives back the kept blocks kept before `before`, or through a whole call unused (`every`: all);
+/* gives back the kept blocks kept before `before`, or left unused by two calls (`every`: all);
  * the lock held */
 static void pool_expire(double before, int every)
 {
     int k = 0;
     for (int i = 0; i < nkept; i++)
-        if (every || kept[i].since < before || kept[i].call + 1 < calls)
+        if (every || kept[i].since < before || kept[i].call + 2 < calls)
             free(kept[i].at), kept_bytes -= kept[i].size;
         else
             kept[k++] = kept[i];
