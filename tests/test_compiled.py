@@ -159,7 +159,7 @@ def _rows_and_reference(rng: np.random.Generator, n: int) -> tuple[tuple, tuple,
     I, H = physical_bodies(rng, n), rng.normal(size=(n, 3))
     args = _row_args(I, H)
     ref = _outputs(n)
-    rowcode.convert(*args, *ref, 0, n)
+    rowcode.convert(*args, *ref, False, 0, n)
     return args, ref, I, H
 
 
@@ -266,7 +266,7 @@ def test_convert_rows_thread_that_begins_after_the_rows_are_done_takes_none(rng)
     args, ref, _, _ = _rows_and_reference(rng, n)
     _no_thread_serving()
     got = _outputs(n)
-    lost, own = rowcode.share(*args, *got, 1_000)
+    lost, own = rowcode.share(*args, *got, False, 1_000)
     assert (lost, own) == (0, n)
     for a, b in zip(got, ref):
         assert same_bits(a, b)
@@ -296,7 +296,7 @@ def test_convert_rows_thread_that_begins_during_a_call_takes_its_blocks(rng):
         thread = threading.Thread(target=late)
         thread.start()
         # four blocks of 200,000 rows: each far longer than the thread's LINGER
-        lost, own = rowcode.share(*args, *got, 200_000)
+        lost, own = rowcode.share(*args, *got, False, 200_000)
         returned = time.perf_counter()
         thread.join()
         for a, b in zip(got, ref):
@@ -325,7 +325,7 @@ def test_convert_rows_child_forked_during_a_call_takes_none_of_its_blocks(rng):
             server.start()
             time.sleep(0.005)  # time to take the parent's blocks, were they offered
             got = _outputs(n)
-            lost, _ = rowcode.share(*args, *got, 10_000)
+            lost, _ = rowcode.share(*args, *got, False, 10_000)
             whole = all(same_bits(a, b) for a, b in zip(got, ref))
             server.join()
             code = 0 if lost == 0 and whole else 1
@@ -345,7 +345,7 @@ def test_convert_rows_child_forked_during_a_call_takes_none_of_its_blocks(rng):
         outputs = _outputs(n_dead)
         forker = threading.Thread(target=fork_soon)
         forker.start()
-        lost, _ = rowcode.share(*dead, *outputs, 20_000)
+        lost, _ = rowcode.share(*dead, *outputs, False, 20_000)
         forker.join()
         assert lost == n_dead
         _, status = os.waitpid(pids[0], 0)
@@ -360,11 +360,11 @@ def test_convert_rows_share_and_serve_refuse_what_they_cannot_do(rng):
     args, ref, _, _ = _rows_and_reference(rng, n)
     for size in (1, 7, n, n + 1, sys.maxsize):
         got = _outputs(n)
-        assert rowcode.share(*args, *got, size)[0] == 0
+        assert rowcode.share(*args, *got, False, size)[0] == 0
         assert all(same_bits(a, b) for a, b in zip(got, ref))
     for size in (0, -1):
         with pytest.raises(ValueError, match="block size"):
-            rowcode.share(*args, *_outputs(n), size)
+            rowcode.share(*args, *_outputs(n), False, size)
     for linger in (float("nan"), float("inf"), -1.0):
         with pytest.raises(ValueError, match="linger"):
             rowcode.serve(linger)
@@ -396,7 +396,7 @@ def test_convert_rows_caller_waits_for_the_blocks_other_threads_hold(rng):
         got = _outputs(n)
         # blocks of 50,000 rows: when the caller finds none left, the serving thread's last may
         # have milliseconds to go, more than copying one output takes
-        lost, own = rowcode.share(*args, *got, 50_000)
+        lost, own = rowcode.share(*args, *got, False, 50_000)
         cond_at_return = got[1].copy()
         owns.append(own)
         assert same_bits(cond_at_return, ref[1])
@@ -414,9 +414,9 @@ def test_convert_rows_shared_blocks_are_each_taken_once(rng):
     n = len(H)
     args = _row_args(I, H)
     ref, got = _outputs(n), _outputs(n)
-    lost_ref = rowcode.convert(*args, *ref, 0, n)
+    lost_ref = rowcode.convert(*args, *ref, False, 0, n)
     servers = _serving(0.5, 3)
-    lost, own = rowcode.share(*args, *got, 7)
+    lost, own = rowcode.share(*args, *got, False, 7)
     assert lost == lost_ref == len(range(0, n, 97))
     for a, b in zip(got, ref):
         assert same_bits(a, b)
@@ -445,7 +445,7 @@ def test_convert_rows_calls_in_a_row_never_write_a_returned_call_s_rows(rng):
         while (shared[0] < 200 and k < 20_000) if first == 0 else k < 1_500:
             n = sizes[k % len(sizes)]
             got = _outputs(n)
-            _, own = rowcode.share(*inputs[n], *got, 16)
+            _, own = rowcode.share(*inputs[n], *got, False, 16)
             shared[0] += own < n
             if not all(same_bits(a, b) for a, b in zip(got, refs[n])):
                 wrong.append(k)
@@ -489,6 +489,119 @@ def test_convert_rows_same_bits_whatever_the_instruction_set(rng):
                     assert same_bits(a, b), name
     finally:
         rowcode.use(names[0])
+
+
+def _rows_into_outputs(I: np.ndarray, H: np.ndarray, refined: bool, diagnostics: bool, offset: int) -> tuple:
+    """_rows_of, streamed, into compiled.outputs' arrays (on cache lines), or from ``offset`` rows
+    into them (off the lines)."""
+    n = len(H)
+    outs = compiled.outputs(n + offset, diagnostics)
+    views = tuple(a[offset:] if len(a) else a for a in outs)  # residual is (0,) without diagnostics
+    compiled.convert_rows(I.reshape(n, 9).T, True, H.T, refined, diagnostics, 4.5e9, *views, stream=True)
+    return views
+
+
+@pytest.mark.parametrize("diagnostics", [True, False])
+def test_convert_rows_streamed_same_bits_as_stored(rng, diagnostics):
+    """Whole chunks streamed past the caches (the outputs of large calls) hold the bits stored
+    chunk by chunk, with every version of the chunk code, on one thread or shared between
+    threads; outputs off the cache lines are stored as usual, streamed or not."""
+    I, H = hard_bodies(rng)
+    for reps in (1, 20):  # 480 rows on the caller's thread; 9,600 in blocks on every core
+        Ir, Hr = np.tile(I, (reps, 1, 1)), np.tile(H, (reps, 1))
+        names = rowcode.kernels()
+        try:
+            for refined in (False, True):
+                ref = _rows_of(Ir, Hr, refined=refined, diagnostics=diagnostics)
+                assert 0 < ref[4].mean() < 0.5
+                for name in names:
+                    rowcode.use(name)
+                    for offset in (0, 1):
+                        got = _rows_into_outputs(Ir, Hr, refined, diagnostics, offset)
+                        assert all(a.ctypes.data % 64 == 0 for a in got if len(a)) == (offset == 0)
+                        for a, b in zip(got, ref):
+                            assert same_bits(a, b), (name, offset)
+        finally:
+            rowcode.use(names[0])
+
+
+def test_outputs_memory_of_a_dropped_result_serves_the_next_call_of_its_size(rng):
+    """A call in a loop writes into the memory of the result dropped before it (already mapped,
+    so no page fault and no zeroing by the system), and that memory holds the new call's answers
+    whole: the numpy engine's bits, nothing left of the old rows."""
+    compiled.release()
+    n = 200_000  # ω 4.8 MB
+    assert 24 * n >= compiled.pool()["least_bytes"]
+    I, H = physical_bodies(rng, n), rng.normal(size=(n, 3))
+    first = hconv.convert(H, I, engine="compiled")  # HCONV_ENGINE=numpy would make auto numpy
+    at = first.w.ctypes.data
+    assert first.w.flags.owndata and at % 64 == 0
+    del first
+    kept = compiled.pool()
+    assert kept["blocks"] >= 1 and kept["bytes"] >= 24 * n
+    I2, H2 = physical_bodies(rng, n), rng.normal(size=(n, 3))
+    second = hconv.convert(H2, I2, engine="compiled")
+    assert second.w.ctypes.data == at and compiled.pool()["reused"] > kept["reused"]
+    want = hconv.convert(H2, I2, engine="numpy")
+    assert same_bits(second.w, want.w) and same_bits(second.status_code, want.status_code)
+    second.w[:] = 1.0  # the arrays are the caller's, writable, and own their memory
+    del second
+    assert compiled.pool()["blocks"] >= 1
+
+
+def test_outputs_pool_keeps_within_its_limits_and_gives_back_idle_blocks():
+    """The pool keeps at most its most_bytes and most_blocks, never a block under least_bytes,
+    and gives back a block idle_seconds after it was kept, with no further call (its own thread).
+    (Arrays this large are never written here: their pages are not mapped.)"""
+    compiled.release()
+    lim = compiled.pool()
+    n = lim["most_bytes"] // 24 + 1  # ω alone beyond the limit
+    for _ in range(3):
+        outs = compiled.outputs(n, True)
+        del outs
+        p = compiled.pool()
+        assert p["bytes"] <= lim["most_bytes"] and p["blocks"] <= lim["most_blocks"]
+    assert p["bytes"] > 0
+    compiled.release()
+    n = lim["least_bytes"] // 16  # ω 1.5 times least_bytes, the others under it
+    small = [compiled.outputs(n, False) for _ in range(2 * lim["most_blocks"])]
+    del small
+    p = compiled.pool()
+    assert p["blocks"] == lim["most_blocks"]  # cond and fallback are under least_bytes: only ω kept
+    assert p["bytes"] == lim["most_blocks"] * 24 * n
+    for _ in range(50):  # the pool's thread gives them back after idle_seconds, within a second more
+        time.sleep(lim["idle_seconds"] / 10)
+        if compiled.pool()["blocks"] == 0:
+            break
+    assert compiled.pool()["blocks"] == 0
+
+
+def test_outputs_pool_lends_a_larger_block_and_gives_back_one_two_calls_left_unused():
+    """A loop's sizes vary: a request takes a kept block up to twice its size, which comes back
+    whole; a block that two calls leave unused (a loop may alternate two kinds of call) is given
+    back at the next, so that blocks of sizes no call asks for again do not pile up."""
+    compiled.release()
+    n = 300_000  # ω 7.2 MB
+    first = compiled.outputs(n, False)
+    at = first[0].ctypes.data
+    del first
+    smaller = compiled.outputs(n * 9 // 10, False)
+    assert smaller[0].ctypes.data == at
+    del smaller
+    assert compiled.pool()["bytes"] == 24 * n  # the whole block, not the 90 % numpy freed
+    again = compiled.outputs(n, False)
+    assert again[0].ctypes.data == at
+    del again
+    for _ in range(2):  # calls that leave the kept block unused
+        compiled.outputs(10, False)
+        assert compiled.pool()["blocks"] == 1
+    compiled.outputs(10, False)
+    assert compiled.pool()["blocks"] == 0
+
+
+def test_outputs_too_large_names_the_array_that_could_not_be_had():
+    with pytest.raises(MemoryError, match=r"shape \(1099511627776, 3\)"):
+        compiled.outputs(2**40, True)
 
 
 def test_convert_rows_from_another_thread_stays_on_it(rng, monkeypatch):

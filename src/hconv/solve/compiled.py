@@ -46,6 +46,13 @@ from hconv.solve.status import CODE, ILL_CONDITIONED_TOL, SINGULAR_RTOL_EPS, sym
 BLOCK_ROWS = 4096
 #: A large call's blocks per thread (docs/measurements.md).
 PARTS_PER_THREAD = 8
+#: Rows from which a call streams its outputs to memory past the caches (34 bytes a row or more,
+#: well beyond a core's cache): at this size stores that first read each line cost more than
+#: finding the outputs in a cache would save (docs/engines.md).
+STREAM_ROWS = 1 << 20
+#: Blocks are whole chunks of the C code's rows, so that each starts on a cache line of every
+#: output and can be streamed.
+_CHUNK_ROWS = rowcode.CHUNK_ROWS
 #: How long a pool thread that served a call stays in C, spinning, for the next call's blocks
 #: before it goes back to wait in the pool (seconds): calls in a loop find it there, where a
 #: thread woken for each call cost a wake-up of the system's and the GIL (docs/engines.md); the
@@ -114,6 +121,17 @@ def _threads(n: int) -> int:
 #: residual or None, fallback)``, numpy scalars as a stacked Result's rows hold them, or None for
 #: arrays of another layout. The C function itself: a wrapper would add a sixth to a one-body call.
 one = rowcode.one
+#: ``outputs(n, diagnostics)``: new ``(w (n, 3), cond, code (uint8), residual ((n,) with
+#: diagnostics, else (0,)), fallback (bool))`` for :func:`convert_rows`, starting on cache lines,
+#: from memory the C code keeps: the large blocks numpy frees (a dropped result's) are kept, to a
+#: limit, for the next calls, which then write to memory already mapped; each is given back once
+#: a whole call has left it unused, or a while after it was kept (:data:`pool` gives the limits;
+#: rowcode.c and docs/engines.md the rules). The arrays own their data.
+outputs = rowcode.outputs
+#: ``pool()``: what :data:`outputs` keeps now, the requests it has served, and its limits.
+pool = rowcode.pool
+#: ``release()``: give back every block :data:`outputs` keeps.
+release = rowcode.release
 #: ``stack(I, H, refined, diagnostics, cond_limit)``: a small stack as numpy users hold it, ``I``
 #: ``(N, 3, 3)`` or ``(N, 6)`` and ``H`` ``(N, 3)`` float64, on the caller's thread into new
 #: arrays: ``(w (N, 3), cond, status codes, residual or None)``; None when a row is left to the
@@ -133,15 +151,19 @@ def convert_rows(
     code: np.ndarray,
     residual: np.ndarray,
     fallback: np.ndarray,
+    stream: bool | None = None,
 ) -> int:
     """Every row of ``I`` ``(6, N)`` or, with ``nine``, ``(9, N)`` row-major, and ``H`` ``(3, N)``,
     into ``w`` ``(N, 3)``, ``cond``, ``code`` (uint8), ``residual`` (written only with
     ``diagnostics``; else any length) and ``fallback`` (bool) ``(N,)``, which marks the rows
     left for the numpy engine; returns how many those are. Blocks of rows run on every core, the
     caller's thread taking one, each without the GIL; the bits do not depend on the blocks or the
-    threads (rows are independent)."""
+    threads (rows are independent). ``stream`` (default: from :data:`STREAM_ROWS` rows) stores
+    whole chunks past the caches where the outputs start on cache lines (as :data:`outputs`'
+    do); the bits are the same either way."""
     n = H.shape[1]
-    args = (I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback)
+    stream = n >= STREAM_ROWS if stream is None else stream
+    args = (I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, stream)
     threads = _threads(n)
     if threads == 1:
         return rowcode.convert(*args, 0, n)
@@ -153,7 +175,7 @@ def convert_rows(
     # machine) holds up the call by little. The pool's threads stay in C for LINGER after their
     # last block, and the caller returns once every row is done, not when they are back in
     # Python; a thread that has not begun when the rows are done takes none.
-    size = max(BLOCK_ROWS // 16, -(-n // (PARTS_PER_THREAD * threads)))
+    size = -(-max(BLOCK_ROWS // 16, -(-n // (PARTS_PER_THREAD * threads))) // _CHUNK_ROWS) * _CHUNK_ROWS
     _servers.enlist(threads - 1)
     lost, _ = rowcode.share(*args, size)
     return lost

@@ -347,11 +347,7 @@ def _convert_rows(
     n = H.shape[1]
     I = np.asarray(I, dtype=np.float64)
     H = np.asarray(H, dtype=np.float64)
-    w = np.empty((n, 3))
-    cond = np.empty(n)
-    code = np.empty(n, dtype=np.uint8)
-    residual = np.empty(n if diagnostics else 0)
-    fallback = np.empty(n, dtype=bool)
+    w, cond, code, residual, fallback = compiled.outputs(n, diagnostics)
     cond_limit = _cond_limit(m) if extra_k == 0.0 else blocks.ill_conditioned_above(m, extra_k)
     nine = engines.FORMS[form.name]
     if compiled.convert_rows(I, nine, H, m.refines, diagnostics, cond_limit, w, cond, code, residual, fallback):

@@ -3,7 +3,9 @@
  * What it computes and what it leaves is hconv.solve.compiled's docstring; this file is its
  * arithmetic. Every operation is the numpy engine's (hconv.kernels.linsolve, .spectrum, .metrics,
  * hconv.solve.blocks), written in the same order with the same parentheses, so that `exact`'s
- * omega, cond and every status are the same bits. It must be compiled so that it rounds as
+ * omega, cond and every status are the same bits; only the refinement steps and the residual's
+ * norms multiply by reciprocals where the numpy engine divides (rowmath.h says where), as
+ * refined's omega and the residual are within 2 eps of the numpy engine's, not its bits. It must be compiled so that it rounds as
  * written (setup.py): no contraction into fused multiply-adds (-ffp-contract=off) and no
  * fast-math; -fno-math-errno and -fno-trapping-math only let the compiler vectorise sqrt and
  * turn branches into selects, which changes no result. The one fused multiply-add is the
@@ -25,8 +27,15 @@
 #include <Python.h>
 #include <math.h>
 #include <stdint.h>
+#include <stdlib.h>
 #include <string.h>
 #include <numpy/arrayobject.h>
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
+#include <immintrin.h>
+#endif
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
 
 #include "rowmath.h" /* the chunk code; this file: its versions and the Python functions */
 
@@ -36,19 +45,36 @@
  * the residual's explicit fma(). */
 typedef void (*ChunkFn)(const Job *, Chunk *restrict, npy_intp, int);
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
+/* each version's streaming stores (StreamFn), a line at a time */
+__attribute__((target("avx512f"))) static void stream_avx512(void *restrict dst, const void *restrict src, size_t bytes)
+{
+    for (size_t i = 0; i < bytes; i += 64)
+        _mm512_stream_si512((void *)((char *)dst + i), _mm512_loadu_si512((const char *)src + i));
+}
+__attribute__((target("avx2"))) static void stream_avx2(void *restrict dst, const void *restrict src, size_t bytes)
+{
+    for (size_t i = 0; i < bytes; i += 32)
+        _mm256_stream_si256((__m256i *)((char *)dst + i), _mm256_loadu_si256((const __m256i *)((const char *)src + i)));
+}
+static void stream_sse2(void *restrict dst, const void *restrict src, size_t bytes)
+{
+    for (size_t i = 0; i < bytes; i += 16)
+        _mm_stream_si128((__m128i *)((char *)dst + i), _mm_loadu_si128((const __m128i *)((const char *)src + i)));
+}
+static void store_fence(void) { _mm_sfence(); }
 __attribute__((target("avx512f,fma"))) NOINLINE static void chunk_avx512(const Job *jb, Chunk *restrict s,
                                                                           npy_intp start, int m)
 {
-    chunk_body(jb, s, start, m, 1);
+    chunk_body(jb, s, start, m, 1, jb->stream ? stream_avx512 : NULL);
 }
 __attribute__((target("avx2,fma"))) NOINLINE static void chunk_avx2(const Job *jb, Chunk *restrict s, npy_intp start,
                                                                    int m)
 {
-    chunk_body(jb, s, start, m, 1);
+    chunk_body(jb, s, start, m, 1, jb->stream ? stream_avx2 : NULL);
 }
 NOINLINE static void chunk_plain(const Job *jb, Chunk *restrict s, npy_intp start, int m)
 {
-    chunk_body(jb, s, start, m, 0);
+    chunk_body(jb, s, start, m, 0, jb->stream ? stream_sse2 : NULL);
 }
 /* the versions this CPU runs, the first the one used */
 static int kernels_of_cpu(const char *names[3], ChunkFn fns[3])
@@ -63,12 +89,14 @@ static int kernels_of_cpu(const char *names[3], ChunkFn fns[3])
     return k;
 }
 #else
+/* no streaming stores here: every chunk is stored as it is computed */
+static void store_fence(void) {}
 NOINLINE static void chunk_plain(const Job *jb, Chunk *restrict s, npy_intp start, int m)
 {
 #if defined(FP_FAST_FMA) /* fma is an instruction on this target (aarch64, or x86 built for one with it) */
-    chunk_body(jb, s, start, m, 1);
+    chunk_body(jb, s, start, m, 1, NULL);
 #else
-    chunk_body(jb, s, start, m, 0);
+    chunk_body(jb, s, start, m, 0, NULL);
 #endif
 }
 static int kernels_of_cpu(const char *names[3], ChunkFn fns[3])
@@ -178,6 +206,7 @@ static LINE npy_int64 rows_done;
 static npy_int64 rows_lost;
 static LINE int owned;
 static int serving;
+static int pool_lock, reaping; /* outputs()'s pool and whether its thread runs, below */
 
 #if defined(_MSC_VER)
 #include <intrin.h>
@@ -245,7 +274,7 @@ static void yield_core(void) { sched_yield(); }
  * generation). The child has one thread here. */
 static void forked(void)
 {
-    owned = 0, serving = 0;
+    owned = 0, serving = 0, pool_lock = 0, reaping = 0;
     word = (((word >> 32) + 1) << 32) | BUSY;
 }
 static void on_fork(void) { pthread_atfork(NULL, NULL, forked); }
@@ -261,11 +290,267 @@ static double seconds(void)
  * sleep took a wake-up of the system's (tens of microseconds) to learn what it waited for. */
 #define SPINS 4096
 
-/* rows lo..hi of jb; returns how many fell back */
+/* The memory of the outputs of large calls (outputs()): a numpy memory handler whose blocks start
+ * on cache lines, so that whole chunks can be streamed to them, and which keeps the blocks of at
+ * least POOL_MIN bytes that numpy frees, up to POOL_MAX bytes and POOL_SLOTS blocks, for the next
+ * calls. Fresh memory costs a page fault and the system's zeroing of each page at its first
+ * store; a call in a loop, whose last result the caller has dropped, writes to memory already
+ * mapped instead (docs/engines.md). A request takes the smallest kept block that holds it and is
+ * at most twice its size (a loop's sizes vary), and the block's whole size is remembered while
+ * it is lent (`lent`), since numpy frees it with the size it asked for. A kept block is given
+ * back once two calls of outputs() have left it unused (a loop of one or two kinds of call keeps
+ * what it dropped last, not older blocks), and POOL_IDLE seconds after it was kept, by a thread
+ * of the pool's own, however the program goes on (with or without further calls); release()
+ * gives back every block kept. Arrays made with it are ordinary ndarrays that own their data: numpy
+ * remembers each array's handler and frees its data through it. Every entry point takes the
+ * pool's lock (a spin: each holds it for a few comparisons, or a few frees). Without POSIX
+ * threads (MSVC) nothing is kept: there is no thread to give blocks back. */
+/* Smaller blocks come from the C library's heap, which keeps freed ones for reuse itself: glibc
+ * maps a block of its own from 128 kB, a threshold it raises to each freed block's size up to
+ * 32 MB, or from the 4 MB the hconv command fixes (hconv.kernels.allocator). From POOL_MIN the
+ * blocks are asked for huge pages, as numpy asks for its own. */
+#define POOL_MIN ((size_t)4 << 20)
+#define POOL_MAX ((size_t)128 << 20)
+#define POOL_SLOTS 16
+#define LENT_SLOTS 64
+#define POOL_IDLE 1.0
+typedef struct {
+    void *at;
+    size_t size;
+    double since;       /* when it was kept */
+    npy_uint64 call;    /* outputs()'s calls when it was kept */
+} Block;
+static Block kept[POOL_SLOTS], lent[LENT_SLOTS];
+static int nkept, nlent;
+static size_t kept_bytes;
+static npy_uint64 calls;
+static npy_int64 pool_reused, pool_fresh;
+
+static void pool_enter(void)
+{
+    while (!take_slot(&pool_lock))
+        relax();
+}
+static void pool_leave(void) { give_slot(&pool_lock); }
+
+/* gives back the kept blocks kept before `before`, or left unused by two calls (`every`: all);
+ * the lock held */
+static void pool_expire(double before, int every)
+{
+    int k = 0;
+    for (int i = 0; i < nkept; i++)
+        if (every || kept[i].since < before || kept[i].call + 2 < calls)
+            free(kept[i].at), kept_bytes -= kept[i].size;
+        else
+            kept[k++] = kept[i];
+    nkept = k;
+}
+
+#if defined(_MSC_VER)
+static int start_reaper(void) { return -1; }
+#else
+static void snooze(double s)
+{
+    struct timespec t = {(time_t)s, (long)((s - (double)(time_t)s) * 1e9)};
+    nanosleep(&t, NULL);
+}
+/* the pool's thread: gives back each kept block POOL_IDLE after it was kept, and ends when none
+ * is left (the next block kept starts another) */
+static void *reaper(void *arg)
+{
+    (void)arg;
+    for (;;) {
+        pool_enter();
+        double now = seconds(), first = INFINITY;
+        pool_expire(now - POOL_IDLE, 0);
+        for (int i = 0; i < nkept; i++)
+            first = pmin(first, kept[i].since);
+        if (nkept == 0)
+            reaping = 0;
+        pool_leave();
+        if (first == INFINITY)
+            return NULL;
+        snooze(first + POOL_IDLE - now + 0.001);
+    }
+}
+static int start_reaper(void)
+{
+    pthread_t t;
+    pthread_attr_t a;
+    if (pthread_attr_init(&a))
+        return -1;
+    pthread_attr_setdetachstate(&a, PTHREAD_CREATE_DETACHED);
+    int failed = pthread_create(&t, &a, reaper, NULL);
+    pthread_attr_destroy(&a);
+    return failed ? -1 : 0;
+}
+#endif
+
+static void *pool_malloc(void *ctx, size_t size)
+{
+    (void)ctx;
+    void *at = NULL;
+    if (size >= POOL_MIN) {
+        pool_enter();
+        int best = -1;
+        for (int i = 0; i < nkept; i++) /* the smallest that holds it; of equals, the one kept last */
+            if (kept[i].size >= size && kept[i].size / 2 <= size &&
+                (best < 0 || kept[i].size < kept[best].size ||
+                 (kept[i].size == kept[best].size && kept[i].since >= kept[best].since)))
+                best = i;
+        if (best >= 0 && (kept[best].size == size || nlent < LENT_SLOTS)) {
+            at = kept[best].at, kept_bytes -= kept[best].size;
+            if (kept[best].size != size)
+                lent[nlent++] = kept[best];
+            kept[best] = kept[--nkept];
+            pool_reused++;
+        } else
+            pool_fresh++;
+        pool_leave();
+        if (at)
+            return at;
+    }
+#if defined(_MSC_VER) /* _aligned_malloc's blocks need their own free and realloc: malloc's alignment */
+    return malloc(size ? size : 1);
+#else
+    if (posix_memalign(&at, 64, size ? size : 1))
+        return NULL;
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+    if (size >= POOL_MIN) {
+        uintptr_t lo = ((uintptr_t)at + 4095) & ~(uintptr_t)4095, hi = ((uintptr_t)at + size) & ~(uintptr_t)4095;
+        if (hi > lo)
+            madvise((void *)lo, hi - lo, MADV_HUGEPAGE);
+    }
+#endif
+    return at;
+#endif
+}
+static void *pool_calloc(void *ctx, size_t n, size_t size)
+{
+    (void)ctx;
+    return calloc(n, size);
+}
+/* the block's whole size, if it was lent larger than asked (then no longer lent); else `size` */
+static size_t unlend(void *at, size_t size)
+{
+    for (int i = 0; i < nlent; i++)
+        if (lent[i].at == at) {
+            size = lent[i].size;
+            lent[i] = lent[--nlent];
+            break;
+        }
+    return size;
+}
+static void *pool_realloc(void *ctx, void *at, size_t size)
+{
+    (void)ctx;
+    pool_enter();
+    unlend(at, 0); /* the C library knows its size; numpy frees it with the new one */
+    pool_leave();
+    return realloc(at, size);
+}
+/* `size` is what numpy asked for (an array's bytes): the block's own, unless it was lent */
+static void pool_free(void *ctx, void *at, size_t size)
+{
+    (void)ctx;
+    int start = 0;
+    if (at && size >= POOL_MIN) {
+        pool_enter();
+        size = unlend(at, size);
+        double now = seconds();
+#if !defined(_MSC_VER)
+        if (ALIGNED(at) && nkept < POOL_SLOTS && kept_bytes + size <= POOL_MAX) {
+            kept[nkept].at = at, kept[nkept].size = size, kept[nkept].since = now, kept[nkept].call = calls;
+            nkept++, kept_bytes += size, at = NULL;
+            start = !reaping, reaping = 1;
+        }
+#endif
+        pool_leave();
+    }
+    free(at);
+    if (start && start_reaper() < 0) { /* no thread: nothing kept */
+        pool_enter();
+        pool_expire(0.0, 1);
+        reaping = 0;
+        pool_leave();
+    }
+}
+static PyDataMem_Handler pool_handler = {
+    "hconv", 1, {NULL, pool_malloc, pool_calloc, pool_realloc, pool_free}};
+static PyObject *pool_capsule; /* the handler as numpy takes it, made once */
+
+/* outputs(n, diagnostics): new arrays for a call of n rows from the pool's memory: w (n, 3) and
+ * cond float64, code uint8, residual float64 (n,) with diagnostics or (0,), fallback bool. */
+static PyObject *outputs(PyObject *self, PyObject *args)
+{
+    Py_ssize_t n;
+    int diagnostics;
+    if (!PyArg_ParseTuple(args, "np", &n, &diagnostics))
+        return NULL;
+    if (n < 0) {
+        PyErr_SetString(PyExc_ValueError, "rowcode.outputs: n must not be negative");
+        return NULL;
+    }
+    if (!pool_capsule && !(pool_capsule = PyCapsule_New(&pool_handler, "mem_handler", NULL)))
+        return NULL;
+    pool_enter();
+    calls++;
+    pool_expire(seconds() - POOL_IDLE, 0);
+    pool_leave();
+    PyObject *before = PyDataMem_SetHandler(pool_capsule);
+    if (!before)
+        return NULL;
+    npy_intp shapes[5][2] = {{n, 3}, {n, 0}, {n, 0}, {diagnostics ? n : 0, 0}, {n, 0}};
+    int types[5] = {NPY_FLOAT64, NPY_FLOAT64, NPY_UINT8, NPY_FLOAT64, NPY_BOOL};
+    PyObject *out = PyTuple_New(5);
+    for (int i = 0; out && i < 5; i++) { /* the first that fails says why, with its own shape */
+        PyObject *a = PyArray_SimpleNew(i == 0 ? 2 : 1, shapes[i], types[i]);
+        if (!a)
+            Py_CLEAR(out);
+        else
+            PyTuple_SET_ITEM(out, i, a);
+    }
+    PyObject *after = PyDataMem_SetHandler(before);
+    Py_DECREF(before);
+    if (!after) {
+        Py_XDECREF(out);
+        return NULL;
+    }
+    Py_DECREF(after);
+    return out;
+}
+
+/* pool(): what the pool keeps now (blocks, bytes), the requests it has served from kept blocks
+ * and with fresh memory since the process began, and its limits; release(): gives back every
+ * block kept. */
+static PyObject *pool(PyObject *self, PyObject *args)
+{
+    pool_enter();
+    int blocks = nkept;
+    size_t bytes = kept_bytes;
+    long long reused = pool_reused, fresh = pool_fresh;
+    pool_leave();
+    return Py_BuildValue("{s:i,s:n,s:L,s:L,s:n,s:n,s:i,s:d}", "blocks", blocks, "bytes", (Py_ssize_t)bytes, "reused",
+                         reused, "fresh", fresh, "least_bytes", (Py_ssize_t)POOL_MIN, "most_bytes",
+                         (Py_ssize_t)POOL_MAX, "most_blocks", POOL_SLOTS, "idle_seconds", POOL_IDLE);
+}
+static PyObject *release(PyObject *self, PyObject *args)
+{
+    pool_enter();
+    pool_expire(0.0, 1);
+    pool_leave();
+    Py_RETURN_NONE;
+}
+
+/* rows lo..hi of jb; returns how many fell back. The fence after streamed chunks orders their
+ * stores before the count of rows done that tells the caller they are written, and before the
+ * fallback flags read here. */
 static npy_intp rows(const Job *jb, Chunk *s, npy_intp lo, npy_intp hi)
 {
     for (npy_intp i = lo; i < hi; i += CH)
         convert_chunk(jb, s, i, (int)(hi - i < CH ? hi - i : CH));
+    if (jb->stream)
+        store_fence();
     npy_intp lost = 0;
     for (npy_intp i = lo; i < hi; i++)
         lost += jb->fallback[i] != 0;
@@ -348,13 +633,13 @@ static PyObject *serving_now(PyObject *self, PyObject *args) { return PyLong_Fro
 /* the arguments convert and share begin with, then one integer (b NULL) or two */
 static int parse_rows(PyObject *args, Job *jb, npy_intp *n, Py_ssize_t *a, Py_ssize_t *b)
 {
-    const char *format = b ? "O!pO!ppdO!O!O!O!O!nn" : "O!pO!ppdO!O!O!O!O!n";
+    const char *format = b ? "O!pO!ppdO!O!O!O!O!pnn" : "O!pO!ppdO!O!O!O!O!pn";
     PyArrayObject *In, *H, *w, *cond, *code, *residual, *fallback;
-    int nine, refined, diagnostics;
+    int nine, refined, diagnostics, stream;
     double cond_limit;
     if (!PyArg_ParseTuple(args, format, &PyArray_Type, &In, &nine, &PyArray_Type, &H, &refined, &diagnostics,
                           &cond_limit, &PyArray_Type, &w, &PyArray_Type, &cond, &PyArray_Type, &code, &PyArray_Type,
-                          &residual, &PyArray_Type, &fallback, a, b))
+                          &residual, &PyArray_Type, &fallback, &stream, a, b))
         return -1;
     if (!K.ready) {
         PyErr_SetString(PyExc_RuntimeError, "rowcode: configure() first");
@@ -373,15 +658,16 @@ static int parse_rows(PyObject *args, Job *jb, npy_intp *n, Py_ssize_t *a, Py_ss
     Job j = {PyArray_BYTES(In), PyArray_BYTES(H), PyArray_STRIDE(In, 0), PyArray_STRIDE(In, 1),
              PyArray_STRIDE(H, 0), PyArray_STRIDE(H, 1), nine, refined, diagnostics, cond_limit,
              (double *)PyArray_DATA(w), (double *)PyArray_DATA(cond), (double *)PyArray_DATA(residual),
-             (uint8_t *)PyArray_DATA(code), (npy_bool *)PyArray_DATA(fallback)};
+             (uint8_t *)PyArray_DATA(code), (npy_bool *)PyArray_DATA(fallback), stream};
     *jb = j;
     return 0;
 }
 
-/* convert(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, start, stop):
- * rows start..stop of I and H into the same rows of the outputs (residual written with
- * diagnostics only), a chunk of CH rows at a time, on this thread without the GIL; returns how
- * many of them are fallback. */
+/* convert(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, stream,
+ * start, stop): rows start..stop of I and H into the same rows of the outputs (residual written
+ * with diagnostics only), a chunk of CH rows at a time, on this thread without the GIL, whole
+ * chunks streamed to outputs aligned for it with `stream` (chunk_body); returns how many of them
+ * are fallback. */
 static PyObject *convert(PyObject *self, PyObject *args)
 {
     Job jb;
@@ -404,7 +690,7 @@ static PyObject *convert(PyObject *self, PyObject *args)
     return PyLong_FromSsize_t(lost);
 }
 
-/* share(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, size):
+/* share(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, stream, size):
  * every row, as convert's, in blocks of `size` rows posted to the threads serving, the caller
  * taking blocks too; returns once every row is done, by whichever thread: (rows that fell back,
  * rows this thread converted). While another caller's rows are posted, the caller converts
@@ -474,8 +760,8 @@ static PyObject *one(PyObject *self, PyObject *args)
     uint8_t code;
     npy_bool fallback;
     Job jb = {PyArray_BYTES(In), PyArray_BYTES(H), sizeof(double), 0, sizeof(double), 0, nine, refined, diagnostics,
-              cond_limit, w, &cond, &residual, &code, &fallback};
-    Chunk s; /* about 20 kB of stack */
+              cond_limit, w, &cond, &residual, &code, &fallback, 0};
+    Chunk s; /* about 26 kB of stack */
     convert_chunk(&jb, &s, 0, 1);
     npy_intp three = 3;
     PyObject *wa = PyArray_SimpleNew(1, &three, NPY_FLOAT64);
@@ -532,7 +818,7 @@ static PyObject *stack(PyObject *self, PyObject *args)
               PyArray_STRIDE(H, 1), PyArray_STRIDE(H, 0), nine, refined, diagnostics, cond_limit,
               (double *)PyArray_DATA((PyArrayObject *)w), (double *)PyArray_DATA((PyArrayObject *)cond),
               diagnostics ? (double *)PyArray_DATA((PyArrayObject *)res) : NULL,
-              (uint8_t *)PyArray_DATA((PyArrayObject *)code), fallback};
+              (uint8_t *)PyArray_DATA((PyArrayObject *)code), fallback, 0};
     npy_intp lost = 0;
     Py_BEGIN_ALLOW_THREADS;
     for (npy_intp i = 0; i < n; i += CH)
@@ -588,11 +874,14 @@ static PyMethodDef methods[] = {
     {"one", one, METH_VARARGS, "one(I, nine, H, refined, diagnostics, cond_limit): one body, or None."},
     {"configure", configure, METH_VARARGS, "configure(constants): the constants of hconv's Python modules."},
     {"convert", convert, METH_VARARGS,
-     "convert(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, start, stop)"},
+     "convert(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, stream, start, stop)"},
     {"share", share, METH_VARARGS,
-     "share(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, size)"},
+     "share(I, nine, H, refined, diagnostics, cond_limit, w, cond, code, residual, fallback, stream, size)"},
     {"serve", serve, METH_VARARGS, "serve(linger): take the blocks of shared calls until none comes for linger s."},
     {"serving", serving_now, METH_NOARGS, "serving(): how many threads are in serve() now."},
+    {"outputs", outputs, METH_VARARGS, "outputs(n, diagnostics): a call's output arrays, from the pool's memory."},
+    {"pool", pool, METH_NOARGS, "pool(): what the pool of outputs() keeps, has served, and its limits."},
+    {"release", release, METH_NOARGS, "release(): give back every block the pool keeps."},
     {NULL, NULL, 0, NULL},
 };
 
@@ -606,5 +895,8 @@ PyMODINIT_FUNC PyInit_rowcode(void)
     kernels_of_cpu(names, fns);
     convert_chunk = fns[0];
     on_fork();
-    return PyModule_Create(&module);
+    PyObject *m = PyModule_Create(&module);
+    if (m && PyModule_AddIntConstant(m, "CHUNK_ROWS", CH) < 0)
+        Py_CLEAR(m);
+    return m;
 }

@@ -3,6 +3,9 @@ from typing import Any
 
 import numpy as np
 
+#: rows the C code converts together (its chunk, CH)
+CHUNK_ROWS: int
+
 def configure(constants: dict[str, float], /) -> None: ...
 def kernels() -> list[str]: ...
 def use(name: str, /) -> None: ...
@@ -24,6 +27,7 @@ def convert(
     code: np.ndarray,
     residual: np.ndarray,
     fallback: np.ndarray,
+    stream: bool,
     start: int,
     stop: int,
     /,
@@ -40,8 +44,12 @@ def share(
     code: np.ndarray,
     residual: np.ndarray,
     fallback: np.ndarray,
+    stream: bool,
     size: int,
     /,
 ) -> tuple[int, int]: ...
 def serve(linger: float, /) -> int: ...
 def serving() -> int: ...
+def outputs(n: int, diagnostics: bool, /) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]: ...
+def pool() -> dict[str, float]: ...
+def release() -> None: ...

@@ -19,7 +19,7 @@ static struct {
 /* spectrum.ROOT_NEWTON_STEPS, a constant here so that the loop unrolls; configure() refuses
  * another value. */
 #define NEWTON_STEPS 2
-/* Rows per chunk: the chunk's scratch (39 numbers a row, 20 kB) stays in the L1 cache. */
+/* Rows per chunk: the chunk's scratch (51 numbers a row, 26 kB) stays in the L1 cache. */
 #define CH 64
 /* What the verdict says of a row: the numpy engine must convert it, it has no answer (singular),
  * or it has one. A row whose verdict waits on the largest moment's exact error bound holds
@@ -62,17 +62,24 @@ static inline int final_w(double w0, double w1, double w2)
 /* One chunk's scratch, a column per quantity: the inputs; LDL^T's factors and answer; the
  * verdict's cond, status code, state and safe; a refinement's x, last correction c and whether
  * it goes on (X for the answer's, R for the reference's); the residual and whether the row's
- * answers are final; the largest moment's p, r, q and value, for its exact error bound. Columns
- * of one struct, so that the compiler can prove them apart. */
+ * answers are final; the largest moment's p, r, q and value, for its exact error bound; and the
+ * outputs of a streamed chunk, as they go to memory (chunk_body). Columns of one struct, so that
+ * the compiler can prove them apart. */
 typedef struct {
     double xx[CH], yy[CH], zz[CH], xy[CH], xz[CH], yz[CH], h0[CH], h1[CH], h2[CH];
-    double d1[CH], d2[CH], d3[CH], l21[CH], l31[CH], l32[CH], w0[CH], w1[CH], w2[CH];
+    double d1[CH], d2[CH], d3[CH], l21[CH], l31[CH], l32[CH], w0[CH], w1[CH], w2[CH], i1[CH], i2[CH], i3[CH];
     double cond[CH], code[CH], state[CH], safe[CH];
     double x0[CH], x1[CH], x2[CH], xc[CH], xon[CH];
     double r0[CH], r1[CH], r2[CH], rc[CH], ron[CH];
     double res[CH], fin[CH], asym[CH];
     double ep[CH], er[CH], eq[CH], ehi[CH];
+    double ow[3 * CH], ocond[CH], ores[CH];
+    uint8_t ocode[CH];
+    npy_bool ofb[CH];
 } Chunk;
+/* Copies `bytes` (a multiple of 64) from src to dst (64-byte aligned) with stores that bypass the
+ * caches; a store fence must follow before another thread reads dst (rowcode.c's rows()). */
+typedef void (*StreamFn)(void *restrict dst, const void *restrict src, size_t bytes);
 
 /* The numbers and the verdict of the m rows, with no branch. The numbers: LDL^T
  * (linsolve.ldlt_factor) and its answer (linsolve.ldlt_solve), the closed-form largest and
@@ -161,6 +168,8 @@ HOT static void numbers_chunk(Chunk *restrict s, int m, double cond_limit, int m
         /* only the residual and refinement ask whether a row is in the safe range */
         int sf = more && safe(xx) & safe(yy) & safe(zz) & safe(xy) & safe(xz) & safe(yz) & safe(h0) & safe(h1) & safe(h2);
         s->d1[j] = d1, s->d2[j] = d2, s->d3[j] = d3, s->l21[j] = l21, s->l31[j] = l31, s->l32[j] = l32;
+        if (more) /* for the refinement steps: a multiplication each where a division costs several */
+            s->i1[j] = 1.0 / d1, s->i2[j] = 1.0 / d2, s->i3[j] = 1.0 / d3;
         s->w0[j] = w0, s->w1[j] = w1, s->w2[j] = w2;
         s->cond[j] = cond, s->code[j] = code, s->state[j] = state, s->safe[j] = sf ? 1.0 : 0.0;
         s->ep[j] = p, s->er[j] = r, s->eq[j] = q, s->ehi[j] = hi;
@@ -237,10 +246,10 @@ HOT static void refine_step(const Chunk *restrict s, int j, double *x0, double *
     double y2 = r1 - l21 * y1;
     double y3 = r2 - l31 * y1;
     y3 -= l32 * y2;
-    double dx2 = y3 / s->d3[j];
-    double dx1 = y2 / s->d2[j];
+    double dx2 = y3 * s->i3[j];
+    double dx1 = y2 * s->i2[j];
     dx1 -= l32 * dx2;
-    double dx0 = y1 / s->d1[j];
+    double dx0 = y1 * s->i1[j];
     dx0 -= l21 * dx1;
     dx0 -= l31 * dx2;
     v0 += dx0;
@@ -271,32 +280,42 @@ HOT static void refine_step(const Chunk *restrict s, int j, double *x0, double *
                 double v0 = s->X0[j], v1 = s->X1[j], v2 = s->X2[j], c = s->XC[j], c_next;                   \
                 refine_step(s, j, &v0, &v1, &v2, &c_next, fused);                                                \
                 int o = s->ON[j] == 1.0;                                                                     \
-                double ratio = c_next / c;                                                                   \
                 s->X0[j] = o ? v0 : s->X0[j];                                                                \
                 s->X1[j] = o ? v1 : s->X1[j];                                                                \
                 s->X2[j] = o ? v2 : s->X2[j];                                                                \
                 s->XC[j] = o ? c_next : c;                                                                   \
-                s->ON[j] = o & (ratio < 0.25) & (c_next * ratio > K.stop) & (c_next > K.tiny) ? 1.0 : 0.0;   \
+                int on = (c_next < 0.25 * c) & (c_next * c_next > K.stop * c) & (c_next > K.tiny);           \
+                s->ON[j] = o & on ? 1.0 : 0.0;                                                               \
             }                                                                                                \
         }                                                                                                    \
     }
 /* linsolve._refine of every row from F into X, its stopping rule applied to each row alone: after
  * the first step, a row goes on while its correction shrinks fourfold and the next is predicted
  * above STOP; each round takes a step on every row and keeps it where the row goes on (so the
- * loops have no branch), and rounds stop when no row goes on. Rows without an answer or with
+ * loops have no branch), and rounds stop when no row goes on. The ratio of the corrections
+ * c_next / c is compared by products (c_next < c/4, c_next^2 > STOP c; c > TINY > 0 in a row
+ * that goes on), which saves a division a round; a step's correction is the residual's solve
+ * with the pivots' reciprocals (numbers_chunk), a multiplication where a division costs several.
+ * Both can move a decision or a correction by a rounding, no more (refined is within 2 eps of
+ * the numpy engine's, not its bits). Rows without an answer or with
  * inputs outside the safe range take no further step. One function per pair of columns, so that
  * the compiler sees them apart: from LDL^T's answer into X, and from X into R. */
 REFINE_CHUNK(refine_w_into_x, w0, w1, w2, x0, x1, x2, xc, xon)
 REFINE_CHUNK(refine_x_into_r, x0, x1, x2, r0, r1, r2, rc, ron)
 #undef REFINE_CHUNK
 
-/* metrics.relative_error for one row */
+/* metrics.relative_error for one row, scaled by the reciprocal of its unit where metrics divides
+ * by the unit: one division where there were six. Both norms take the same factor, so its
+ * rounding leaves the ratio as it was but for a rounding of each product; the unit is 0 or at
+ * least SAFE's reciprocal in every row that keeps its residual (fin), so the reciprocal is
+ * finite there. */
 static inline double relative_error(double x0, double x1, double x2, double r0, double r1, double r2)
 {
     double d0 = x0 - r0, d1 = x1 - r1, d2 = x2 - r2;
     double unit = pmax(pmax(fabs(r0), fabs(r1)), fabs(r2));
     unit = ((unit > 0) & (unit <= K.max)) ? unit : 1.0;
-    d0 /= unit, d1 /= unit, d2 /= unit, r0 /= unit, r1 /= unit, r2 /= unit;
+    double iu = 1.0 / unit;
+    d0 *= iu, d1 *= iu, d2 *= iu, r0 *= iu, r1 *= iu, r2 *= iu;
     double num = sqrt(d0 * d0 + d1 * d1 + d2 * d2);
     double den = sqrt(r0 * r0 + r1 * r1 + r2 * r2);
     double ratio = num / (den > 0 ? den : 1.0);
@@ -355,6 +374,7 @@ typedef struct {
     double *w, *cond, *residual;
     uint8_t *code;
     npy_bool *fallback;
+    int stream; /* outputs too large to stay in the caches: stream whole chunks (chunk_body) */
 } Job;
 
 /* m rows of nine numbers each, together (an (N, 3, 3) stack as numpy holds it), into s: each
@@ -437,12 +457,16 @@ HOT static void store_chunk(Chunk *restrict s, int m, const double *restrict a0,
 #undef STORE
 }
 
+#define ALIGNED(p) (((uintptr_t)(p) & 63) == 0)
 /* Rows start..start+m (m <= CH) of the job, through one chunk's scratch. With `fused`, the
  * residual's products have their errors from fma() rather than from Dekker's splits: within the
  * safe range, which every row that keeps its answer is in (linsolve.in_safe_range's rule), both
  * are that error exactly, so the bits are the same; fma() only where the CPU has it (a library
- * fma without it costs far more than the splits). */
-HOT static void chunk_body(const Job *jb, Chunk *restrict s, npy_intp start, int m, int fused)
+ * fma without it costs far more than the splits). With `stream` (not NULL), a whole chunk whose
+ * outputs start on cache lines is stored into the chunk's own columns, then streamed to the
+ * outputs: a store to a line that is not in the cache first reads it from memory, which the
+ * streaming stores skip. */
+HOT static void chunk_body(const Job *jb, Chunk *restrict s, npy_intp start, int m, int fused, StreamFn stream)
 {
 #define AT(base, s0, s1, k, i) (*(const double *)((base) + (k) * (s0) + (i) * (s1)))
     if (jb->nine && jb->Is0 == sizeof(double) && jb->Is1 == 9 * sizeof(double)) {
@@ -484,7 +508,17 @@ HOT static void chunk_body(const Job *jb, Chunk *restrict s, npy_intp start, int
         finish_chunk(s, m, jb->refined, jb->diagnostics, fused);
     const double *a0 = jb->refined ? s->x0 : s->w0, *a1 = jb->refined ? s->x1 : s->w1;
     const double *a2 = jb->refined ? s->x2 : s->w2;
-    store_chunk(s, m, a0, a1, a2, jb->w + 3 * start, jb->cond + start, jb->residual + (jb->diagnostics ? start : 0),
-                jb->code + start, jb->fallback + start, more, jb->diagnostics);
+    double *w = jb->w + 3 * start, *cond = jb->cond + start, *res = jb->residual + (jb->diagnostics ? start : 0);
+    uint8_t *code = jb->code + start;
+    npy_bool *fallback = jb->fallback + start;
+    if (stream && m == CH && ALIGNED(w) && ALIGNED(cond) && ALIGNED(code) && ALIGNED(fallback) &&
+        (!jb->diagnostics || ALIGNED(res))) {
+        store_chunk(s, m, a0, a1, a2, s->ow, s->ocond, s->ores, s->ocode, s->ofb, more, jb->diagnostics);
+        stream(w, s->ow, sizeof s->ow), stream(cond, s->ocond, sizeof s->ocond);
+        stream(code, s->ocode, sizeof s->ocode), stream(fallback, s->ofb, sizeof s->ofb);
+        if (jb->diagnostics)
+            stream(res, s->ores, sizeof s->ores);
+    } else
+        store_chunk(s, m, a0, a1, a2, w, cond, res, code, fallback, more, jb->diagnostics);
 }
 #endif /* HCONV_ROWMATH_H */

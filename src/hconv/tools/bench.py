@@ -172,7 +172,7 @@ def compiled_loop(I: Sym3, H: np.ndarray) -> Callable[[], None]:
     out = (np.empty((n, 3)), np.empty(n), np.empty(n, np.uint8), np.empty(0), np.empty(n, bool))
 
     def loop() -> None:
-        rowcode.convert(I6, False, H, False, False, np.inf, *out, 0, n)
+        rowcode.convert(I6, False, H, False, False, np.inf, *out, False, 0, n)
 
     return loop
 
