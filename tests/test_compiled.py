@@ -568,7 +568,7 @@ def test_outputs_pool_keeps_within_its_limits_and_gives_back_idle_blocks():
     del small
     p = compiled.pool()
     assert p["blocks"] == lim["most_blocks"]  # cond and fallback are under least_bytes: only ω kept
-    assert p["bytes"] == lim["most_blocks"] * 24 * n
+    assert lim["most_blocks"] * 24 * n <= p["bytes"] < lim["most_blocks"] * (24 * n + 4096)  # pages
     for _ in range(50):  # the pool's thread gives them back after idle_seconds, within a second more
         time.sleep(lim["idle_seconds"] / 10)
         if compiled.pool()["blocks"] == 0:
@@ -588,7 +588,7 @@ def test_outputs_pool_lends_a_larger_block_and_gives_back_one_two_calls_left_unu
     smaller = compiled.outputs(n * 9 // 10, False)
     assert smaller[0].ctypes.data == at
     del smaller
-    assert compiled.pool()["bytes"] == 24 * n  # the whole block, not the 90 % numpy freed
+    assert 24 * n <= compiled.pool()["bytes"] < 24 * n + 4096  # the whole block, not the 90 % numpy freed
     again = compiled.outputs(n, False)
     assert again[0].ctypes.data == at
     del again
@@ -597,6 +597,29 @@ def test_outputs_pool_lends_a_larger_block_and_gives_back_one_two_calls_left_unu
         assert compiled.pool()["blocks"] == 1
     compiled.outputs(10, False)
     assert compiled.pool()["blocks"] == 0
+
+
+def test_outputs_forked_child_starts_with_no_kept_block_and_converts(rng):
+    """A child forked while its parent keeps blocks (and while the parent's pool thread may be
+    giving them back) starts with none, which it could never give back without that thread, and
+    its own large calls are right; the parent keeps its blocks."""
+    if not hasattr(os, "fork"):
+        pytest.skip("no fork here")
+    compiled.release()
+    n = 200_000
+    I, H = physical_bodies(rng, n), rng.normal(size=(n, 3))
+    want = hconv.convert(H, I, engine="numpy").w
+    res = hconv.convert(H, I, engine="compiled")
+    del res
+    assert compiled.pool()["blocks"] >= 1
+    pid = os.fork()
+    if pid == 0:  # the child: exit code 0 only if every check holds
+        ok = compiled.pool()["blocks"] == 0
+        ok &= bool(same_bits(hconv.convert(H, I, engine="compiled").w, want))
+        os._exit(0 if ok else 1)
+    _, status = os.waitpid(pid, 0)
+    assert os.waitstatus_to_exitcode(status) == 0
+    assert compiled.pool()["blocks"] >= 1
 
 
 def test_outputs_too_large_names_the_array_that_could_not_be_had():

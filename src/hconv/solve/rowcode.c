@@ -272,12 +272,14 @@ static void yield_core(void) { sched_yield(); }
  * post of a call its parent was converting would still offer blocks, to be written into arrays
  * no caller waits for, and counted in the child's next call: the post is retired (BUSY in a new
  * generation). The child has one thread here. */
+static void pool_fork_prepare(void), pool_fork_parent(void), pool_forked(void); /* below */
 static void forked(void)
 {
-    owned = 0, serving = 0, pool_lock = 0, reaping = 0;
+    owned = 0, serving = 0;
     word = (((word >> 32) + 1) << 32) | BUSY;
+    pool_forked();
 }
-static void on_fork(void) { pthread_atfork(NULL, NULL, forked); }
+static void on_fork(void) { pthread_atfork(pool_fork_prepare, pool_fork_parent, forked); }
 static double seconds(void)
 {
     struct timespec t;
@@ -295,55 +297,82 @@ static double seconds(void)
  * least POOL_MIN bytes that numpy frees, up to POOL_MAX bytes and POOL_SLOTS blocks, for the next
  * calls. Fresh memory costs a page fault and the system's zeroing of each page at its first
  * store; a call in a loop, whose last result the caller has dropped, writes to memory already
- * mapped instead (docs/engines.md). A request takes the smallest kept block that holds it and is
- * at most twice its size (a loop's sizes vary), and the block's whole size is remembered while
- * it is lent (`lent`), since numpy frees it with the size it asked for. A kept block is given
- * back once two calls of outputs() have left it unused (a loop of one or two kinds of call keeps
- * what it dropped last, not older blocks), and POOL_IDLE seconds after it was kept, by a thread
- * of the pool's own, however the program goes on (with or without further calls); release()
- * gives back every block kept. Arrays made with it are ordinary ndarrays that own their data: numpy
- * remembers each array's handler and frees its data through it. Every entry point takes the
- * pool's lock (a spin: each holds it for a few comparisons, or a few frees). Without POSIX
- * threads (MSVC) nothing is kept: there is no thread to give blocks back. */
-/* Smaller blocks come from the C library's heap, which keeps freed ones for reuse itself: glibc
- * maps a block of its own from 128 kB, a threshold it raises to each freed block's size up to
- * 32 MB, or from the 4 MB the hconv command fixes (hconv.kernels.allocator). From POOL_MIN the
- * blocks are asked for huge pages, as numpy asks for its own. */
+ * mapped instead (docs/engines.md). Every block starts HEAD bytes after a header that holds its
+ * size and where it came from: a block of POOL_MIN bytes or more is a mapping of its own, asked
+ * for huge pages as numpy asks for its own, and goes back to the system whole when it is given
+ * back (so that a kept block never fragments the C library's heap); a smaller one comes from the
+ * C library. A request takes the smallest kept block that holds it and is at most twice its size
+ * (a loop's sizes vary); it comes back whole. A kept block is given back once two calls of
+ * outputs() have left it unused (a loop of one or two kinds of call keeps what it dropped last,
+ * not older blocks), and POOL_IDLE seconds after it was kept, by a thread of the pool's own,
+ * however the program goes on; release() gives back every block kept, and a forked child starts
+ * with none. Arrays made with it are ordinary ndarrays that own their data: numpy remembers each
+ * array's handler and frees its data through it. Every entry point takes the pool's lock (a spin
+ * for a few comparisons: blocks are given back after it is let go). Without POSIX threads and
+ * mappings (MSVC) nothing is kept: every block is the C library's. */
 #define POOL_MIN ((size_t)4 << 20)
 #define POOL_MAX ((size_t)128 << 20)
 #define POOL_SLOTS 16
-#define LENT_SLOTS 64
 #define POOL_IDLE 1.0
+#define HEAD 64
 typedef struct {
-    void *at;
+    size_t size; /* the bytes after the header */
+    int mapped;  /* a mapping of its own (else the C library's) */
+} Head;
+typedef struct {
+    char *at;
     size_t size;
-    double since;       /* when it was kept */
-    npy_uint64 call;    /* outputs()'s calls when it was kept */
+    double since;    /* when it was kept */
+    npy_uint64 call; /* outputs()'s calls when it was kept */
 } Block;
-static Block kept[POOL_SLOTS], lent[LENT_SLOTS];
-static int nkept, nlent;
+static Block kept[POOL_SLOTS];
+static int nkept;
 static size_t kept_bytes;
 static npy_uint64 calls;
 static npy_int64 pool_reused, pool_fresh;
 
 static void pool_enter(void)
 {
-    while (!take_slot(&pool_lock))
-        relax();
+    for (unsigned long spins = 0; !take_slot(&pool_lock); spins++)
+        if (spins < SPINS)
+            relax();
+        else
+            yield_core();
 }
 static void pool_leave(void) { give_slot(&pool_lock); }
 
-/* gives back the kept blocks kept before `before`, or left unused by two calls (`every`: all);
- * the lock held */
-static void pool_expire(double before, int every)
+static Head *head_of(void *at) { return (Head *)((char *)at - HEAD); }
+
+/* a block gone back to where it came from */
+static void let_go(void *at)
 {
-    int k = 0;
+    Head *h = head_of(at);
+#if !defined(_MSC_VER)
+    if (h->mapped) {
+        munmap(h, h->size + HEAD);
+        return;
+    }
+#endif
+    free(h);
+}
+
+/* moves the kept blocks kept before `before`, or left unused by two calls (`every`: all), into
+ * `out`, to be let go once the lock is; returns how many. The lock held. */
+static int pool_expire(double before, int every, Block out[POOL_SLOTS])
+{
+    int k = 0, n = 0;
     for (int i = 0; i < nkept; i++)
         if (every || kept[i].since < before || kept[i].call + 2 < calls)
-            free(kept[i].at), kept_bytes -= kept[i].size;
+            out[n++] = kept[i], kept_bytes -= kept[i].size;
         else
             kept[k++] = kept[i];
     nkept = k;
+    return n;
+}
+static void let_go_all(Block *out, int n)
+{
+    for (int i = 0; i < n; i++)
+        let_go(out[i].at);
 }
 
 #if defined(_MSC_VER)
@@ -360,14 +389,16 @@ static void *reaper(void *arg)
 {
     (void)arg;
     for (;;) {
+        Block out[POOL_SLOTS];
         pool_enter();
         double now = seconds(), first = INFINITY;
-        pool_expire(now - POOL_IDLE, 0);
+        int n = pool_expire(now - POOL_IDLE, 0, out);
         for (int i = 0; i < nkept; i++)
             first = pmin(first, kept[i].since);
         if (nkept == 0)
             reaping = 0;
         pool_leave();
+        let_go_all(out, n);
         if (first == INFINITY)
             return NULL;
         snooze(first + POOL_IDLE - now + 0.001);
@@ -384,13 +415,52 @@ static int start_reaper(void)
     pthread_attr_destroy(&a);
     return failed ? -1 : 0;
 }
+/* fork: the parent's pool is held across it, so that the child finds it whole, not half changed
+ * by the parent's reaper; the child, which has no reaper, lets every kept block go (munmap, which
+ * a child may call however many threads its parent had) */
+static void pool_fork_prepare(void) { pool_enter(); }
+static void pool_fork_parent(void) { pool_leave(); }
+static void pool_forked(void)
+{
+    for (int i = 0; i < nkept; i++)
+        let_go(kept[i].at); /* kept blocks are all mappings */
+    nkept = 0, kept_bytes = 0, reaping = 0;
+    pool_lock = 0;
+}
 #endif
+
+/* a new block of `size` bytes after its header; NULL if there is no memory */
+static void *new_block(size_t size)
+{
+    Head *h = NULL;
+    int mapped = 0;
+    if (size > (size_t)-1 - 8192)
+        return NULL;
+#if !defined(_MSC_VER)
+    if (size >= POOL_MIN) {
+        size_t len = (size + HEAD + 4095) & ~(size_t)4095;
+        void *m = mmap(NULL, len, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+        if (m == MAP_FAILED)
+            return NULL;
+#if defined(MADV_HUGEPAGE)
+        madvise(m, len, MADV_HUGEPAGE);
+#endif
+        h = m, mapped = 1, size = len - HEAD;
+    } else if (posix_memalign((void **)&h, 64, size + HEAD))
+        return NULL;
+#else
+    if (!(h = malloc(size + HEAD))) /* malloc's alignment: nothing is streamed without gcc */
+        return NULL;
+#endif
+    h->size = size, h->mapped = mapped;
+    return (char *)h + HEAD;
+}
 
 static void *pool_malloc(void *ctx, size_t size)
 {
     (void)ctx;
-    void *at = NULL;
     if (size >= POOL_MIN) {
+        char *at = NULL;
         pool_enter();
         int best = -1;
         for (int i = 0; i < nkept; i++) /* the smallest that holds it; of equals, the one kept last */
@@ -398,10 +468,8 @@ static void *pool_malloc(void *ctx, size_t size)
                 (best < 0 || kept[i].size < kept[best].size ||
                  (kept[i].size == kept[best].size && kept[i].since >= kept[best].since)))
                 best = i;
-        if (best >= 0 && (kept[best].size == size || nlent < LENT_SLOTS)) {
+        if (best >= 0) {
             at = kept[best].at, kept_bytes -= kept[best].size;
-            if (kept[best].size != size)
-                lent[nlent++] = kept[best];
             kept[best] = kept[--nkept];
             pool_reused++;
         } else
@@ -410,70 +478,59 @@ static void *pool_malloc(void *ctx, size_t size)
         if (at)
             return at;
     }
-#if defined(_MSC_VER) /* _aligned_malloc's blocks need their own free and realloc: malloc's alignment */
-    return malloc(size ? size : 1);
-#else
-    if (posix_memalign(&at, 64, size ? size : 1))
-        return NULL;
-#if defined(__linux__) && defined(MADV_HUGEPAGE)
-    if (size >= POOL_MIN) {
-        uintptr_t lo = ((uintptr_t)at + 4095) & ~(uintptr_t)4095, hi = ((uintptr_t)at + size) & ~(uintptr_t)4095;
-        if (hi > lo)
-            madvise((void *)lo, hi - lo, MADV_HUGEPAGE);
-    }
-#endif
-    return at;
-#endif
+    return new_block(size);
 }
 static void *pool_calloc(void *ctx, size_t n, size_t size)
 {
-    (void)ctx;
-    return calloc(n, size);
+    if (size && n > (size_t)-1 / size)
+        return NULL;
+    void *at = pool_malloc(ctx, n * size);
+    if (at)
+        memset(at, 0, n * size);
+    return at;
 }
-/* the block's whole size, if it was lent larger than asked (then no longer lent); else `size` */
-static size_t unlend(void *at, size_t size)
-{
-    for (int i = 0; i < nlent; i++)
-        if (lent[i].at == at) {
-            size = lent[i].size;
-            lent[i] = lent[--nlent];
-            break;
-        }
-    return size;
-}
-static void *pool_realloc(void *ctx, void *at, size_t size)
-{
-    (void)ctx;
-    pool_enter();
-    unlend(at, 0); /* the C library knows its size; numpy frees it with the new one */
-    pool_leave();
-    return realloc(at, size);
-}
-/* `size` is what numpy asked for (an array's bytes): the block's own, unless it was lent */
 static void pool_free(void *ctx, void *at, size_t size)
 {
-    (void)ctx;
+    (void)ctx, (void)size; /* the header has the block's own size */
+    if (!at)
+        return;
+    Head *h = head_of(at);
     int start = 0;
-    if (at && size >= POOL_MIN) {
+    if (h->mapped) {
         pool_enter();
-        size = unlend(at, size);
-        double now = seconds();
-#if !defined(_MSC_VER)
-        if (ALIGNED(at) && nkept < POOL_SLOTS && kept_bytes + size <= POOL_MAX) {
-            kept[nkept].at = at, kept[nkept].size = size, kept[nkept].since = now, kept[nkept].call = calls;
-            nkept++, kept_bytes += size, at = NULL;
+        if (nkept < POOL_SLOTS && kept_bytes + h->size <= POOL_MAX) {
+            kept[nkept].at = at, kept[nkept].size = h->size, kept[nkept].since = seconds();
+            kept[nkept].call = calls;
+            nkept++, kept_bytes += h->size, at = NULL;
             start = !reaping, reaping = 1;
         }
-#endif
         pool_leave();
     }
-    free(at);
+    if (at)
+        let_go(at);
     if (start && start_reaper() < 0) { /* no thread: nothing kept */
+        Block out[POOL_SLOTS];
         pool_enter();
-        pool_expire(0.0, 1);
+        int n = pool_expire(0.0, 1, out);
         reaping = 0;
         pool_leave();
+        let_go_all(out, n);
     }
+}
+/* a block that holds `size` already stays; else the bytes move to a new one */
+static void *pool_realloc(void *ctx, void *at, size_t size)
+{
+    if (!at)
+        return pool_malloc(ctx, size);
+    size_t had = head_of(at)->size;
+    if (size <= had)
+        return at;
+    void *to = pool_malloc(ctx, size);
+    if (to) {
+        memcpy(to, at, had);
+        pool_free(ctx, at, had);
+    }
+    return to;
 }
 static PyDataMem_Handler pool_handler = {
     "hconv", 1, {NULL, pool_malloc, pool_calloc, pool_realloc, pool_free}};
@@ -493,10 +550,12 @@ static PyObject *outputs(PyObject *self, PyObject *args)
     }
     if (!pool_capsule && !(pool_capsule = PyCapsule_New(&pool_handler, "mem_handler", NULL)))
         return NULL;
+    Block gone[POOL_SLOTS];
     pool_enter();
     calls++;
-    pool_expire(seconds() - POOL_IDLE, 0);
+    int expired = pool_expire(seconds() - POOL_IDLE, 0, gone);
     pool_leave();
+    let_go_all(gone, expired);
     PyObject *before = PyDataMem_SetHandler(pool_capsule);
     if (!before)
         return NULL;
@@ -536,9 +595,11 @@ static PyObject *pool(PyObject *self, PyObject *args)
 }
 static PyObject *release(PyObject *self, PyObject *args)
 {
+    Block out[POOL_SLOTS];
     pool_enter();
-    pool_expire(0.0, 1);
+    int n = pool_expire(0.0, 1, out);
     pool_leave();
+    let_go_all(out, n);
     Py_RETURN_NONE;
 }
 
