@@ -374,6 +374,15 @@ static void let_go_all(Block *out, int n)
     for (int i = 0; i < n; i++)
         let_go(out[i].at);
 }
+/* pool_expire under the lock, then the blocks let go */
+static void give_back(double before, int every)
+{
+    Block out[POOL_SLOTS];
+    pool_enter();
+    int n = pool_expire(before, every, out);
+    pool_leave();
+    let_go_all(out, n);
+}
 
 #if defined(_MSC_VER)
 static int start_reaper(void) { return -1; }
@@ -509,12 +518,10 @@ static void pool_free(void *ctx, void *at, size_t size)
     if (at)
         let_go(at);
     if (start && start_reaper() < 0) { /* no thread: nothing kept */
-        Block out[POOL_SLOTS];
         pool_enter();
-        int n = pool_expire(0.0, 1, out);
-        reaping = 0;
+        reaping = 0; /* first: a block kept meanwhile starts a thread of its own */
         pool_leave();
-        let_go_all(out, n);
+        give_back(0.0, 1);
     }
 }
 /* a block that holds `size` already stays; else the bytes move to a new one */
@@ -550,12 +557,10 @@ static PyObject *outputs(PyObject *self, PyObject *args)
     }
     if (!pool_capsule && !(pool_capsule = PyCapsule_New(&pool_handler, "mem_handler", NULL)))
         return NULL;
-    Block gone[POOL_SLOTS];
     pool_enter();
     calls++;
-    int expired = pool_expire(seconds() - POOL_IDLE, 0, gone);
     pool_leave();
-    let_go_all(gone, expired);
+    give_back(seconds() - POOL_IDLE, 0);
     PyObject *before = PyDataMem_SetHandler(pool_capsule);
     if (!before)
         return NULL;
@@ -595,11 +600,7 @@ static PyObject *pool(PyObject *self, PyObject *args)
 }
 static PyObject *release(PyObject *self, PyObject *args)
 {
-    Block out[POOL_SLOTS];
-    pool_enter();
-    int n = pool_expire(0.0, 1, out);
-    pool_leave();
-    let_go_all(out, n);
+    give_back(0.0, 1);
     Py_RETURN_NONE;
 }
 
